@@ -1,0 +1,198 @@
+"""The surface-mounted PMSM: parameters, the full model, and torque-control mode.
+
+The model is the standard dq model of a surface PMSM (L_d = L_q = L_s), with the signs
+corrected as in PAPER_NOTES.md section 2. With ``gamma = R_s / L_s``, mechanical speed
+``speed`` (rad/s) and electrical speed ``p * speed``::
+
+    di_d/dt = -gamma i_d + p speed i_q                        + u_d / L_s
+    di_q/dt = -p speed i_d - gamma i_q - p speed phi_pm / L_s + u_q / L_s
+    T_e     = (3 p / 2) phi_pm i_q
+    J dspeed/dt = T_e - T_L
+
+In torque-control mode the speed is held by the load machine, and the current dynamics
+are linear. The torque reference ``T*`` asks for ``i_q* = 2 T* / (3 p phi_pm)``, ``i_d* = 0``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ._validation import as_vector, finite_float, positive_finite
+from .errors import InputError
+from .regulation import RegulationProblem
+
+__all__ = ["SPMSM"]
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SPMSM:
+    """Surface-mounted permanent-magnet synchronous motor (SI units).
+
+    Parameters
+    ----------
+    R_s : float
+        Stator resistance, ohm.
+    L_s : float
+        Stator inductance (L_d = L_q), H.
+    phi_pm : float
+        Permanent-magnet flux linkage, Wb.
+    p : int
+        Number of pole pairs.
+    J : float, optional
+        Rotor inertia, kg m^2; needed only by the full model with speed as a state.
+
+    Raises
+    ------
+    InputError
+        (a ``ValueError``) naming the field, if a value is not positive and finite, or
+        ``p`` is not a positive integer.
+
+    Examples
+    --------
+    >>> motor = SPMSM.paper()
+    >>> A, B = motor.torque_mode(speed=10.0)
+    """
+
+    R_s: float
+    L_s: float
+    phi_pm: float
+    p: int
+    J: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("R_s", "L_s", "phi_pm"):
+            object.__setattr__(self, name, positive_finite(getattr(self, name), name))
+        pole_pairs = positive_finite(self.p, "p")
+        if pole_pairs != int(pole_pairs):
+            raise InputError(f"p: the number of pole pairs must be a whole number, got {self.p!r}")
+        object.__setattr__(self, "p", int(pole_pairs))
+        if self.J is not None:
+            object.__setattr__(self, "J", positive_finite(self.J, "J"))
+
+    @classmethod
+    def paper(cls) -> SPMSM:
+        """The reconciled parameters that reproduce every number the paper prints.
+
+        ``R_s = 0.439 ohm, L_s = 0.0601 H, phi_pm = 0.46 Wb, p = 2, J = 0.0163 kg m^2``
+        (PAPER_NOTES.md, erratum 1).
+        """
+        return cls(R_s=0.439, L_s=0.0601, phi_pm=0.46, p=2, J=0.0163)
+
+    @classmethod
+    def paper_table(cls) -> SPMSM:
+        """Table II of the paper as printed (``L_s = 0.0615 H, phi_pm = 0.5 Wb``).
+
+        These values do not reproduce the paper's results; see :meth:`paper`.
+        """
+        return cls(R_s=0.439, L_s=0.0615, phi_pm=0.5, p=2, J=0.0163)
+
+    @property
+    def gamma(self) -> float:
+        """``R_s / L_s``, 1/s."""
+        return self.R_s / self.L_s
+
+    # -- full model ---------------------------------------------------------------------
+
+    def torque(self, i_q: ArrayLike) -> Array:
+        """Electromagnetic torque ``(3 p / 2) phi_pm i_q``, N m (``i_q`` in A)."""
+        return 1.5 * self.p * self.phi_pm * np.asarray(i_q, dtype=float)
+
+    def full_model(self, x: ArrayLike, u: ArrayLike, load_torque: float = 0.0) -> Array:
+        """Time derivative of the full model with speed as a state (eq. 1, corrected).
+
+        Parameters
+        ----------
+        x : array_like, shape (3,)
+            ``[i_d (A), i_q (A), speed (rad/s, mechanical)]``.
+        u : array_like, shape (2,)
+            ``[u_d, u_q]``, V.
+        load_torque : float
+            Load torque ``T_L``, N m.
+
+        Returns
+        -------
+        ndarray, shape (3,)
+            ``[di_d/dt, di_q/dt, dspeed/dt]``.
+
+        Raises
+        ------
+        InputError
+            If the inertia ``J`` was not given.
+        """
+        if self.J is None:
+            raise InputError("J: the full model needs the rotor inertia J")
+        i_d, i_q, speed = as_vector(x, "x", 3)
+        u_d, u_q = as_vector(u, "u", 2)
+        electrical_speed = self.p * speed
+        return np.array(
+            [
+                -self.gamma * i_d + electrical_speed * i_q + u_d / self.L_s,
+                -electrical_speed * i_d
+                - self.gamma * i_q
+                - electrical_speed * self.phi_pm / self.L_s
+                + u_q / self.L_s,
+                (float(self.torque(i_q)) - finite_float(load_torque, "load_torque")) / self.J,
+            ]
+        )
+
+    # -- torque-control mode ------------------------------------------------------------
+
+    def torque_mode(self, speed: float) -> tuple[Array, Array]:
+        """``(A, B)`` of the current dynamics at a held mechanical speed (rad/s)."""
+        electrical_speed = self.p * finite_float(speed, "speed")
+        A = np.array([[-self.gamma, electrical_speed], [-electrical_speed, -self.gamma]])
+        B = np.eye(2) / self.L_s
+        return A, B
+
+    def exogenous(self, speed: float, torque: float) -> Array:
+        """``w = [p speed phi_pm, T*]`` of the known-flux regulation form (eq. 8)."""
+        speed = finite_float(speed, "speed")
+        return np.array([self.p * speed * self.phi_pm, finite_float(torque, "torque")])
+
+    def regulation_problem(self, speed: float) -> RegulationProblem:
+        """The known-flux output-regulation form (eq. 8, corrected sign of D).
+
+        ``w = [p speed phi_pm, T*]``, ``e = [i_d, i_q - i_q*]``::
+
+            D = [[0, 0], [-1/L_s, 0]],  F = [[0, 0], [0, -2/(3 p phi_pm)]],  C = I,  E = 0
+        """
+        A, B = self.torque_mode(speed)
+        D = np.array([[0.0, 0.0], [-1.0 / self.L_s, 0.0]])
+        F = np.array([[0.0, 0.0], [0.0, -2.0 / (3.0 * self.p * self.phi_pm)]])
+        return RegulationProblem(A=A, B=B, C=np.eye(2), D=D, E=np.zeros((2, 2)), F=F)
+
+    def no_load_exogenous(self, speed: float) -> Array:
+        """``w = [p speed]`` of the no-load, unknown-flux form (eq. 15)."""
+        return np.array([self.p * finite_float(speed, "speed")])
+
+    def no_load_problem(self, speed: float) -> RegulationProblem:
+        """The no-load, unknown-flux form (eq. 15, corrected sign): ``T* = 0``, ``w = [p speed]``.
+
+        ``D = [[0], [-phi_pm / L_s]]``, ``F = 0``, ``C = I``, ``E = 0``; hence ``X* = 0``.
+        """
+        A, B = self.torque_mode(speed)
+        D = np.array([[0.0], [-self.phi_pm / self.L_s]])
+        return RegulationProblem(A=A, B=B, C=np.eye(2), D=D, E=np.zeros((1, 1)), F=np.zeros((2, 1)))
+
+    def current_reference(self, torque: float) -> Array:
+        """``x_e = [0, 2 T* / (3 p phi_pm)]``, A, for the torque reference ``T*`` (N m)."""
+        return np.array([0.0, 2.0 * finite_float(torque, "torque") / (3.0 * self.p * self.phi_pm)])
+
+    def equilibrium(self, speed: float, torque: float) -> tuple[Array, Array]:
+        """The operating point ``(x_e, u_e)`` in closed form (eq. 3, corrected sign).
+
+        ``x_e = [0, i_q*]`` and ``u_e = [-p speed L_s i_q*, R_s i_q* + p speed phi_pm]``
+        (A and V). The same point is ``(X* w, U* w)`` of :meth:`regulation_problem`.
+        """
+        x_e = self.current_reference(torque)
+        electrical_speed = self.p * finite_float(speed, "speed")
+        i_q = x_e[1]
+        u_e = np.array(
+            [-electrical_speed * self.L_s * i_q, self.R_s * i_q + electrical_speed * self.phi_pm]
+        )
+        return x_e, u_e
