@@ -1,0 +1,196 @@
+"""Sampled data of a plant: the only thing the learners see.
+
+A :class:`Trajectory` holds N samples (N + 1 sample times) of a plant
+``x' = A x + B u + D w``:
+
+- ``t`` (N + 1,): strictly increasing sample times, s;
+- ``x`` (N + 1, n): the state at each sample time;
+- ``u`` (N, m): the input, ``u[k]`` held over ``[t[k], t[k+1])`` (zero-order hold);
+- ``w`` (N + 1, q) or (N, q), optional: the exogenous signal.
+
+What ``w`` means depends on the exosystem matrix E that the learner is given:
+
+- ``E = 0``: ``w[k]`` is held over ``[t[k], t[k+1])`` like ``u`` (a digital reference
+  that may step at sample instants); a last row, if present, is unused.
+- ``E != 0``: ``w[k]`` is the exosystem state ``w' = E w`` sampled at ``t[k]``; all
+  N + 1 rows are needed.
+
+File formats (CSV and NPZ) live in :mod:`selftune.io`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .errors import InputError
+
+__all__ = ["Trajectory", "as_trajectories"]
+
+Array = NDArray[np.float64]
+
+
+def _as_2d(value: ArrayLike, name: str) -> Array:
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"Trajectory.{name}: not numeric ({exc})") from None
+    if array.ndim == 1:
+        array = array.reshape(-1, 1)
+    if array.ndim != 2:
+        raise InputError(
+            f"Trajectory.{name}: expected a 2-D array (samples x channels), got shape {array.shape}"
+        )
+    return array
+
+
+def _check_finite(array: Array, name: str) -> None:
+    bad = ~np.isfinite(array)
+    if np.any(bad):
+        row = int(np.argwhere(bad)[0][0])
+        raise InputError(f"Trajectory.{name}: NaN or infinite value at sample {row}")
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Samples of a plant's state, input and exogenous signal (SI units).
+
+    Parameters
+    ----------
+    t : array_like, shape (N + 1,)
+        Sample times, s, strictly increasing.
+    x : array_like, shape (N + 1, n)
+        State at each sample time.
+    u : array_like, shape (N, m) or (N + 1, m)
+        Input held over each sample; a last row (N + 1 rows) is dropped.
+    w : array_like, shape (N + 1, q) or (N, q), optional
+        Exogenous signal at each sample time (see the module docstring).
+
+    Raises
+    ------
+    InputError
+        If times are not strictly increasing, shapes do not match, there is no sample,
+        or a value is not finite; the message names the field and the sample.
+    """
+
+    t: Array
+    x: Array
+    u: Array
+    w: Array | None = None
+
+    def __post_init__(self) -> None:
+        try:
+            t = np.array(self.t, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"Trajectory.t: not numeric ({exc})") from None
+        if t.ndim != 1:
+            raise InputError(f"Trajectory.t: expected a 1-D array, got shape {t.shape}")
+        if t.shape[0] < 2:
+            raise InputError(
+                f"Trajectory.t: need at least 2 sample times (1 sample), got {t.shape[0]}"
+            )
+        _check_finite(t, "t")
+        steps = np.diff(t)
+        if np.any(steps <= 0.0):
+            k = int(np.argmax(steps <= 0.0))
+            raise InputError(
+                f"Trajectory.t: times must be strictly increasing, but t[{k + 1}] = "
+                f"{t[k + 1]!r} <= t[{k}] = {t[k]!r}"
+            )
+        count = t.shape[0]
+        x = _as_2d(self.x, "x")
+        if x.shape[0] != count:
+            raise InputError(
+                f"Trajectory.x: expected {count} rows (one per sample time), got {x.shape[0]}"
+            )
+        u = _as_2d(self.u, "u")
+        if u.shape[0] == count:
+            u = u[:-1]
+        if u.shape[0] != count - 1:
+            raise InputError(
+                f"Trajectory.u: expected {count - 1} rows (held inputs) or {count}, "
+                f"got {u.shape[0]}"
+            )
+        w = None
+        if self.w is not None:
+            w = _as_2d(self.w, "w")
+            if w.shape[0] not in (count - 1, count):
+                raise InputError(
+                    f"Trajectory.w: expected {count} rows (one per sample time) or "
+                    f"{count - 1} (held values), got {w.shape[0]}"
+                )
+            if w.shape[1] == 0:
+                w = None
+        for name, array in (("x", x), ("u", u), ("w", w)):
+            if array is not None:
+                _check_finite(array, name)
+                if array.shape[1] == 0:
+                    raise InputError(f"Trajectory.{name}: has no channels")
+                array.setflags(write=False)
+        t.setflags(write=False)
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "u", u)
+        object.__setattr__(self, "w", w)
+
+    @property
+    def num_samples(self) -> int:
+        """N, the number of held-input samples."""
+        return int(self.u.shape[0])
+
+    @property
+    def n(self) -> int:
+        """State dimension."""
+        return int(self.x.shape[1])
+
+    @property
+    def m(self) -> int:
+        """Input dimension."""
+        return int(self.u.shape[1])
+
+    @property
+    def q(self) -> int:
+        """Exogenous-signal dimension (0 without w)."""
+        return 0 if self.w is None else int(self.w.shape[1])
+
+    @property
+    def duration(self) -> float:
+        """``t[-1] - t[0]``, s: how much plant data this is."""
+        return float(self.t[-1] - self.t[0])
+
+    def head(self, num_samples: int) -> Trajectory:
+        """The first ``num_samples`` samples (``num_samples + 1`` sample times)."""
+        if not 1 <= num_samples <= self.num_samples:
+            raise InputError(
+                f"head: num_samples must be between 1 and {self.num_samples}, got {num_samples}"
+            )
+        stop = num_samples + 1
+        w = None if self.w is None else self.w[: min(stop, self.w.shape[0])]
+        return Trajectory(t=self.t[:stop], x=self.x[:stop], u=self.u[:num_samples], w=w)
+
+
+def as_trajectories(data: Trajectory | Sequence[Trajectory]) -> list[Trajectory]:
+    """One trajectory or several (episodes) as a non-empty list of consistent trajectories.
+
+    Raises
+    ------
+    InputError
+        If the list is empty or the episodes differ in n, m or q.
+    """
+    episodes = [data] if isinstance(data, Trajectory) else list(data)
+    if not episodes:
+        raise InputError("no trajectory given")
+    for index, episode in enumerate(episodes):
+        if not isinstance(episode, Trajectory):
+            kind = type(episode).__name__
+            raise InputError(f"episode {index}: expected a Trajectory, got {kind}")
+        first = episodes[0]
+        if (episode.n, episode.m, episode.q) != (first.n, first.m, first.q):
+            raise InputError(
+                f"episode {index}: dimensions (n, m, q) = {(episode.n, episode.m, episode.q)} "
+                f"differ from episode 0's {(first.n, first.m, first.q)}"
+            )
+    return episodes
