@@ -180,17 +180,19 @@ def as_trajectories(data: Trajectory | Sequence[Trajectory]) -> list[Trajectory]
     InputError
         If the list is empty or the episodes differ in n, m or q.
     """
-    episodes = [data] if isinstance(data, Trajectory) else list(data)
-    if not episodes:
+    given: list[object] = [data] if isinstance(data, Trajectory) else list(data)
+    if not given:
         raise InputError("no trajectory given")
-    for index, episode in enumerate(episodes):
+    episodes: list[Trajectory] = []
+    for index, episode in enumerate(given):
         if not isinstance(episode, Trajectory):
             kind = type(episode).__name__
             raise InputError(f"episode {index}: expected a Trajectory, got {kind}")
-        first = episodes[0]
+        first = episodes[0] if episodes else episode
         if (episode.n, episode.m, episode.q) != (first.n, first.m, first.q):
             raise InputError(
                 f"episode {index}: dimensions (n, m, q) = {(episode.n, episode.m, episode.q)} "
                 f"differ from episode 0's {(first.n, first.m, first.q)}"
             )
+        episodes.append(episode)
     return episodes
