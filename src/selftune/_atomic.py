@@ -1,0 +1,69 @@
+"""Atomic file output: a result file is either complete or absent, never partial."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+__all__ = ["atomic_path", "to_jsonable", "write_json", "write_text"]
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike[str], suffix: str = "") -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; on success move it over ``path`` atomically.
+
+    On any exception the temporary file is removed and ``path`` is left untouched.
+    ``suffix`` gives the temporary file an extension (some writers, e.g. numpy's
+    ``savez`` or matplotlib's ``savefig``, choose a format by it).
+    """
+    target = Path(path)
+    directory = target.parent if str(target.parent) else Path(".")
+    handle, temporary_name = tempfile.mkstemp(
+        prefix=f".{target.name}.",
+        suffix=suffix or ".tmp",
+        dir=directory,
+    )
+    os.close(handle)
+    temporary = Path(temporary_name)
+    try:
+        yield temporary
+        os.replace(temporary, target)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise
+
+
+def write_text(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    with atomic_path(path) as temporary:
+        temporary.write_text(text, encoding="utf-8")
+
+
+def _write_with(path: str | os.PathLike[str], writer: Callable[[IO[str]], None]) -> None:
+    with atomic_path(path) as temporary, temporary.open("w", encoding="utf-8") as stream:
+        writer(stream)
+
+
+def to_jsonable(value: Any) -> Any:
+    """Convert numpy arrays and scalars (recursively, in dicts, lists, tuples) to JSON types."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, dict):
+        return {str(key): to_jsonable(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [to_jsonable(item) for item in value]
+    return value
+
+
+def write_json(path: str | os.PathLike[str], data: Any) -> None:
+    """Write ``data`` as indented JSON atomically; numpy values become lists and numbers."""
+    _write_with(path, lambda stream: json.dump(to_jsonable(data), stream, indent=2))
