@@ -1,0 +1,281 @@
+"""Reading TOML configuration: the generic helpers and MOTOR.toml."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from selftune import SPMSM, DataFileError, InputError
+from selftune.config import (
+    ConfigFile,
+    ConfigTable,
+    MotorConfig,
+    load_motor_config,
+    read_toml,
+)
+
+MOTOR_TOML = """\
+[motor]            # R_s, L_s, phi_pm, p, and optional J
+R_s = 0.439
+L_s = 0.0601
+phi_pm = 0.46
+p = 2
+[operating_point]  # mechanical speed in rad/s, torque reference in N m
+speed = 10.0
+torque = 10.0
+[cost]             # weights of the cost (5); both symmetric positive definite
+Q = [[1000.0, 0.0], [0.0, 1000.0]]
+R = [[1.0, 0.0], [0.0, 1.0]]
+"""
+
+
+def write(tmp_path: Path, text: str, name: str = "motor.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def load_error(tmp_path: Path, text: str) -> str:
+    path = write(tmp_path, text)
+    with pytest.raises(DataFileError) as info:
+        load_motor_config(path)
+    message = str(info.value)
+    assert "\n" not in message
+    assert message.startswith(f"{path}: ")
+    return message[len(f"{path}: ") :]
+
+
+# -- the motor file ---------------------------------------------------------------------
+
+
+def test_the_documented_file_is_the_paper_setting(tmp_path: Path) -> None:
+    config = load_motor_config(write(tmp_path, MOTOR_TOML))
+    default = MotorConfig.default()
+    assert config.motor.R_s == 0.439
+    assert config.motor.L_s == 0.0601
+    assert config.motor.phi_pm == 0.46
+    assert config.motor.p == 2
+    assert isinstance(config.motor.p, int)
+    assert config.motor.J is None
+    assert (config.speed, config.torque) == (default.speed, default.torque) == (10.0, 10.0)
+    np.testing.assert_array_equal(config.Q, default.Q)
+    np.testing.assert_array_equal(config.R, default.R)
+    assert dict(config.learning) == {}
+    assert config.source == str(tmp_path / "motor.toml")
+
+
+def test_default_is_the_paper_preset() -> None:
+    config = MotorConfig.default()
+    assert config.motor == SPMSM.paper()
+    np.testing.assert_array_equal(config.Q, 1e3 * np.eye(2))
+    np.testing.assert_array_equal(config.R, np.eye(2))
+    assert config.source == "paper preset"
+    np.testing.assert_allclose(config.exogenous(), [2 * 10.0 * 0.46, 10.0])
+    np.testing.assert_array_equal(
+        config.regulation_problem().A, SPMSM.paper().regulation_problem(10.0).A
+    )
+
+
+def test_optional_tables_and_keys_take_the_paper_defaults(tmp_path: Path) -> None:
+    text = (
+        "[motor]\nR_s = 1\nL_s = 0.01\nphi_pm = 0.1\np = 4\nJ = 0.002\n"
+        "[cost]\nR = [[2, 0], [0, 3]]\n"
+    )
+    config = load_motor_config(write(tmp_path, text))
+    assert config.motor == SPMSM(R_s=1.0, L_s=0.01, phi_pm=0.1, p=4, J=0.002)
+    assert (config.speed, config.torque) == (10.0, 10.0)
+    np.testing.assert_array_equal(config.Q, 1e3 * np.eye(2))
+    np.testing.assert_array_equal(config.R, np.diag([2.0, 3.0]))
+
+
+def test_operating_point_may_be_zero_or_negative(tmp_path: Path) -> None:
+    text = MOTOR_TOML.replace("speed = 10.0", "speed = -50").replace("torque = 10.0", "torque = 0")
+    config = load_motor_config(write(tmp_path, text))
+    assert (config.speed, config.torque) == (-50.0, 0.0)
+
+
+def test_whole_float_pole_pairs_are_accepted(tmp_path: Path) -> None:
+    config = load_motor_config(write(tmp_path, MOTOR_TOML.replace("p = 2", "p = 3.0")))
+    assert config.motor.p == 3
+    assert isinstance(config.motor.p, int)
+
+
+def test_a_learning_table_is_kept_raw(tmp_path: Path) -> None:
+    text = MOTOR_TOML + "[learning]\nsampling = 1e-5\nK0 = [[62.8, 0], [0, 62.8]]\nanything = 'x'\n"
+    config = load_motor_config(write(tmp_path, text))
+    assert config.learning == {
+        "sampling": 1e-5,
+        "K0": [[62.8, 0], [0, 62.8]],
+        "anything": "x",
+    }
+    with pytest.raises(TypeError):
+        config.learning["sampling"] = 1.0  # type: ignore[index]
+
+
+def test_motor_config_is_frozen_and_checks_its_fields() -> None:
+    config = MotorConfig.default()
+    with pytest.raises(AttributeError):
+        config.speed = 3.0  # type: ignore[misc]
+    with pytest.raises(ValueError):
+        config.Q[0, 0] = 1.0
+    with pytest.raises(InputError, match="R: must be positive definite"):
+        MotorConfig(motor=SPMSM.paper(), R=np.zeros((2, 2)))
+    with pytest.raises(InputError, match="speed"):
+        MotorConfig(motor=SPMSM.paper(), speed=float("nan"))
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "expected"),
+    [
+        ("L_s = 0.0601\n", "", "[motor] L_s: missing"),
+        ("p = 2\n", "", "[motor] p: missing"),
+        (
+            "L_s =",
+            "Ls =",
+            "[motor] Ls: unknown key (known: R_s, L_s, phi_pm, p, J; did you mean L_s?)",
+        ),
+        ("speed =", "sped =", "[operating_point] sped: unknown key"),
+        ("R_s = 0.439", "R_s = 0", "[motor] R_s: must be positive, got 0"),
+        ("phi_pm = 0.46", "phi_pm = -0.46", "[motor] phi_pm: must be positive"),
+        ("R_s = 0.439", "R_s = nan", "[motor] R_s: must be finite, got nan"),
+        ("L_s = 0.0601", "L_s = inf", "[motor] L_s: must be finite"),
+        ("L_s = 0.0601", "L_s = '0.0601'", "[motor] L_s: must be a number, got a string"),
+        ("p = 2", "p = 2.5", "[motor] p: must be a whole number, got 2.5"),
+        ("p = 2", "p = true", "[motor] p: must be a number, got a boolean"),
+        ("p = 2", "p = 0", "[motor] p: must be positive"),
+        ("speed = 10.0", "speed = nan", "[operating_point] speed: must be finite"),
+        ("torque = 10.0", "torque = [1.0]", "[operating_point] torque: must be a number"),
+        (
+            "Q = [[1000.0, 0.0], [0.0, 1000.0]]",
+            "Q = [[1000.0, 1.0], [0.0, 1000.0]]",
+            "[cost] Q: must be symmetric positive definite (it is not symmetric)",
+        ),
+        (
+            "Q = [[1000.0, 0.0], [0.0, 1000.0]]",
+            "Q = [[1000.0, 0.0], [0.0, 0.0]]",
+            "[cost] Q: must be symmetric positive definite (smallest eigenvalue 0)",
+        ),
+        (
+            "R = [[1.0, 0.0], [0.0, 1.0]]",
+            "R = [[1.0, 2.0], [2.0, 1.0]]",
+            "[cost] R: must be symmetric positive definite (smallest eigenvalue -1)",
+        ),
+        (
+            "Q = [[1000.0, 0.0], [0.0, 1000.0]]",
+            "Q = [[1000.0, 0.0, 0.0], [0.0, 1000.0, 0.0]]",
+            "[cost] Q: must be a 2x2 matrix, got 2x3",
+        ),
+        ("R = [[1.0, 0.0], [0.0, 1.0]]", "R = [1.0, 1.0]", "[cost] R: must be a 2x2 matrix"),
+        ("R = [[1.0, 0.0], [0.0, 1.0]]", "R = 1.0", "[cost] R: must be a 2x2 matrix"),
+        ("R = [[1.0, 0.0], [0.0, 1.0]]", "R = [[1.0, 0.0], [0.0]]", "[cost] R: rows have"),
+        ("R = [[1.0, 0.0], [0.0, 1.0]]", "R = [[1.0, 0.0], [0.0, nan]]", "[cost] R: contains NaN"),
+        ("R = [[1.0, 0.0], [0.0, 1.0]]", "R = [[1.0, 0.0], [0.0, '1']]", "[cost] R: entries must"),
+        ("[cost]", "[costs]", "costs: unknown table (known: [motor], [operating_point], [cost]"),
+        ("[motor]", "[Motor]", "Motor: unknown table"),
+        ("[motor]            # R_s, L_s, phi_pm, p, and optional J\n", "", "R_s: a key outside"),
+    ],
+)
+def test_bad_values_name_the_table_and_key(
+    tmp_path: Path, old: str, new: str, expected: str
+) -> None:
+    assert old in MOTOR_TOML
+    message = load_error(tmp_path, MOTOR_TOML.replace(old, new, 1))
+    assert message.startswith(expected), message
+
+
+def test_a_known_table_given_as_a_value_is_named(tmp_path: Path) -> None:
+    text = "cost = 1\n" + MOTOR_TOML[: MOTOR_TOML.index("[cost]")]
+    assert load_error(tmp_path, text) == "cost: must be a table [cost], got a number"
+
+
+def test_a_missing_motor_table_is_named(tmp_path: Path) -> None:
+    assert load_error(tmp_path, "[cost]\n") == "[motor]: missing table"
+
+
+def test_an_empty_file_lacks_the_motor_table(tmp_path: Path) -> None:
+    assert load_error(tmp_path, "") == "[motor]: missing table"
+
+
+# -- reading TOML -----------------------------------------------------------------------
+
+
+def test_read_toml_names_an_unreadable_file(tmp_path: Path) -> None:
+    missing = tmp_path / "absent.toml"
+    with pytest.raises(DataFileError, match=r"absent\.toml: cannot read the file"):
+        read_toml(missing)
+    with pytest.raises(DataFileError, match="cannot read the file"):
+        read_toml(tmp_path)
+
+
+def test_read_toml_names_a_file_that_is_not_toml(tmp_path: Path) -> None:
+    with pytest.raises(DataFileError, match=r"bad\.toml: not a valid TOML file \(.*line 1"):
+        read_toml(write(tmp_path, "this is = = not toml\n", "bad.toml"))
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(b"\xff\xfe\x00")
+    with pytest.raises(DataFileError, match=r"binary\.toml: not a TOML file \(not UTF-8"):
+        read_toml(binary)
+
+
+def test_read_toml_returns_the_document(tmp_path: Path) -> None:
+    assert read_toml(write(tmp_path, "[a]\nb = 1\n")) == {"a": {"b": 1}}
+
+
+# -- the generic table helpers ----------------------------------------------------------
+
+
+def test_table_getters() -> None:
+    table = ConfigTable(
+        "f.toml",
+        "learning",
+        {"n": 3, "x": -2.5, "M": [[1, 2, 3]], "S": [[2.0, 1.0], [1.0, 2.0]]},
+    )
+    assert table.number("x") == -2.5
+    assert table.number("absent", 4.0) == 4.0
+    assert table.positive("n") == 3.0
+    assert table.positive_integer("n") == 3
+    assert table.positive_integer("absent", 7) == 7
+    np.testing.assert_array_equal(table.matrix("M", (1, None)), [[1.0, 2.0, 3.0]])
+    np.testing.assert_array_equal(table.matrix("absent", (2, 2), np.eye(2)), np.eye(2))
+    np.testing.assert_array_equal(table.positive_definite("S", 2), [[2.0, 1.0], [1.0, 2.0]])
+    assert "n" in table
+    assert "absent" not in table
+
+
+@pytest.mark.parametrize(
+    ("call", "expected"),
+    [
+        (lambda t: t.number("absent"), "f.toml: [learning] absent: missing"),
+        (lambda t: t.positive("x"), "f.toml: [learning] x: must be positive, got -2.5"),
+        (lambda t: t.positive_integer("x"), "f.toml: [learning] x: must be positive"),
+        (lambda t: t.matrix("M", (2, None)), "f.toml: [learning] M: must be a 2xn matrix, got 1x3"),
+        (lambda t: t.matrix("x", (2, 2)), "f.toml: [learning] x: must be a 2x2 matrix"),
+        (lambda t: t.positive_definite("M", 3), "f.toml: [learning] M: must be a 3x3 matrix"),
+    ],
+)
+def test_table_getter_errors(call: object, expected: str) -> None:
+    table = ConfigTable("f.toml", "learning", {"x": -2.5, "M": [[1, 2, 3]]})
+    with pytest.raises(DataFileError) as info:
+        call(table)  # type: ignore[operator]
+    assert str(info.value).startswith(expected), str(info.value)
+
+
+def test_table_known_keys_catch_typos() -> None:
+    with pytest.raises(DataFileError, match=r"\[learning\] sampeling: unknown key .*sampling\?"):
+        ConfigTable("f.toml", "learning", {"sampeling": 1e-5}, known_keys=["sampling", "K0"])
+    with pytest.raises(DataFileError, match="did you mean K0"):
+        ConfigTable("f.toml", "learning", {"k0": 1}, known_keys=["sampling", "K0"])
+
+
+def test_config_file_tables(tmp_path: Path) -> None:
+    path = write(tmp_path, "[a]\nx = 1\n[b]\nanything = 2\n")
+    config = ConfigFile(path, {"a": ("x",), "b": (), "c": ("y",)})
+    assert config.table("a").number("x") == 1.0
+    assert config.table("b").number("anything") == 2.0
+    assert "c" not in config
+    assert "y" not in config.table("c")
+    with pytest.raises(DataFileError, match=r"\[c\]: missing table"):
+        config.table("c", required=True)
+    with pytest.raises(DataFileError, match=r"\[a\] x: unknown key"):
+        ConfigFile(path, {"a": ("y",), "b": ()}).table("a")
