@@ -36,7 +36,7 @@ off-policy iteration (one batch of data reused for every j) cheap.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -298,7 +298,10 @@ def _rank(singular_values: Array) -> int:
 
 
 def solve_regression(
-    problem: Regression, *, allow_deficient: Sequence[str] = ()
+    problem: Regression,
+    *,
+    allow_deficient: Sequence[str] = (),
+    known: Mapping[str, Array] | None = None,
 ) -> RegressionSolution:
     """Solve ``Psi Theta = b`` in the least-squares sense, after checking excitation.
 
@@ -307,6 +310,11 @@ def solve_regression(
     the minimum-norm one (the paper's Algorithm 1 does this with the M block) and
     :attr:`RegressionSolution.deficient_blocks` says so.
 
+    ``known`` gives blocks already learned (their part of Theta, e.g.
+    ``{"P": vecs(P), "K": vec(K)}``): their columns move to the right-hand side and only
+    the other blocks are solved for -- the paper's eq. 13 (Algorithm 2, second step).
+    The returned theta is still the whole vector, with the known parts as given.
+
     Raises
     ------
     ExcitationError
@@ -314,9 +322,31 @@ def solve_regression(
         rank: the message gives the rank found, the rank needed, the block, and what to
         change in the experiment.
     """
-    Psi, b = problem.Psi, problem.b
+    known = dict(known or {})
+    all_blocks = problem.blocks
+    for name, values in known.items():
+        if name not in all_blocks:
+            raise InputError(f"known: no block {name!r} (blocks: {', '.join(all_blocks)})")
+        size = all_blocks[name].stop - all_blocks[name].start
+        if np.shape(values) != (size,):
+            raise InputError(f"known[{name!r}]: expected length {size}, got {np.shape(values)}")
+    free = [name for name in all_blocks if name not in known]
+    if not free:
+        raise InputError("known: every block is given; nothing to solve for")
+    b = problem.b.copy()
+    for name, values in known.items():
+        b -= problem.Psi[:, all_blocks[name]] @ np.asarray(values, dtype=float)
+    free_columns = np.concatenate(
+        [np.arange(all_blocks[n].start, all_blocks[n].stop) for n in free]
+    )
+    Psi = problem.Psi[:, free_columns]
+    blocks: dict[str, slice] = {}
+    start = 0
+    for name in free:
+        size = all_blocks[name].stop - all_blocks[name].start
+        blocks[name] = slice(start, start + size)
+        start += size
     rows, unknowns = Psi.shape
-    blocks = problem.blocks
     if rows < unknowns and not allow_deficient:
         raise ExcitationError(
             f"only {rows} regression intervals for {unknowns} unknowns: use longer data or a "
@@ -346,9 +376,13 @@ def solve_regression(
             )
     kept = singular_values[:rank]
     coefficients = right[:rank].T @ ((left[:, :rank].T @ b) / kept)
-    theta = coefficients / scale
+    solved = coefficients / scale
     norm_b = float(np.linalg.norm(b))
-    residual = float(np.linalg.norm(Psi @ theta - b)) / norm_b if norm_b > 0 else 0.0
+    residual = float(np.linalg.norm(Psi @ solved - b)) / norm_b if norm_b > 0 else 0.0
+    theta = np.empty(problem.Psi.shape[1])
+    theta[free_columns] = solved
+    for name, values in known.items():
+        theta[all_blocks[name]] = values
     condition = float(kept[0] / kept[-1]) if rank else float("inf")
     return RegressionSolution(
         theta=theta,

@@ -92,6 +92,16 @@ def _smallest_eigenvalue(P: Array) -> float:
     return float(np.min(np.linalg.eigvalsh(0.5 * (P + P.T))))
 
 
+def _rounding_floor(solution: RegressionSolution) -> float:
+    """The relative change of P that rounding alone causes in a solve of this conditioning.
+
+    A least-squares solve is accurate to about ``condition * eps``; once P changes by no
+    more than that, further steps only move it by rounding, and the iteration has
+    converged as far as the data allow.
+    """
+    return 100.0 * float(np.finfo(float).eps) * solution.condition
+
+
 def policy_iteration(
     moments: IntervalMoments,
     K0: Array,
@@ -121,7 +131,8 @@ def policy_iteration(
     max_iterations : int
         Upper bound on the number of steps.
     tolerance : float
-        Stop when the relative change of P is at most this.
+        Stop when the relative change of P is at most this (or at most the rounding
+        floor ``100 eps cond`` of the regression, when that is larger).
     allow_deficient : sequence of str
         Blocks allowed to lack rank (see :func:`solve_regression`).
 
@@ -167,7 +178,7 @@ def policy_iteration(
                 regression=solution,
             )
         )
-        if change <= tolerance:
+        if change <= max(tolerance, _rounding_floor(solution)):
             return history, True
         previous = P
         K = K_next
