@@ -16,7 +16,7 @@ equation (:mod:`selftune.data_equation`) is solved for ``P_j`` (the value of ``K
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -45,9 +45,11 @@ __all__ = [
     "IterationRecord",
     "LQRLearningResult",
     "LearnedSolution",
+    "feedforward",
     "learn_lqr",
     "learn_output_regulation",
     "policy_iteration",
+    "policy_step",
 ]
 
 Array = NDArray[np.float64]
@@ -148,41 +150,81 @@ def policy_iteration(
     ConvergenceError
         If a learned ``P_j`` is not positive definite.
     """
-    n, m = moments.n, moments.m
-    q = moments.q if exogenous else 0
     K = K0
     history: list[IterationRecord] = []
-    previous: Array | None = None
     for iteration in range(max_iterations):
-        solution = solve_regression(
-            regression(moments, K, Q, R, X, exogenous=exogenous),
+        record = policy_step(
+            moments,
+            K,
+            Q,
+            R,
+            X=X,
+            exogenous=exogenous,
             allow_deficient=allow_deficient,
+            iteration=iteration,
+            previous=history[-1].P if history else None,
         )
-        P, K_next, _ = unpack_theta(solution.theta, n, m, q)
-        smallest = _smallest_eigenvalue(P)
-        if smallest <= 0.0:
-            raise ConvergenceError(
-                f"policy iteration step {iteration}: the learned P is not positive definite "
-                f"(smallest eigenvalue {smallest:.3g}); K0 may not stabilize the plant, or the "
-                "data are too noisy or too short"
-            )
-        norm = float(np.linalg.norm(P))
-        change = float("inf") if previous is None else float(np.linalg.norm(P - previous)) / norm
-        history.append(
-            IterationRecord(
-                iteration=iteration,
-                P=P,
-                K=K_next,
-                theta=solution.theta,
-                change=change,
-                regression=solution,
-            )
-        )
-        if change <= max(tolerance, _rounding_floor(solution)):
+        history.append(record)
+        if record.change <= max(tolerance, _rounding_floor(record.regression)):
             return history, True
-        previous = P
-        K = K_next
+        K = record.K
     return history, False
+
+
+def policy_step(
+    moments: IntervalMoments,
+    K: Array,
+    Q: Array,
+    R: Array,
+    *,
+    X: Array | None = None,
+    exogenous: bool = True,
+    allow_deficient: Sequence[str] = (),
+    known: Mapping[str, Array] | None = None,
+    iteration: int = 0,
+    previous: Array | None = None,
+) -> IterationRecord:
+    """One policy-iteration step: evaluate ``K`` (= K_j) on the data, improve it.
+
+    Parameters are those of :func:`policy_iteration`, plus ``known`` (blocks of Theta
+    already learned, see :func:`~selftune.data_equation.solve_regression`), the step's
+    number and the previous ``P`` (for the recorded change).
+
+    Raises
+    ------
+    ExcitationError
+        If the data do not determine the unknowns.
+    ConvergenceError
+        If the learned ``P_j`` is not positive definite.
+    """
+    n, m = moments.n, moments.m
+    q = moments.q if exogenous else 0
+    solution = solve_regression(
+        regression(moments, K, Q, R, X, exogenous=exogenous),
+        allow_deficient=allow_deficient,
+        known=known,
+    )
+    P, K_next, _ = unpack_theta(solution.theta, n, m, q)
+    smallest = _smallest_eigenvalue(P)
+    if smallest <= 0.0:
+        raise ConvergenceError(
+            f"policy iteration step {iteration}: the learned P is not positive definite "
+            f"(smallest eigenvalue {smallest:.3g}); K0 may not stabilize the plant, or the "
+            "data are too noisy or too short"
+        )
+    change = (
+        float("inf")
+        if previous is None
+        else float(np.linalg.norm(P - previous)) / float(np.linalg.norm(P))
+    )
+    return IterationRecord(
+        iteration=iteration,
+        P=P,
+        K=K_next,
+        theta=solution.theta,
+        change=change,
+        regression=solution,
+    )
 
 
 def _not_converged(history: list[IterationRecord], tolerance: float) -> ConvergenceError:
@@ -509,9 +551,7 @@ def learn_output_regulation(
         last = history[-1]
         P, K, M = unpack_theta(last.theta, n, m, q)
         B = _estimated_B(P, K, R)
-        # D + A X - X E = P^-1 M', and the regulator equation gives B U = -(D + A X - X E).
-        drift = np.asarray(np.linalg.solve(P, M.T), dtype=np.float64)
-        U = _feedforward(B, drift, weight_U)
+        U = feedforward(P, K, M, R, weight_U)
         return LearnedSolution(
             K=K,
             P=P,
@@ -577,9 +617,16 @@ def learn_output_regulation(
     )
 
 
-def _feedforward(B: Array, drift: Array, weight_U: Array) -> Array:
-    """U solving ``B U = -drift`` (least weighted norm if B has more columns than rank)."""
-    m = B.shape[1]
+def feedforward(P: Array, K: Array, M: Array, R: Array, weight_U: Array | None = None) -> Array:
+    """The feedforward U from learned ``P_j``, ``K_(j+1)`` and ``M = (D + AX - XE)' P_j``.
+
+    ``B = (R K P^-1)'`` and the regulator equation ``B U = -(D + A X - X E) = -P^-1 M'``
+    give U (the least ``Tr(U' W U)`` one, ``W = weight_U`` or R, when B has more columns
+    than rank).
+    """
+    B = _estimated_B(P, K, R)
+    drift = np.asarray(np.linalg.solve(P, M.T), dtype=np.float64)
+    weight = R if weight_U is None else weight_U
     q = drift.shape[1]
-    vec_U = minimize_weighted_norm(np.kron(np.eye(q), B), -vec(drift), np.kron(np.eye(q), weight_U))
-    return unvec(vec_U, m, q)
+    vec_U = minimize_weighted_norm(np.kron(np.eye(q), B), -vec(drift), np.kron(np.eye(q), weight))
+    return unvec(vec_U, B.shape[1], q)
