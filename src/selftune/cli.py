@@ -1,0 +1,332 @@
+"""The ``selftune`` command line.
+
+Each subcommand is one handler function, ``_run_<name>(args) -> int``, and one
+registration function, ``_add_<name>(subparsers)``, listed in :data:`_COMMANDS`. Handlers
+raise :class:`~selftune.errors.SelftuneError` on bad input; :func:`main` turns it (and
+``OSError``) into one line on stderr, ``selftune: error: <message>``, and exit code 2.
+
+Commands
+--------
+``selftune solve [--motor MOTOR.toml] [--speed S] [--torque T] [--json FILE]``
+    The model-based optimal torque controller (K*, P*, X*, U*, Theta*) and the operating
+    point (x_e, u_e), for the paper's motor or the one in MOTOR.toml.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import os
+import sys
+import warnings
+from collections.abc import Callable, Sequence
+from typing import TypeAlias
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import __version__
+from ._atomic import write_json
+from .config import MotorConfig, load_motor_config
+from .errors import SelftuneError
+from .regulation import ModelBasedSolution, solve_optimal_regulation
+
+__all__ = ["build_parser", "main"]
+
+Array = NDArray[np.float64]
+
+#: Exit code of a usage error or of bad input (argparse uses 2 as well).
+EXIT_USAGE = 2
+
+_Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
+
+
+# -- shared options and helpers -------------------------------------------------------
+
+
+def _finite_float(text: str) -> float:
+    """argparse type: a finite number (rejects nan and inf)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be finite: {text!r}")
+    return value
+
+
+def _add_motor_options(parser: argparse.ArgumentParser) -> None:
+    """``--motor``, ``--speed``, ``--torque``: the options of every command about a motor."""
+    parser.add_argument(
+        "--motor",
+        metavar="MOTOR.toml",
+        help="motor, operating point and cost weights (default: the paper's setting)",
+    )
+    parser.add_argument(
+        "--speed",
+        type=_finite_float,
+        metavar="S",
+        help="mechanical speed, rad/s (overrides the file; paper: 10)",
+    )
+    parser.add_argument(
+        "--torque",
+        type=_finite_float,
+        metavar="T",
+        help="torque reference, N m (overrides the file; paper: 10)",
+    )
+
+
+def _motor_config(args: argparse.Namespace) -> MotorConfig:
+    """The configuration named by ``--motor`` (or the paper's), with the overrides applied."""
+    config = MotorConfig.default() if args.motor is None else load_motor_config(args.motor)
+    overrides = {
+        name: value
+        for name, value in (("speed", args.speed), ("torque", args.torque))
+        if value is not None
+    }
+    return dataclasses.replace(config, **overrides) if overrides else config
+
+
+def _number(value: float) -> str:
+    """Four decimals, and never ``-0.0000``."""
+    text = f"{value:.4f}"
+    return text[1:] if text == "-0.0000" else text
+
+
+def _vector(values: Array) -> str:
+    return "[" + ", ".join(_number(float(value)) for value in values) + "]"
+
+
+def _matrix_block(
+    title: str, matrix: Array, rows: Sequence[str], columns: Sequence[str]
+) -> list[str]:
+    """A titled matrix with labelled rows and columns."""
+    cells = [[_number(float(value)) for value in row] for row in matrix]
+    width = max([len(cell) for row in cells for cell in row] + [len(c) for c in columns])
+    label_width = max(len(label) for label in rows)
+    lines = [title, " " * (2 + label_width) + "".join(f"  {c:>{width}}" for c in columns)]
+    for label, row in zip(rows, cells, strict=True):
+        lines.append(f"  {label:<{label_width}}" + "".join(f"  {c:>{width}}" for c in row))
+    return lines
+
+
+def _write_json(path: str, data: dict[str, object]) -> None:
+    """Write ``data`` to ``path`` atomically; a failure names ``path``."""
+    try:
+        write_json(path, data)
+    except OSError as exc:
+        raise SelftuneError(f"{path}: cannot write the file ({exc.strerror or exc})") from None
+
+
+# -- selftune solve -------------------------------------------------------------------
+
+
+def _add_solve(subparsers: _Subparsers) -> None:
+    parser = subparsers.add_parser(
+        "solve",
+        help="the model-based optimal torque controller (K*, P*, X*, U*, Theta*)",
+        description=(
+            "Solve the optimal output regulation problem of the PMSM in torque-control"
+            " mode from its model: the LQR gain K* and value P* (Riccati equation), the"
+            " regulator-equation solution X*, U*, the data-equation unknowns Theta*, and"
+            " the operating point x_e = X* w, u_e = U* w. Without --motor, the paper's"
+            " motor and setting."
+        ),
+    )
+    _add_motor_options(parser)
+    parser.add_argument(
+        "--json", metavar="FILE", help="also write the results to FILE as JSON (nested lists)"
+    )
+    parser.set_defaults(handler=_run_solve)
+
+
+def solve_report(config: MotorConfig, solution: ModelBasedSolution) -> str:
+    """The human-readable report that ``selftune solve`` prints.
+
+    Parameters
+    ----------
+    config : MotorConfig
+        The motor, operating point and weights that were solved.
+    solution : ModelBasedSolution
+        The result of :func:`~selftune.regulation.solve_optimal_regulation`.
+
+    Returns
+    -------
+    str
+        Several lines, numbers to 4 decimals.
+    """
+    motor = config.motor
+    w = config.exogenous()
+    x_e, u_e = solution.X @ w, solution.U @ w
+    state, inputs = ("i_d", "i_q"), ("u_d", "u_q")
+    exogenous = ("w_1", "w_2")
+    inertia = "" if motor.J is None else f", J = {motor.J:g} kg m^2"
+    lines = [
+        f"Model-based optimal torque control ({config.source})",
+        f"  motor: R_s = {motor.R_s:g} ohm, L_s = {motor.L_s:g} H,"
+        f" phi_pm = {motor.phi_pm:g} Wb, p = {motor.p}{inertia}",
+        f"  operating point: speed = {config.speed:g} rad/s (mechanical),"
+        f" torque = {config.torque:g} N m",
+        f"  cost weights: Q = {_compact(config.Q)}, R = {_compact(config.R)}",
+        "  state x = [i_d, i_q] (A), input u = [u_d, u_q] (V),",
+        f"  exogenous w = [p speed phi_pm (V), T* (N m)] = {_vector(w)}",
+        "  control u = -K* (x - X* w) + U* w",
+        "",
+    ]
+    lines += _matrix_block("K*  optimal feedback gain, V/A", solution.K, inputs, state)
+    lines += [""]
+    lines += _matrix_block(
+        "P*  value matrix: optimal cost-to-go (x - X* w)' P* (x - X* w)", solution.P, state, state
+    )
+    lines += [""]
+    lines += _matrix_block(
+        "X*  steady-state map, x_e = X* w (A/V, A/(N m))", solution.X, state, exogenous
+    )
+    lines += [""]
+    lines += _matrix_block(
+        "U*  feedforward map, u_e = U* w (V/V, V/(N m))", solution.U, inputs, exogenous
+    )
+    lines += [
+        "",
+        "Theta* = [vecs(P*); vec(K*); vec((D + A X*)' P*)]  (unknowns of the data equation)",
+        f"  {_vector(solution.theta)}",
+        "",
+        "Operating point",
+        f"  x_e = X* w = {_vector(x_e)} A  [i_d, i_q]",
+        f"  u_e = U* w = {_vector(u_e)} V  [u_d, u_q]",
+    ]
+    return "\n".join(lines)
+
+
+def _check_numerics(
+    source: str, caught: Sequence[warnings.WarningMessage], *results: Array
+) -> None:
+    """Raise if a computation warned (overflow, lost precision) or gave non-finite numbers.
+
+    Extreme inputs (a weight of 1e300, an inductance of 1e-300) pass every check on their
+    own but make the numerics meaningless; better an error than wrong numbers.
+    """
+    numeric = [w for w in caught if issubclass(w.category, RuntimeWarning)]
+    if numeric or not all(np.all(np.isfinite(result)) for result in results):
+        reason = f" ({numeric[0].message})" if numeric else ""
+        raise SelftuneError(
+            f"{source}: the solution is not numerically meaningful{reason};"
+            " check that the values are in SI units and of a realistic size"
+        )
+    for other in caught:  # anything else: show it as usual
+        warnings.showwarning(other.message, other.category, other.filename, other.lineno)
+
+
+def _compact(M: Array) -> str:
+    """A small matrix on one line, ``[[1000, 0], [0, 1000]]``."""
+    return "[" + ", ".join("[" + ", ".join(f"{v:g}" for v in row) + "]" for row in M) + "]"
+
+
+def _run_solve(args: argparse.Namespace) -> int:
+    config = _motor_config(args)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RuntimeWarning)
+        try:
+            solution = solve_optimal_regulation(config.regulation_problem(), config.Q, config.R)
+            w = config.exogenous()
+            x_e, u_e = solution.X @ w, solution.U @ w
+        except SelftuneError as exc:
+            raise type(exc)(f"{config.source}: {exc}") from None
+    _check_numerics(config.source, caught, solution.theta, x_e, u_e)
+    if args.json is not None:
+        motor = config.motor
+        _write_json(
+            args.json,
+            {
+                "K": solution.K,
+                "P": solution.P,
+                "X": solution.X,
+                "U": solution.U,
+                "theta": solution.theta,
+                "x_e": x_e,
+                "u_e": u_e,
+                "w": w,
+                "motor": {
+                    "R_s": motor.R_s,
+                    "L_s": motor.L_s,
+                    "phi_pm": motor.phi_pm,
+                    "p": motor.p,
+                    "J": motor.J,
+                },
+                "operating_point": {"speed": config.speed, "torque": config.torque},
+                "cost": {"Q": config.Q, "R": config.R},
+            },
+        )
+    print(solve_report(config, solution))
+    if args.json is not None:
+        print(f"\nwrote {args.json}")
+    return 0
+
+
+# -- the parser and main --------------------------------------------------------------
+
+#: Registration functions, one per subcommand, in the order of ``selftune --help``.
+_COMMANDS: tuple[Callable[[_Subparsers], None], ...] = (_add_solve,)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``selftune`` with every subcommand registered."""
+    parser = argparse.ArgumentParser(
+        prog="selftune",
+        description=(
+            "Self-tuning optimal torque control of PMSM drives by adaptive dynamic"
+            " programming (Wang 2022)."
+        ),
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for register in _COMMANDS:
+        register(subparsers)
+    return parser
+
+
+def _silence_stdout() -> None:
+    """Point stdout at the null device, so that the interpreter's final flush cannot fail."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # stdout is not a real file (tests)
+        pass
+
+
+def _fail(message: str) -> int:
+    print(f"selftune: error: {' '.join(message.split())}", file=sys.stderr)
+    return EXIT_USAGE
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``selftune`` command line; return the exit code.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        0 on success; 2 on a usage error or bad input, after one line on stderr
+        ``selftune: error: <message>``.
+    """
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # usage error (2), or --help / --version (0)
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    handler: Callable[[argparse.Namespace], int] = args.handler
+    try:
+        return handler(args)
+    except SelftuneError as exc:
+        return _fail(str(exc))
+    except BrokenPipeError:  # the reader went away (``selftune solve | head``): stop quietly
+        _silence_stdout()
+        return 1
+    except OSError as exc:
+        where = f"{os.fsdecode(exc.filename)}: " if exc.filename is not None else ""
+        return _fail(f"{where}{exc.strerror or exc}")
