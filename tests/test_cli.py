@@ -10,6 +10,7 @@ import re
 import subprocess
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import selftune
+from selftune import cli
 from selftune.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -255,6 +257,24 @@ def test_failed_solve_leaves_an_existing_json_untouched(tmp_path: Path) -> None:
     assert_clean_failure(code, err, "[motor] p")
     assert output.read_text() == "previous"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["motor.toml", "out.json"]
+
+
+def test_numerical_trouble_is_an_error_not_wrong_numbers(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Values that pass every check but overflow in the solver give exit 2, not output."""
+
+    def overflowing(*args: object, **kwargs: object) -> object:
+        warnings.warn("overflow encountered in matmul", RuntimeWarning, stacklevel=1)
+        return selftune.solve_optimal_regulation(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(cli, "solve_optimal_regulation", overflowing)
+    output = tmp_path / "out.json"
+    code, out, err = run(["solve", "--json", str(output)])
+    line = assert_clean_failure(code, err, "paper preset", "not numerically meaningful")
+    assert "overflow encountered in matmul" in line
+    assert out == ""
+    assert not output.exists()
 
 
 @pytest.mark.parametrize(

@@ -167,6 +167,12 @@ def test_motor_config_is_frozen_and_checks_its_fields() -> None:
             "Q = [[1000.0, 0.0, 0.0], [0.0, 1000.0, 0.0]]",
             "[cost] Q: must be a 2x2 matrix, got 2x3",
         ),
+        (
+            "R = [[1.0, 0.0], [0.0, 1.0]]",
+            "R = [[1e20, 0.0], [0.0, 1.0]]",
+            "[cost] R: must be symmetric positive definite; it is nearly singular"
+            " (eigenvalues from 1 to 1e+20)",
+        ),
         ("R = [[1.0, 0.0], [0.0, 1.0]]", "R = [1.0, 1.0]", "[cost] R: must be a 2x2 matrix"),
         ("R = [[1.0, 0.0], [0.0, 1.0]]", "R = 1.0", "[cost] R: must be a 2x2 matrix"),
         ("R = [[1.0, 0.0], [0.0, 1.0]]", "R = [[1.0, 0.0], [0.0]]", "[cost] R: rows have"),

@@ -32,7 +32,7 @@ from .config import MotorConfig, load_motor_config
 from .errors import SelftuneError
 from .regulation import ModelBasedSolution, solve_optimal_regulation
 
-__all__ = ["build_parser", "main"]
+__all__ = ["build_parser", "main", "solve_report"]
 
 Array = NDArray[np.float64]
 
@@ -223,17 +223,28 @@ def _compact(M: Array) -> str:
     return "[" + ", ".join("[" + ", ".join(f"{v:g}" for v in row) + "]" for row in M) + "]"
 
 
-def _run_solve(args: argparse.Namespace) -> int:
-    config = _motor_config(args)
+def _model_based(config: MotorConfig) -> ModelBasedSolution:
+    """The model-based optimum of ``config``; any failure names ``config.source``.
+
+    For every command that needs the truth (``solve``, and those comparing against it).
+    """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", RuntimeWarning)
         try:
             solution = solve_optimal_regulation(config.regulation_problem(), config.Q, config.R)
             w = config.exogenous()
-            x_e, u_e = solution.X @ w, solution.U @ w
+            steady_state = (solution.X @ w, solution.U @ w)
         except SelftuneError as exc:
             raise type(exc)(f"{config.source}: {exc}") from None
-    _check_numerics(config.source, caught, solution.theta, x_e, u_e)
+    _check_numerics(config.source, caught, solution.theta, *steady_state)
+    return solution
+
+
+def _run_solve(args: argparse.Namespace) -> int:
+    config = _motor_config(args)
+    solution = _model_based(config)
+    w = config.exogenous()
+    x_e, u_e = solution.X @ w, solution.U @ w
     if args.json is not None:
         motor = config.motor
         _write_json(

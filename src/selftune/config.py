@@ -282,10 +282,17 @@ class ConfigTable:
         if np.max(np.abs(matrix - matrix.T), initial=0.0) > tolerance:
             raise self.error(key, "must be symmetric positive definite (it is not symmetric)")
         matrix = 0.5 * matrix + 0.5 * matrix.T  # halves first: no overflow near 1e308
-        smallest = float(np.min(np.linalg.eigvalsh(matrix))) if size else 1.0
-        if not math.isfinite(smallest) or smallest <= tolerance:
+        eigenvalues = np.linalg.eigvalsh(matrix) if size else np.ones(1)
+        smallest, largest = float(np.min(eigenvalues)), float(np.max(eigenvalues))
+        if not math.isfinite(smallest) or smallest <= 0.0:
             raise self.error(
                 key, f"must be symmetric positive definite (smallest eigenvalue {smallest:.3g})"
+            )
+        if smallest <= tolerance:
+            raise self.error(
+                key,
+                "must be symmetric positive definite; it is nearly singular"
+                f" (eigenvalues from {smallest:.3g} to {largest:.3g})",
             )
         return matrix
 
