@@ -1,0 +1,841 @@
+"""Trajectory files: exact round trips, and every malformed file gives a DataFileError.
+
+The fuzz tests compare the loaders with an independent reference reading of the format
+(written here from the format's definition, not from the loader): a malformed file must
+raise DataFileError and nothing else, and a file that is valid must load to exactly the
+numbers its text says. A loader that silently accepted bad data, or parsed a number
+differently, would fail them.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import os
+import re
+import struct
+import zipfile
+from collections.abc import Callable
+from io import BytesIO
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import event, given
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+from numpy.typing import ArrayLike
+
+import selftune.io as selftune_io
+from selftune.errors import DataFileError, InputError
+from selftune.io import (
+    load_csv,
+    load_npz,
+    load_trajectory,
+    save_csv,
+    save_npz,
+    save_trajectory,
+)
+from selftune.trajectory import Trajectory
+
+Arrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A directory shared by the examples of a hypothesis test (each overwrites its file)."""
+    return tmp_path_factory.mktemp("io")
+
+
+def same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    """Bit-for-bit equality (so -0.0 and 0.0 differ), shapes and dtypes included."""
+    if a is None or b is None:
+        return a is None and b is None
+    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+def trajectory_of(
+    t: ArrayLike, x: ArrayLike, u: ArrayLike, w: ArrayLike | None = None
+) -> Trajectory:
+    """A Trajectory from nested lists (the dataclass fields are annotated as arrays)."""
+    array = None if w is None else np.asarray(w, dtype=np.float64)
+    return Trajectory(
+        t=np.asarray(t, np.float64),
+        x=np.asarray(x, np.float64),
+        u=np.asarray(u, np.float64),
+        w=array,
+    )
+
+
+def assert_clear(error: DataFileError, path: Path) -> None:
+    message = str(error)
+    assert message.startswith(f"{path}: "), message
+    assert "\n" not in message and "\r" not in message, message
+
+
+def expect_error(load: Callable[[Path], Trajectory], path: Path, *parts: str) -> str:
+    with pytest.raises(DataFileError) as info:
+        load(path)
+    assert_clear(info.value, path)
+    message = str(info.value)
+    for part in parts:
+        assert part in message, message
+    return message
+
+
+finite = st.floats(allow_nan=False, allow_infinity=False)
+moderate = st.one_of(
+    st.integers(-20, 20).map(float), st.floats(-1e3, 1e3, allow_nan=False, width=64)
+)
+
+
+def strictly_increasing(values: np.ndarray) -> np.ndarray:
+    """Sorted ``values``, each repeat nudged up to the next float (finite if |values| < max)."""
+    t = np.sort(values)
+    for k in range(1, t.shape[0]):
+        if t[k] <= t[k - 1]:
+            t[k] = np.nextafter(t[k - 1], np.inf)
+    return t
+
+
+@st.composite
+def trajectory_arrays(
+    draw: st.DrawFn,
+    elements: st.SearchStrategy[float] = finite,
+    u_rows: tuple[int, ...] = (0,),
+    w_rows: tuple[int, ...] = (0, 1),
+) -> Arrays:
+    """Valid (t, x, u, w): u with N + one of ``u_rows`` rows, w with N + one of ``w_rows``."""
+    N = draw(st.integers(1, 6))
+    n, m, q = draw(st.integers(1, 3)), draw(st.integers(1, 3)), draw(st.integers(0, 2))
+    times = elements.filter(lambda value: abs(value) < 1e308)
+    t = strictly_increasing(draw(hnp.arrays(np.float64, N + 1, elements=times)))
+    x = draw(hnp.arrays(np.float64, (N + 1, n), elements=elements))
+    u = draw(hnp.arrays(np.float64, (N + draw(st.sampled_from(u_rows)), m), elements=elements))
+    w = None
+    if q:
+        w = draw(hnp.arrays(np.float64, (N + draw(st.sampled_from(w_rows)), q), elements=elements))
+    return t, x, u, w
+
+
+# --------------------------------------------------------------------------- round trips
+
+
+@given(arrays=trajectory_arrays())
+def test_csv_round_trip_is_bit_exact(workdir: Path, arrays: Arrays) -> None:
+    t, x, u, w = arrays
+    original = Trajectory(t=t, x=x, u=u, w=w)
+    path = workdir / "round.csv"
+    save_csv(original, path)
+    loaded = load_csv(path)
+    assert same(loaded.t, original.t)
+    assert same(loaded.x, original.x)
+    assert same(loaded.u, original.u)
+    if w is None:
+        assert loaded.w is None
+    else:
+        # A held w (N rows) is written with its last value repeated in the last row.
+        assert loaded.w is not None and loaded.w.shape[0] == original.num_samples + 1
+        assert same(loaded.w[: w.shape[0]], original.w)
+        assert same(loaded.w[-1], w[-1])
+    save_csv(loaded, path)
+    assert same(load_csv(path).w, loaded.w)
+
+
+@given(arrays=trajectory_arrays(u_rows=(0, 1)))
+def test_npz_round_trip_is_exact_including_row_counts(workdir: Path, arrays: Arrays) -> None:
+    t, x, u, w = arrays
+    original = Trajectory(t=t, x=x, u=u, w=w)
+    path = workdir / "round.npz"
+    save_npz(original, path)
+    loaded = load_npz(path)
+    for name in ("t", "x", "u", "w"):
+        assert same(getattr(loaded, name), getattr(original, name)), name
+    # The same arrays written by numpy directly (u possibly with N + 1 rows) load too.
+    stored: dict[str, Any] = {"t": t, "x": x, "u": u}
+    if w is not None:
+        stored["w"] = w
+    np.savez(path, **stored)
+    direct = load_npz(path)
+    for name in ("t", "x", "u", "w"):
+        assert same(getattr(direct, name), getattr(original, name)), name
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz", ".CSV", ".Npz"])
+def test_suffix_selects_the_format(tmp_path: Path, suffix: str) -> None:
+    original = trajectory_of(t=[0.0, 0.1, 0.2], x=[[1.0], [2.0], [3.0]], u=[[0.5], [-0.5]])
+    path = tmp_path / f"data{suffix}"
+    save_trajectory(original, path)
+    assert path.exists() and [p.name for p in tmp_path.iterdir()] == [path.name]
+    loaded = load_trajectory(str(path))
+    assert same(loaded.x, original.x) and same(loaded.u, original.u)
+    if suffix.lower() == ".csv":
+        assert path.read_text().splitlines()[0] == "t,x1,u1"
+    else:
+        assert zipfile.is_zipfile(path)
+
+
+@pytest.mark.parametrize("name", ["data.txt", "data", "data.csv.gz", "data.npy"])
+def test_unknown_suffix_is_refused(tmp_path: Path, name: str) -> None:
+    path = tmp_path / name
+    original = trajectory_of(t=[0.0, 1.0], x=[1.0, 2.0], u=[0.0])
+    for action in (lambda: load_trajectory(path), lambda: save_trajectory(original, path)):
+        with pytest.raises(DataFileError) as info:
+            action()
+        assert_clear(info.value, path)
+        assert "'.csv' or '.npz'" in str(info.value)
+    assert not path.exists()
+
+
+def test_explicit_format_ignores_the_suffix(tmp_path: Path) -> None:
+    original = trajectory_of(t=[0.0, 1.0], x=[1.0, 2.0], u=[0.0], w=[[3.0], [4.0]])
+    save_npz(original, tmp_path / "log.bin")
+    save_csv(original, tmp_path / "log.txt")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.bin", "log.txt"]
+    assert same(load_npz(tmp_path / "log.bin").w, original.w)
+    assert same(load_csv(tmp_path / "log.txt").w, original.w)
+
+
+def test_csv_layout(tmp_path: Path) -> None:
+    original = trajectory_of(
+        t=[0.0, 0.5, 1.0], x=[[1, 2], [3, 4], [5, 6]], u=[[0.1], [0.2]], w=[[7.0], [8.0]]
+    )
+    path = tmp_path / "layout.csv"
+    save_csv(original, path)
+    assert path.read_text() == (
+        "t,x1,x2,u1,w1\n0.0,1.0,2.0,0.1,7.0\n0.5,3.0,4.0,0.2,8.0\n1.0,5.0,6.0,0.2,8.0\n"
+    )
+
+
+def test_csv_reading_conventions(tmp_path: Path) -> None:
+    """CRLF, a byte-order mark, blank trailing lines and spaces around fields are fine."""
+    path = tmp_path / "lenient.csv"
+    path.write_bytes(b"\xef\xbb\xbft , x1,u1\r\n0, 1.5 ,\t2\r\n1e-1,-0,+.5E1\r\n\r\n \n")
+    loaded = load_csv(path)
+    assert same(loaded.t, np.array([0.0, 0.1]))
+    assert same(loaded.x, np.array([[1.5], [-0.0]]))
+    assert same(loaded.u, np.array([[2.0]]))
+
+
+def test_save_refuses_a_non_trajectory(tmp_path: Path) -> None:
+    for save in (save_csv, save_npz, save_trajectory):
+        with pytest.raises(InputError, match="expected a Trajectory, got dict"):
+            save({"t": [0, 1]}, tmp_path / "x.csv")  # type: ignore[arg-type]
+    assert list(tmp_path.iterdir()) == []
+
+
+# --------------------------------------------------------------------------- atomic writes
+
+
+def _trajectory() -> Trajectory:
+    t = np.linspace(0.0, 1.0, 6)
+    return Trajectory(t=t, x=np.c_[t, t**2], u=t[:-1], w=np.ones(6))
+
+
+@pytest.mark.parametrize("existing", [False, True])
+def test_failed_csv_save_leaves_no_partial_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, existing: bool
+) -> None:
+    path = tmp_path / "out.csv"
+    if existing:
+        path.write_text("old content")
+    calls = []
+    format_rows = selftune_io._format_rows
+
+    def fail_on_second_chunk(rows: np.ndarray) -> str:
+        calls.append(rows.shape[0])
+        if len(calls) == 2:
+            raise RuntimeError("disk full")
+        return format_rows(rows)
+
+    monkeypatch.setattr(selftune_io, "_CSV_CHUNK_ROWS", 2)
+    monkeypatch.setattr(selftune_io, "_format_rows", fail_on_second_chunk)
+    with pytest.raises(RuntimeError, match="disk full"):
+        save_csv(_trajectory(), path)
+    assert calls == [2, 2]  # the first chunk was written before the failure
+    assert [p.name for p in tmp_path.iterdir()] == (["out.csv"] if existing else [])
+    if existing:
+        assert path.read_text() == "old content"
+
+
+@pytest.mark.parametrize("existing", [False, True])
+def test_failed_npz_save_leaves_no_partial_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, existing: bool
+) -> None:
+    path = tmp_path / "out.npz"
+    if existing:
+        path.write_bytes(b"old content")
+
+    def partial_savez(file: Path, **arrays: np.ndarray) -> None:
+        assert str(file).endswith(".npz") and file.parent == tmp_path
+        Path(file).write_bytes(b"PK\x03\x04 partial")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(np, "savez", partial_savez)
+    with pytest.raises(OSError, match="disk full"):
+        save_npz(_trajectory(), path)
+    assert [p.name for p in tmp_path.iterdir()] == (["out.npz"] if existing else [])
+    if existing:
+        assert path.read_bytes() == b"old content"
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_failed_rename_keeps_the_old_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, suffix: str
+) -> None:
+    path = tmp_path / f"out{suffix}"
+    path.write_bytes(b"old content")
+
+    def refuse(source: object, target: object) -> None:
+        raise OSError("read-only")
+
+    monkeypatch.setattr(os, "replace", refuse)
+    with pytest.raises(OSError, match="read-only"):
+        save_trajectory(_trajectory(), path)
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]
+    assert path.read_bytes() == b"old content"
+
+
+def test_save_replaces_an_existing_file(tmp_path: Path) -> None:
+    path = tmp_path / "out.csv"
+    path.write_text("old content")
+    save_csv(_trajectory(), path)
+    assert same(load_csv(path).t, _trajectory().t)
+    assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]
+
+
+# --------------------------------------------------------------------------- CSV errors
+
+GOOD_ROWS = "0,1,2\n1,2,3\n2,3,4\n"
+
+
+@pytest.mark.parametrize(
+    ("text", "parts"),
+    [
+        ("", ["empty file"]),
+        ("\n\n", ["empty file"]),
+        ("t,x1,u1\n", ["need at least 2 data rows", "got 0"]),
+        ("t,x1,u1\n0,1,2\n\n", ["need at least 2 data rows", "got 1"]),
+        ("x1,t,u1\n" + GOOD_ROWS, ["line 1, column 1", "expected 't'", "'x1'"]),
+        ("time,x1,u1\n" + GOOD_ROWS, ["line 1, column 1", "'time'"]),
+        ("t,x1,u2\n" + GOOD_ROWS, ["line 1, column 3", "'u1'", "got 'u2'"]),
+        ("t,x2,u1\n" + GOOD_ROWS, ["line 1, column 2", "'x1'"]),
+        ("t,x0,u1\n" + GOOD_ROWS, ["line 1, column 2", "got 'x0'"]),
+        ("t,x01,u1\n" + GOOD_ROWS, ["line 1, column 2", "got 'x01'"]),
+        ("t,X1,u1\n" + GOOD_ROWS, ["line 1, column 2", "got 'X1'"]),
+        ("t,x1,x1,u1\n0,1,1,2\n1,2,2,3\n", ["line 1, column 3", "duplicate"]),
+        ("t,x1,u1,x2\n0,1,2,3\n1,2,3,4\n", ["line 1, column 4", "'x2'"]),
+        ("t,x1,u1,w2\n0,1,2,3\n1,2,3,4\n", ["line 1, column 4", "'w1'"]),
+        ("t,x1,u1,y1\n0,1,2,3\n1,2,3,4\n", ["line 1, column 4", "'y1'"]),
+        ("t,x1,u1,\n0,1,2,3\n1,2,3,4\n", ["line 1, column 4", "got ''"]),
+        ("t,x1,w1\n" + GOOD_ROWS, ["line 1, column 3", "'u1'"]),
+        ("t,x1\n0,1\n1,2\n", ["no input columns"]),
+        ("t\n0\n1\n", ["no state columns"]),
+        ('"t","x1","u1"\n' + GOOD_ROWS, ["line 1, column 1"]),
+        ("t;x1;u1\n0;1;2\n1;2;3\n", ["line 1, column 1"]),
+        ("t,x1,u1\n0,1,2\n1,2\n", ["line 3", "expected 3 fields, got 2"]),
+        ("t,x1,u1\n0,1,2\n1,2,3,4\n", ["line 3", "expected 3 fields, got 4"]),
+        ("t,x1,u1\n0,1,2\n\n1,2,3\n", ["line 3", "empty line"]),
+        ("t,x1,u1\n0,1,2\n1,nan,3\n", ["line 3, column 2 (x1)", "not a finite number"]),
+        ("t,x1,u1\n0,1,2\n1,2,-inf\n", ["line 3, column 3 (u1)", "not a finite number"]),
+        ("t,x1,u1\n0,1,2\n1,2,1e999\n", ["line 3, column 3 (u1)", "not finite"]),
+        ("t,x1,u1\n0,1,abc\n1,2,3\n", ["line 2, column 3 (u1)", "not a number: 'abc'"]),
+        ("t,x1,u1\n0,1,\n1,2,3\n", ["line 2, column 3 (u1)", "not a number: ''"]),
+        ("t,x1,u1\n0,1_0,2\n1,2,3\n", ["line 2, column 2 (x1)", "not a number"]),
+        ("t,x1,u1\n0,0x1,2\n1,2,3\n", ["line 2, column 2 (x1)", "not a number"]),
+        ('t,x1,u1\n0,"1",2\n1,2,3\n', ["line 2, column 2 (x1)", "not a number"]),
+        ("t,x1,u1\n0,1 2,2\n1,2,3\n", ["line 2, column 2 (x1)", "not a number"]),
+        ("t,x1,u1\n0,\u20031,2\n1,2,3\n", ["line 2, column 2 (x1)", "not a number"]),
+        ("t,x1,u1\n0,1,2\r1,2,3\n2,3,4\n", ["line 2", "expected 3 fields, got 5"]),
+        ("t,x1,u1\n0,1,2\n# note\n1,2,3\n", ["line 3"]),
+        ("t,x1,u1\n0,1,2\n0,2,3\n", ["line 3, column 1 (t)", "strictly increasing"]),
+        ("t,x1,u1\n0,1,2\n1,2,3\n0.5,2,3\n", ["line 4, column 1 (t)", "strictly increasing"]),
+        ("t,x1,u1\n0,1,2\n-0,2,3\n", ["line 3", "time -0.0 is not greater than 0.0 on line 2"]),
+    ],
+)
+def test_malformed_csv_gives_one_clear_line(tmp_path: Path, text: str, parts: list[str]) -> None:
+    path = tmp_path / "bad.csv"
+    path.write_text(text, encoding="utf-8", newline="")
+    expect_error(load_csv, path, *parts)
+    expect_error(load_trajectory, path, *parts)
+
+
+def test_unreadable_csv(tmp_path: Path) -> None:
+    expect_error(load_csv, tmp_path / "missing.csv", "cannot read")
+    expect_error(load_csv, tmp_path, "cannot read")
+    path = tmp_path / "latin1.csv"
+    path.write_bytes(b"t,x1,u1\n0,1,2\n1,2,3\xe9\n")
+    expect_error(load_csv, path, "line 3", "not UTF-8")
+
+
+def test_a_long_field_is_shortened_in_the_message(tmp_path: Path) -> None:
+    path = tmp_path / "long.csv"
+    path.write_text("t,x1,u1\n0,1," + "y" * 10_000 + "\n1,2,3\n")
+    message = expect_error(load_csv, path, "line 2, column 3 (u1)")
+    assert len(message) < 200
+
+
+# --------------------------------------------------------------------------- CSV fuzzing
+
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
+def reference_csv(raw: bytes) -> Arrays | None:
+    """What a file says by the format's definition (None if it is not a valid file).
+
+    Returns (t, x, u, w) with u and w as written, one row per sample time.
+    """
+    raw = raw.removeprefix(b"\xef\xbb\xbf")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+    lines = text.replace("\r\n", "\n").split("\n")
+    while lines and not lines[-1].strip(" \t"):
+        lines.pop()
+    if len(lines) < 3:
+        return None
+    names = [name.strip(" \t") for name in lines[0].split(",")]
+    size = {letter: sum(name.startswith(letter) for name in names) for letter in "xuw"}
+    expected = ["t"] + [f"{letter}{i}" for letter in "xuw" for i in range(1, size[letter] + 1)]
+    if names != expected or size["x"] == 0 or size["u"] == 0:
+        return None
+    rows = []
+    for line in lines[1:]:
+        fields = [field.strip(" \t") for field in line.split(",")]
+        if len(fields) != len(names) or not all(_NUMBER.fullmatch(f) for f in fields):
+            return None
+        values = [float(field) for field in fields]
+        if not all(math.isfinite(value) for value in values):
+            return None
+        rows.append(values)
+    table = np.array(rows, dtype=np.float64)
+    t = table[:, 0]
+    if not all(later > earlier for earlier, later in itertools.pairwise(t)):
+        return None
+    n, m = size["x"], size["u"]
+    w = table[:, 1 + n + m :] if size["w"] else None
+    return t, table[:, 1 : 1 + n], table[:, 1 + n : 1 + n + m], w
+
+
+def check_csv(path: Path, raw: bytes) -> None:
+    """The loader agrees with the reference on ``raw``: same error-or-not, same numbers."""
+    path.write_bytes(raw)
+    expected = reference_csv(raw)
+    event("valid file" if expected is not None else "malformed file")
+    if expected is None:
+        expect_error(load_csv, path)
+        return
+    loaded = load_csv(path)
+    t, x, u, w = expected
+    assert same(loaded.t, t)
+    assert same(loaded.x, x)
+    assert same(loaded.u, u[:-1])
+    assert same(loaded.w, w)
+
+
+TOKENS = [
+    "nan", "NaN", "inf", "-inf", "Infinity", "1e999", "-1e-999", "a", "e", "E", "x", "-",
+    "+", ".", ",", ",,", "\n", "\r", "\r\n", " ", "\t", "", "0", "7", "1e3", '"', "#", "\x00",
+    "é", "\ufeff", "x1", "u1", "w1", "w2", "t", "1_0", "0x1", "\u2003", "\x0b", "X1", "T",
+    "U1", "u0", "x01", "x 1",
+]  # fmt: skip
+
+
+VARIANTS = 6  # edited copies of each generated file (generating the file costs more)
+MUTATIONS = [
+    "delete char", "duplicate char", "swap chars", "insert token", "replace char",
+    "delete line", "duplicate line", "swap lines", "insert line", "delete field",
+    "duplicate field", "swap fields", "replace field", "shuffle header", "truncate",
+    "change case",
+]  # fmt: skip
+
+
+def mutate_text(text: str, data: st.DataObject) -> str:
+    kind = data.draw(st.sampled_from(MUTATIONS))
+    if not text:
+        return data.draw(st.sampled_from(TOKENS))
+    at = data.draw(st.integers(0, len(text) - 1))
+    token = data.draw(st.sampled_from(TOKENS))
+    if kind == "delete char":
+        return text[:at] + text[at + 1 :]
+    if kind == "duplicate char":
+        return text[: at + 1] + text[at:]
+    if kind == "swap chars":
+        return text[:at] + text[at + 1 : at + 2] + text[at] + text[at + 2 :]
+    if kind == "insert token":
+        return text[:at] + token + text[at:]
+    if kind == "replace char":
+        return text[:at] + token + text[at + 1 :]
+    if kind == "truncate":
+        return text[:at]
+    if kind == "change case":
+        return text[:at] + text[at].swapcase() + text[at + 1 :]
+    lines = text.split("\n")
+    i = data.draw(st.integers(0, len(lines) - 1))
+    j = data.draw(st.integers(0, len(lines) - 1))
+    if kind == "delete line":
+        del lines[i]
+    elif kind == "duplicate line":
+        lines.insert(i, lines[i])
+    elif kind == "swap lines":
+        lines[i], lines[j] = lines[j], lines[i]
+    elif kind == "insert line":
+        lines.insert(i, token)
+    else:
+        if kind == "shuffle header":
+            i = 0
+        fields = lines[i].split(",")
+        a = data.draw(st.integers(0, len(fields) - 1))
+        b = data.draw(st.integers(0, len(fields) - 1))
+        if kind == "delete field":
+            del fields[a]
+        elif kind == "duplicate field":
+            fields.insert(a, fields[a])
+        elif kind == "swap fields":
+            fields[a], fields[b] = fields[b], fields[a]
+        elif kind == "replace field":
+            fields[a] = token
+        else:
+            fields = data.draw(st.permutations(fields))
+        lines[i] = ",".join(fields)
+    return "\n".join(lines)
+
+
+@given(arrays=trajectory_arrays(elements=moderate), data=st.data())
+def test_mutated_csv_is_refused_or_read_as_written(
+    workdir: Path, arrays: Arrays, data: st.DataObject
+) -> None:
+    path = workdir / "fuzz.csv"
+    t, x, u, w = arrays
+    save_csv(Trajectory(t=t, x=x, u=u, w=w), path)
+    valid = path.read_text()
+    for _ in range(VARIANTS):
+        text = valid
+        for _ in range(data.draw(st.integers(1, 3))):
+            text = mutate_text(text, data)
+        check_csv(path, text.encode("utf-8"))
+
+
+@given(arrays=trajectory_arrays(elements=moderate), data=st.data())
+def test_truncated_or_byte_edited_csv(workdir: Path, arrays: Arrays, data: st.DataObject) -> None:
+    path = workdir / "fuzz.csv"
+    t, x, u, w = arrays
+    save_csv(Trajectory(t=t, x=x, u=u, w=w), path)
+    valid = path.read_bytes()
+    for _ in range(VARIANTS):
+        raw = bytearray(valid)
+        at = data.draw(st.integers(0, len(raw) - 1))
+        edit = data.draw(st.sampled_from(["truncate", "set byte", "insert byte", "crlf"]))
+        if edit == "truncate":
+            raw = raw[:at]
+        elif edit == "set byte":
+            raw[at] = data.draw(st.integers(0, 255))
+        elif edit == "insert byte":
+            raw.insert(at, data.draw(st.integers(0, 255)))
+        else:
+            raw = bytearray(valid.replace(b"\n", b"\r\n"))
+        check_csv(path, bytes(raw))
+
+
+@given(raw=st.binary(max_size=300))
+def test_random_bytes_as_csv(workdir: Path, raw: bytes) -> None:
+    check_csv(workdir / "random.csv", raw)
+
+
+digits = st.text(alphabet="0123456789", max_size=22)
+
+
+@st.composite
+def decimal_text(draw: st.DrawFn) -> str:
+    """A decimal number as text (sometimes not quite: no digits, a lone point or 'e')."""
+    sign = draw(st.sampled_from(["", "", "-", "+"]))
+    whole = draw(digits if draw(st.integers(0, 9)) == 0 else digits.filter(bool))
+    fraction = draw(digits)
+    point = "." if fraction or draw(st.booleans()) else ""
+    exponent = ""
+    if draw(st.booleans()):
+        exponent = draw(st.sampled_from(["e", "E"])) + draw(st.sampled_from(["", "-", "+"]))
+        exponent += draw(st.text(alphabet="0123456789", min_size=1, max_size=2))
+    pad = st.sampled_from(["", "", "", " ", "\t"])
+    return draw(pad) + sign + whole + point + fraction + exponent + draw(pad)
+
+
+noise = st.text(alphabet="0123456789.-+eE \t", max_size=6)
+number_like = st.integers(0, 19).flatmap(lambda k: noise if k == 0 else decimal_text())
+
+
+@st.composite
+def number_like_csv(draw: st.DrawFn) -> str:
+    """CSV text whose fields are numbers or number-like noise, rows often well formed."""
+    header = draw(st.sampled_from(["t,x1,u1", "t,x1,x2,u1,w1", "t,x1,u1,u2"]))
+    columns = header.count(",") + 1
+    end = draw(st.sampled_from(["\n", "\r\n"]))
+    lines = [header]
+    for row in range(draw(st.sampled_from([0, 1, 2, 2, 3, 3, 4, 5]))):
+        count = columns + draw(st.sampled_from([0] * 18 + [-1, 1]))
+        fields: list[str] = [draw(number_like) for _ in range(count)]
+        random_time = draw(st.integers(0, 3)) == 0
+        if fields and not random_time:
+            fields[0] = str(row)  # increasing times, so that many files are valid
+        lines.append(",".join(fields))
+    return end.join(lines) + draw(st.sampled_from(["", end, end + end, end + " \t" + end]))
+
+
+@given(text=number_like_csv())
+def test_number_like_fields_are_read_exactly(workdir: Path, text: str) -> None:
+    """Stress the numeric grammar: the loader must read numbers exactly as the format says."""
+    check_csv(workdir / "noise.csv", text.encode())
+
+
+@given(
+    header=st.sampled_from(["t,x1,u1", "t,x1,x2,u1,w1", "t,x1,u1,u2"]),
+    body=st.text(alphabet="0123456789.,-+eE \t\n\r", max_size=120),
+)
+def test_number_like_noise_after_a_valid_header(workdir: Path, header: str, body: str) -> None:
+    check_csv(workdir / "noise.csv", (header + "\n" + body).encode())
+
+
+def test_reference_accepts_what_save_writes(tmp_path: Path) -> None:
+    """The reference reader is not vacuous: it accepts valid files and reads them right."""
+    path = tmp_path / "ok.csv"
+    save_csv(_trajectory(), path)
+    expected = reference_csv(path.read_bytes())
+    assert expected is not None and same(expected[1], _trajectory().x)
+
+
+# --------------------------------------------------------------------------- NPZ errors
+
+
+def write_npz(path: Path, **arrays: Any) -> Path:
+    np.savez(path, **arrays)
+    return path
+
+
+T = np.array([0.0, 0.5, 1.0])
+X = np.array([[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]])
+U = np.array([[0.1], [0.2]])
+
+
+@pytest.mark.parametrize(
+    ("arrays", "parts"),
+    [
+        ({"t": T, "x": X}, ["missing array 'u'"]),
+        ({"x": X}, ["missing arrays 't', 'u'"]),
+        ({}, ["missing arrays 't', 'x', 'u'"]),
+        ({"t": T, "x": X, "u": U, "y": U}, ["unexpected array 'y'"]),
+        ({"t": T, "x": X, "u": U, "W": U, "dt": T}, ["unexpected arrays 'W', 'dt'"]),
+        ({"t": T, "x": X.astype(str), "u": U}, ["array 'x'", "dtype"]),
+        ({"t": T, "x": X.astype(bytes), "u": U}, ["array 'x'", "dtype"]),
+        ({"t": T, "x": X, "u": U > 0}, ["array 'u'", "dtype"]),
+        ({"t": T, "x": X, "u": U + 1j}, ["array 'u'", "dtype"]),
+        ({"t": T.astype("datetime64[s]"), "x": X, "u": U}, ["array 't'", "dtype"]),
+        ({"t": T, "x": X, "u": U, "w": np.zeros(3, dtype="i4,f8")}, ["array 'w'", "dtype"]),
+        ({"t": T[:, None], "x": X, "u": U}, ["array 't'", "1-D", "(3, 1)"]),
+        ({"t": np.float64(1.0), "x": X, "u": U}, ["array 't'", "1-D", "()"]),
+        ({"t": T, "x": X[..., None], "u": U}, ["array 'x'", "2-D", "(3, 2, 1)"]),
+        ({"t": T, "x": X, "u": np.float64(0.1)}, ["array 'u'", "2-D"]),
+        ({"t": T, "x": X[:2], "u": U}, ["Trajectory.x", "expected 3 rows"]),
+        ({"t": T, "x": X, "u": U[:1]}, ["Trajectory.u"]),
+        ({"t": T, "x": X, "u": U, "w": np.ones((1, 1))}, ["Trajectory.w"]),
+        ({"t": T[::-1], "x": X, "u": U}, ["Trajectory.t", "strictly increasing"]),
+        ({"t": T, "x": X * np.nan, "u": U}, ["Trajectory.x", "NaN"]),
+        ({"t": T, "x": X[:, :0], "u": U}, ["Trajectory.x", "no channels"]),
+        ({"t": T[:1], "x": X[:1], "u": U[:1]}, ["Trajectory.t", "at least 2"]),
+    ],
+)
+def test_malformed_npz_names_the_array(
+    tmp_path: Path, arrays: dict[str, Any], parts: list[str]
+) -> None:
+    path = write_npz(tmp_path / "bad.npz", **arrays)
+    expect_error(load_npz, path, *parts)
+    expect_error(load_trajectory, path, *parts)
+
+
+def test_npz_object_array_is_never_unpickled(tmp_path: Path) -> None:
+    objects = np.empty((3, 1), dtype=object)
+    objects[:, 0] = [1.0, 2.0, 3.0]
+    path = write_npz(tmp_path / "pickled.npz", t=T, x=objects, u=U)
+    expect_error(load_npz, path, "array 'x'", "allow_pickle")
+
+
+def test_npz_accepts_integers_and_one_channel_vectors(tmp_path: Path) -> None:
+    path = write_npz(tmp_path / "ints.npz", t=np.arange(3), x=np.arange(3, dtype=np.uint8), u=U)
+    loaded = load_npz(path)
+    assert same(loaded.t, np.array([0.0, 1.0, 2.0]))
+    assert same(loaded.x, np.array([[0.0], [1.0], [2.0]]))
+
+
+@pytest.mark.parametrize(
+    ("members", "parts"),
+    [
+        ({"t.npy": None, "x.npy": None, "u.npy": None, "notes.txt": b"hi"}, ["'notes.txt'"]),
+        ({"t.npy": None, "x.npy": None, "u.npy": b"not an array"}, ["array 'u'", "cannot read"]),
+        ({"t.npy": None, "x.npy": None, "u.npy": "trailing"}, ["array 'u'", "bytes after"]),
+    ],
+)
+def test_npz_members_that_are_not_arrays(
+    tmp_path: Path, members: dict[str, bytes | str | None], parts: list[str]
+) -> None:
+    path = tmp_path / "odd.npz"
+    values = {"t": T, "x": X, "u": U}
+    with zipfile.ZipFile(path, "w") as archive:
+        for member, content in members.items():
+            if content is None or content == "trailing":
+                buffer = BytesIO()
+                np.save(buffer, values[member.removesuffix(".npy")])
+                content = buffer.getvalue() + (b"\0" * 8 if content == "trailing" else b"")
+            assert isinstance(content, bytes)
+            archive.writestr(member, content)
+    expect_error(load_npz, path, *parts)
+
+
+def test_unreadable_npz(tmp_path: Path) -> None:
+    expect_error(load_npz, tmp_path / "missing.npz", "cannot read")
+    path = tmp_path / "text.npz"
+    path.write_text("t,x1,u1\n0,1,2\n1,2,3\n")
+    expect_error(load_npz, path, "not an NPZ archive")
+    np.save(tmp_path / "array.npy", X)
+    expect_error(load_npz, tmp_path / "array.npy", "not an NPZ archive")
+
+
+# --------------------------------------------------------------------------- NPZ fuzzing
+
+DTYPES = ["<f8", ">f8", "<f4", "<f2", "<i8", "<u1", "?", "<c16", "<U3", "S3", "<M8[s]", "<m8[s]"]
+
+
+@st.composite
+def npz_contents(draw: st.DrawFn) -> dict[str, np.ndarray]:
+    """A valid archive's arrays with 0 to 2 edits: names, dtypes, shapes, row counts."""
+    t, x, u, w = draw(trajectory_arrays(elements=moderate, u_rows=(0, 1)))
+    contents = {"t": t, "x": x, "u": u} | ({} if w is None else {"w": w})
+    for _ in range(draw(st.integers(0, 2))):
+        edit = draw(
+            st.sampled_from(
+                ["drop", "add", "dtype", "ravel", "add axis", "transpose", "rows", "scalar"]
+            )
+        )
+        if not contents:
+            break
+        name = draw(st.sampled_from(sorted(contents)))
+        array = contents[name]
+        if edit == "drop":
+            del contents[name]
+        elif edit == "add":
+            new = draw(st.sampled_from(["t", "x", "u", "w", "y", "T", "t.npy", "x_"]))
+            shape = draw(hnp.array_shapes(min_dims=0, max_dims=3, min_side=0, max_side=4))
+            contents[new] = draw(hnp.arrays(np.float64, shape, elements=moderate))
+        elif edit == "dtype":
+            dtype = np.dtype(draw(st.sampled_from(DTYPES)))
+            try:
+                with np.errstate(all="ignore"):
+                    contents[name] = array.astype(dtype)
+            except (TypeError, ValueError):
+                contents[name] = np.zeros(array.shape, dtype)
+        elif edit == "ravel":
+            contents[name] = array.ravel()
+        elif edit == "add axis":
+            contents[name] = array[..., None]
+        elif edit == "transpose":
+            contents[name] = array.T
+        elif edit == "rows":
+            rows = draw(st.integers(0, array.shape[0] + 1)) if array.ndim else 0
+            contents[name] = np.concatenate([array, array])[:rows]
+        else:
+            contents[name] = np.asarray(array.ravel()[0] if array.size else 0.0)
+    return contents
+
+
+def reference_npz(contents: dict[str, np.ndarray]) -> Trajectory | None:
+    """The trajectory an archive holds by the format's definition (None if invalid)."""
+    if not {"t", "x", "u"} <= set(contents) <= {"t", "x", "u", "w"}:
+        return None
+    for name, array in contents.items():
+        if array.dtype.kind not in "iuf" or array.ndim not in ((1,) if name == "t" else (1, 2)):
+            return None
+    floats = {name: array.astype(np.float64) for name, array in contents.items()}
+    try:
+        return Trajectory(**floats)
+    except InputError:
+        return None
+
+
+@given(contents=npz_contents())
+def test_generated_npz_is_refused_or_read_exactly(
+    workdir: Path, contents: dict[str, np.ndarray]
+) -> None:
+    path = write_npz(workdir / "fuzz.npz", **contents)
+    expected = reference_npz(contents)
+    event("valid file" if expected is not None else "malformed file")
+    if expected is None:
+        expect_error(load_npz, path)
+        return
+    loaded = load_npz(path)
+    for name in ("t", "x", "u", "w"):
+        assert same(getattr(loaded, name), getattr(expected, name)), name
+
+
+def member_spans(raw: bytes) -> list[tuple[int, int]]:
+    """Byte ranges of the members' stored data in a zip archive."""
+    spans = []
+    with zipfile.ZipFile(BytesIO(raw)) as archive:
+        for info in archive.infolist():
+            offset = info.header_offset
+            name_length, extra_length = struct.unpack("<HH", raw[offset + 26 : offset + 30])
+            start = offset + 30 + name_length + extra_length
+            spans.append((start, start + info.compress_size))
+    return spans
+
+
+@given(arrays=trajectory_arrays(u_rows=(0, 1)), data=st.data())
+def test_corrupted_npz_is_refused_or_unchanged(
+    workdir: Path, arrays: Arrays, data: st.DataObject
+) -> None:
+    """No edit of an archive's bytes may load as different data (the CRC must be checked)."""
+    t, x, u, w = arrays
+    stored: dict[str, Any] = {"t": t, "x": x, "u": u}
+    if w is not None:
+        stored["w"] = w
+    path = write_npz(workdir / "corrupt.npz", **stored)
+    original = Trajectory(t=t, x=x, u=u, w=w)
+    raw = bytearray(path.read_bytes())
+    start, stop = data.draw(st.sampled_from(member_spans(bytes(raw))))
+    where = data.draw(st.sampled_from(["anywhere", "array", "numbers"]))
+    if where == "anywhere":
+        at = data.draw(st.integers(0, len(raw) - 1))
+    elif where == "array":  # inside one array's stored bytes: its .npy header first
+        at = data.draw(st.integers(start, stop - 1))
+    else:  # in the last number of an array (every array holds at least one)
+        at = stop - 1 - data.draw(st.integers(0, 7))
+    edit = data.draw(st.sampled_from(["truncate", "flip bit", "set byte", "insert", "delete"]))
+    if edit == "truncate":
+        raw = raw[:at]
+    elif edit == "flip bit":
+        raw[at] ^= 1 << data.draw(st.integers(0, 7))
+    elif edit == "set byte":
+        raw[at] = data.draw(st.integers(0, 255))
+    elif edit == "insert":
+        raw.insert(at, data.draw(st.integers(0, 255)))
+    else:
+        del raw[at]
+    path.write_bytes(bytes(raw))
+    try:
+        loaded = load_npz(path)
+    except DataFileError as error:
+        event("refused")
+        assert_clear(error, path)
+        return
+    event("loaded unchanged")
+    for name in ("t", "x", "u", "w"):
+        assert same(getattr(loaded, name), getattr(original, name)), name
+
+
+@given(raw=st.binary(max_size=300))
+def test_random_bytes_as_npz(workdir: Path, raw: bytes) -> None:
+    path = workdir / "random.npz"
+    path.write_bytes(raw)
+    expect_error(load_npz, path)
