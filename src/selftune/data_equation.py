@@ -40,6 +40,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 from numpy.typing import NDArray
 
 from .errors import ExcitationError, InputError
@@ -126,23 +127,26 @@ def _episode_moments(episode: Trajectory, interval: int, held: bool) -> tuple[Ar
             w_end = w[1:]
         start = np.hstack([episode.x[:-1], w_start])
         end = np.hstack([episode.x[1:], w_end])
-    # Exact integrals for z linear inside a sample and u held:
-    #   int z z' = h/6 (2 a a' + 2 b b' + a b' + b a'),   int z u' = h/2 (a + b) u'
-    outer_start = start[:, :, None] * start[:, None, :]
-    outer_end = end[:, :, None] * end[:, None, :]
-    cross = start[:, :, None] * end[:, None, :]
-    zz = (h / 6.0)[:, None, None] * (
-        2.0 * outer_start + 2.0 * outer_end + cross + cross.transpose(0, 2, 1)
-    )
-    zu = (0.5 * h)[:, None, None] * (start + end)[:, :, None] * episode.u[:, None, :]
-    dzz = outer_end - outer_start
-    boundaries = np.arange(0, count, interval)
-    return (
-        np.add.reduceat(zz, boundaries, axis=0),
-        np.add.reduceat(zu, boundaries, axis=0),
-        np.add.reduceat(dzz, boundaries, axis=0),
-        np.add.reduceat(h, boundaries),
-    )
+    # Exact integrals for z linear inside a sample (from a to b) and u held:
+    #   int z z' = h/6 (2 a a' + 2 b b' + a b' + b a') = h/6 ((2a + b) a' + (a + 2b) b')
+    #   int z u' = h/2 (a + b) u'
+    # summed over each interval's samples by batched matrix products (no N x p x p array).
+    # Samples are padded to whole intervals with zero rows, which add nothing.
+    intervals = -(-count // interval)
+    padding = intervals * interval - count
+
+    def grouped(rows: Array) -> Array:
+        padded = np.concatenate([rows, np.zeros((padding, *rows.shape[1:]))])
+        return padded.reshape(intervals, interval, *rows.shape[1:])
+
+    a, b, u, weight = grouped(start), grouped(end), grouped(episode.u), grouped(h[:, None])
+    a_t = ((2.0 * a + b) * (weight / 6.0)).transpose(0, 2, 1)
+    b_t = ((a + 2.0 * b) * (weight / 6.0)).transpose(0, 2, 1)
+    zz = a_t @ a + b_t @ b
+    zz = 0.5 * (zz + zz.transpose(0, 2, 1))
+    zu = ((a + b) * (0.5 * weight)).transpose(0, 2, 1) @ u
+    dzz = b.transpose(0, 2, 1) @ b - a.transpose(0, 2, 1) @ a
+    return zz, zu, dzz, weight.sum(axis=1)[:, 0]
 
 
 def interval_moments(
@@ -355,17 +359,24 @@ def solve_regression(
     scale = np.linalg.norm(Psi, axis=0)
     scale[scale == 0.0] = 1.0
     scaled = Psi / scale
+    # One triangular factor makes everything small. With [scaled, b] = Q [R, c], the first
+    # k columns of scaled have the singular values of R[:k, :k] (each block's rank from one
+    # factorization), and the least-squares solution is that of R theta = c. Q is never
+    # formed (LAPACK's R-only QR of the tall matrix is the one pass over the rows).
+    factor = scipy.linalg.qr(np.column_stack([scaled, b]), mode="r", check_finite=False)[0]
+    size = min(rows, unknowns)
+    triangular, projected = factor[:size, :unknowns], factor[:size, unknowns]
     block_ranks: dict[str, int] = {}
     block_sizes: dict[str, int] = {}
     previous_rank = 0
-    stop = 0
     for name, columns in blocks.items():
         stop = columns.stop
-        cumulative = _rank(np.linalg.svd(scaled[:, :stop], compute_uv=False))
+        leading = triangular[: min(stop, size), :stop]
+        cumulative = _rank(np.linalg.svd(leading, compute_uv=False))
         block_ranks[name] = cumulative - previous_rank
         block_sizes[name] = columns.stop - columns.start
         previous_rank = cumulative
-    left, singular_values, right = np.linalg.svd(scaled, full_matrices=False)
+    left, singular_values, right = np.linalg.svd(triangular, full_matrices=False)
     rank = _rank(singular_values)
     for name in blocks:
         if block_ranks[name] < block_sizes[name] and name not in allow_deficient:
@@ -375,7 +386,7 @@ def solve_regression(
                 f"{BLOCK_ADVICE[name]}"
             )
     kept = singular_values[:rank]
-    coefficients = right[:rank].T @ ((left[:, :rank].T @ b) / kept)
+    coefficients = right[:rank].T @ ((left[:, :rank].T @ projected) / kept)
     solved = coefficients / scale
     norm_b = float(np.linalg.norm(b))
     residual = float(np.linalg.norm(Psi @ solved - b)) / norm_b if norm_b > 0 else 0.0
