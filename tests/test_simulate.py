@@ -407,6 +407,20 @@ def test_batch_shared_plant_with_num_plants_draws_independent_exploration() -> N
     assert batch.x.shape == (4, 31, 2) and batch.w is None
     assert not np.allclose(batch.u[0], batch.u[1])
     assert batch.trajectory(-1).w is None
+    # a shared plant and reference, exploration per plant, on a non-uniform grid
+    t = np.cumsum(np.concatenate([[0.0], np.random.default_rng(0).uniform(0.01, 0.1, 30)]))
+    common = {"D": [[1.0]], "exogenous": constant([1.0]), "t": t}
+    batch = simulate_batch(
+        [[-1.0]],
+        [[1.0]],
+        exploration=uniform(1.0),
+        num_plants=3,
+        seed=0,
+        **common,  # type: ignore[arg-type]
+    )
+    for i in range(3):
+        single = simulate([[-1.0]], [[1.0]], exploration=batch.exploration[i], **common)  # type: ignore[arg-type]
+        assert relative_error(batch.x[i], single.x) < 1e-13
 
 
 # -- seeding and exploration --------------------------------------------------------------

@@ -396,86 +396,120 @@ def discretize(
     )
 
 
-# -- propagation of x[k+1] = x[k] T + f[k] (rows) ------------------------------------------
+# -- propagation, in a plant-last layout ---------------------------------------------------
+#
+# Inside the simulator, arrays put the plant axis last, e.g. states (N + 1, n, P), so that
+# per-plant products are vectorized multiply-adds along contiguous plants and regrouping
+# samples into chunks moves whole rows of plants. Matrices are stored as ``T[b, a, p]``
+# and act on rows: ``(x T)[a] = sum_b x[b] T[b, a]``.
 
 
-def _batched_rows_times(rows: Array, T: Array) -> Array:
-    """``rows @ T`` for rows (P in {1, P}, R, n) and T (P' in {1, P}, n, n).
+def _times(s: Array, T: Array) -> Array:
+    """Per-plant row product ``s @ T`` over the first axis of ``s``, plants last.
 
-    A shared T and contiguous rows make one BLAS call instead of one per plant.
+    ``s`` is (b, ..., P1) and ``T`` is (b, a, P2), with P1, P2 in {1, P}; returns
+    (a, ..., P). A shared T (P2 = 1) makes one BLAS product; otherwise a loop over b of
+    multiply-adds along the plants.
     """
-    plants, count, n = rows.shape
-    if T.shape[0] == 1 and plants > 1 and rows.flags.c_contiguous:
-        return (rows.reshape(plants * count, n) @ T[0]).reshape(plants, count, T.shape[2])
-    return rows @ T
+    size_b, size_a = T.shape[0], T.shape[1]
+    if size_b == 0:  # no exogenous input (q = 0)
+        return np.zeros((size_a, *s.shape[1:-1], max(s.shape[-1], T.shape[2])))
+    if T.shape[2] == 1:
+        return (T[:, :, 0].T @ s.reshape(size_b, -1)).reshape(size_a, *s.shape[1:])
+    # T[b] as (a, 1, ..., 1, P) to broadcast against s[b] (..., P1)
+    T_b = T.reshape(size_b, size_a, *(1,) * (s.ndim - 2), T.shape[2])
+    out = s[0][np.newaxis] * T_b[0]
+    for b in range(1, size_b):
+        out += s[b][np.newaxis] * T_b[b]
+    return out
+
+
+def _to_plant_last(rows: Array) -> Array:
+    """(P, R, c) plant-major rows as a contiguous (R, c, P) array (one 2-D transpose)."""
+    plants, count, size = rows.shape
+    flat = np.ascontiguousarray(rows).reshape(plants, count * size)
+    return np.ascontiguousarray(flat.T).reshape(count, size, plants)
+
+
+def _to_plant_major(rows: Array) -> Array:
+    """(R, c, P) plant-last rows as a contiguous (P, R, c) array (one 2-D transpose)."""
+    count, size, plants = rows.shape
+    flat = np.ascontiguousarray(rows).reshape(count * size, plants)
+    return np.ascontiguousarray(flat.T).reshape(plants, count, size)
+
+
+def _plant_last(M: Array) -> Array:
+    """A stack of matrices (P, rows, cols) as the row-acting ``T[b, a, p] = M[p, a, b]``."""
+    return np.ascontiguousarray(M.transpose(2, 1, 0))
 
 
 def _propagate_uniform(T: Array, f: Array, x0: Array) -> Array:
-    """Rows ``x[k+1] = x[k] @ T + f[k]`` for k < N, vectorized in two levels.
+    """``x[k+1] = x[k] @ T + f[k]`` for k < N, vectorized in two levels (plants last).
 
-    ``T`` (P' in {1, P}, n, n) is the transposed one-step map, ``f`` (P, N, n) the forcing,
-    ``x0`` (P, n). The N steps are cut into C chunks of L ~ sqrt(N) samples: the response
-    to the forcing inside every chunk is computed for all chunks at once (L vectorized
-    steps), the chunk starts follow by the L-step map (C steps), and the states inside
-    the chunks by the powers of T. The Python loop runs about 2 sqrt(N) times instead of N.
-    Returns x, shape (P, N + 1, n).
+    ``T`` (b, a, P') is the one-step map acting on rows (P' in {1, P}), ``f`` (N, n, P)
+    the forcing, ``x0`` (n, P). The N steps are cut into C chunks of L ~ sqrt(N / 2)
+    samples: the response to the forcing inside all chunks is computed at once (L
+    vectorized steps), the chunk starts follow by the L-step map (C steps), and the states
+    inside the chunks by the powers of T. The loop runs about 2 L + C ~ 3 sqrt(N / 2)
+    times instead of N. Returns x, shape (N + 1, n, P).
     """
-    plants, count, n = f.shape
+    count, n, plants = f.shape
     length = max(1, math.isqrt(max(count // 2, 1)))
     chunks = -(-count // length)
     full = count // length
-    # state[j, p, c]: first the forcing f[p, c * length + j - 1] (zero past the end), then
-    # in place the response j samples into chunk c from a zero start
-    state = np.empty((length + 1, plants, chunks, n))
+    # state[j, :, c]: first the forcing f[c * length + j - 1] (zero past the end), then in
+    # place the response j samples into chunk c from a zero start
+    state = np.empty((length + 1, n, chunks, plants))
     state[0] = 0.0
-    state[1:, :, :full] = (
-        f[:, : full * length].reshape(plants, full, length, n).transpose(2, 0, 1, 3)
-    )
+    state[1:, :, :full] = f[: full * length].reshape(full, length, n, plants).transpose(1, 2, 0, 3)
     if full < chunks:
         rest = count - full * length
-        state[1 : rest + 1, :, full] = f[:, full * length :].transpose(1, 0, 2)
+        state[1 : rest + 1, :, full] = f[full * length :]
         state[rest + 1 :, :, full] = 0.0
     for j in range(1, length + 1):
-        state[j] += _batched_rows_times(state[j - 1], T)
+        state[j] += _times(state[j - 1], T)
+    # powers[j] = T^j acting on rows, computed plant-major and stored plant-last
+    T_major = T.transpose(2, 0, 1)  # (P', b, a)
+    power = np.broadcast_to(np.eye(n), T_major.shape)
     powers = np.empty((length + 1, *T.shape))
-    powers[0] = np.eye(n)
-    for j in range(length):
-        powers[j + 1] = powers[j] @ T
+    for j in range(length + 1):
+        powers[j] = power.transpose(1, 2, 0)
+        power = power @ T_major
     # the state at the start of each chunk, by the map over a whole chunk
-    starts = np.empty((chunks + 1, plants, 1, n))
-    starts[0, :, 0] = x0
+    starts = np.empty((chunks + 1, n, plants))
+    starts[0] = x0
     for c in range(chunks):
-        starts[c + 1] = _batched_rows_times(starts[c], powers[length])
-        starts[c + 1, :, 0] += state[length, :, c]
-    # the states inside the chunks: the response plus the start's free motion
-    start_rows = np.ascontiguousarray(starts[:chunks, :, 0].transpose(1, 0, 2))  # (P, C, n)
+        starts[c + 1] = _times(starts[c], powers[length])
+        starts[c + 1] += state[length, :, c]
+    # the states inside the chunks: the response plus the free motion from the start
+    start_rows = np.ascontiguousarray(starts[:chunks].transpose(1, 0, 2))  # (n, C, P)
     inside = state[:length]
     inside[0] = start_rows
     for j in range(1, length):
-        inside[j] += _batched_rows_times(start_rows, powers[j])
-    x = np.empty((plants, count + 1, n))
-    x[:, : full * length].reshape(plants, full, length, n)[...] = inside[:, :, :full].transpose(
-        1, 2, 0, 3
+        inside[j] += _times(start_rows, powers[j])
+    x = np.empty((count + 1, n, plants))
+    x[: full * length].reshape(full, length, n, plants)[...] = inside[:, :, :full].transpose(
+        2, 0, 1, 3
     )
     if full < chunks:  # a last, partial chunk
-        x[:, full * length :] = inside[: count + 1 - full * length, :, full].transpose(1, 0, 2)
+        x[full * length :] = inside[: count + 1 - full * length, :, full]
     else:
-        x[:, count] = starts[chunks, :, 0]
+        x[count] = starts[chunks]
     return x
 
 
 def _propagate_steps(T: Array, index: NDArray[np.intp], f: Array, x0: Array) -> Array:
-    """Rows ``x[k+1] = x[k] @ T[:, index[k]] + f[k]``: one step at a time (non-uniform grid).
+    """``x[k+1] = x[k] @ T[index[k]] + f[k]``, one step at a time (non-uniform grid).
 
-    ``T`` (P' in {1, P}, S, n, n), ``index`` (N,), ``f`` (P, N, n), ``x0`` (P, n).
+    ``T`` (S, b, a, P'), ``index`` (N,), ``f`` (N, n, P), ``x0`` (n, P); plants last.
     """
-    plants, count, n = f.shape
-    x = np.empty((plants, count + 1, 1, n))
-    x[:, 0, 0] = x0
+    count, n, plants = f.shape
+    x = np.empty((count + 1, n, plants))
+    x[0] = x0
     for k in range(count):
-        np.matmul(x[:, k], T[:, index[k]], out=x[:, k + 1])
-        x[:, k + 1, 0] += f[:, k]
-    return x[:, :, 0]
+        x[k + 1] = _times(x[k], T[index[k]])
+        x[k + 1] += f[k]
+    return x
 
 
 # -- exogenous signals --------------------------------------------------------------------
@@ -679,15 +713,18 @@ class Exosystem:
         empty = np.zeros((1, q, 0))
         M = _augmented(self.E[np.newaxis], empty, empty, None)
         count = times.shape[0] - 1
-        forcing = np.zeros((initial.shape[0], count, q))
+        forcing = np.zeros((count, q, initial.shape[0]))
         if period is not None:
-            Phi_w = _expm_stack(M, np.array([period]), uniform=True)[:, 0]
-            w = _propagate_uniform(Phi_w.transpose(0, 2, 1), forcing, initial)
+            Phi_w = _expm_stack(M, np.array([period]), uniform=True)[:, 0]  # (1, q, q)
+            w = _propagate_uniform(_plant_last(Phi_w), forcing, initial.T)
         else:
             periods, index = np.unique(np.diff(times), return_inverse=True)
-            Phi_w = _expm_stack(M, periods, uniform=False)
-            w = _propagate_steps(Phi_w.transpose(0, 1, 3, 2), index, forcing, initial)
-        return w if self.w0.ndim == 2 else w[0]
+            Phi_w = _expm_stack(M, periods, uniform=False)[0]  # (S, q, q)
+            w = _propagate_steps(
+                Phi_w.transpose(0, 2, 1)[..., np.newaxis], index, forcing, initial.T
+            )
+        values = w.transpose(2, 0, 1)  # (P, N + 1, q)
+        return values if self.w0.ndim == 2 else values[0]
 
 
 def constant(w: ArrayLike) -> ConstantSignal:
@@ -1073,24 +1110,27 @@ def _run(
 
     # closed loop: x[k+1] = (Phi - Gamma_u K) x[k] + (Gamma_u L + Gamma_w) w[k] + Gamma_u rho[k]
     L = U_ + K_ @ X_  # (P'', m, q): u = -K x + L w + rho
-    K_s, L_s = K_[:, np.newaxis], L[:, np.newaxis]
-    closed_T = (Phi - Gamma_u @ K_s).transpose(0, 1, 3, 2)  # (P'', S, n, n)
-    w_gain_T = (Gamma_u @ L_s + Gamma_w).transpose(0, 1, 3, 2)  # (P'', S, q, n)
-    u_gain_T = Gamma_u.transpose(0, 1, 3, 2)  # (P', S, m, n)
-    x0_all = np.broadcast_to(x0_, (plants, n))
+    closed = Phi - Gamma_u @ K_[:, np.newaxis]  # (P'', S, n, n)
+    w_gain = Gamma_u @ L[:, np.newaxis] + Gamma_w  # (P'', S, n, q)
+    # forcing plant-major (a matmul per plant), the propagation plant-last (see _times)
+    x0_last = np.ascontiguousarray(np.broadcast_to(x0_, (plants, n)).T)
     with np.errstate(over="ignore", invalid="ignore"):
         if grid.h is not None:
-            forcing = np.empty((plants, count, n))
-            forcing[...] = _batched_rows_times(w[:, :count], w_gain_T[:, 0])
-            forcing += _batched_rows_times(rho, u_gain_T[:, 0])
-            x = _propagate_uniform(closed_T[:, 0], forcing, x0_all)
+            forcing = w[:, :count] @ w_gain[:, 0].transpose(0, 2, 1)
+            forcing = forcing + rho @ Gamma_u[:, 0].transpose(0, 2, 1)
+            x_last = _propagate_uniform(_plant_last(closed[:, 0]), _to_plant_last(forcing), x0_last)
         else:
-            forcing = (w[:, :count, np.newaxis, :] @ w_gain_T[:, index])[:, :, 0]
-            forcing = forcing + (rho[:, :, np.newaxis, :] @ u_gain_T[:, index])[:, :, 0]
-            x = _propagate_steps(closed_T, index, forcing, x0_all)
-        u = np.array(rho)
-        u -= _batched_rows_times(x[:, :count], K_.transpose(0, 2, 1))
-        u += _batched_rows_times(w[:, :count], L.transpose(0, 2, 1))
+            w_steps = w[:, :count, np.newaxis, :]  # (P_w, N, 1, q)
+            forcing = (w_steps @ w_gain[:, index].transpose(0, 1, 3, 2))[:, :, 0]
+            forcing = (
+                forcing
+                + (rho[:, :, np.newaxis, :] @ Gamma_u[:, index].transpose(0, 1, 3, 2))[:, :, 0]
+            )
+            closed_steps = np.ascontiguousarray(closed.transpose(1, 3, 2, 0))  # (S, b, a, P'')
+            x_last = _propagate_steps(closed_steps, index, _to_plant_last(forcing), x0_last)
+        x = _to_plant_major(x_last)
+        u = rho - x[:, :count] @ K_.transpose(0, 2, 1)
+        u += w[:, :count] @ L.transpose(0, 2, 1)
     _check_finite_states(x, grid.t)
     w_out = None if q == 0 else np.broadcast_to(w, (plants, count + 1, q))
     arrays = [grid.t, x, u, rho] + ([] if w_out is None else [w_out])
