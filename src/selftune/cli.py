@@ -28,8 +28,10 @@ from numpy.typing import NDArray
 
 from . import __version__
 from ._atomic import write_json
-from .config import MotorConfig, load_motor_config
+from .config import MotorConfig, load_learn_config, load_motor_config
 from .errors import SelftuneError
+from .io import load_trajectory
+from .learning import learn_lqr, learn_output_regulation
 from .regulation import ModelBasedSolution, solve_optimal_regulation
 
 __all__ = ["build_parser", "main", "solve_report"]
@@ -275,10 +277,106 @@ def _run_solve(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- selftune learn -------------------------------------------------------------------
+
+
+def _add_learn(subparsers: _Subparsers) -> None:
+    parser = subparsers.add_parser(
+        "learn",
+        help="learn the optimal controller from logged data (no model needed)",
+        description=(
+            "Learn the optimal feedback K*, the value P* and (with a [regulation] table)"
+            " the feedforward X*, U* from sampled data of any linear plant, by off-policy"
+            " policy iteration on one batch of data (Jiang & Jiang 2012; Gao & Jiang"
+            " 2016). DATA is a CSV (header t,x1..xn,u1..um,w1..wq) or NPZ file."
+        ),
+    )
+    parser.add_argument("data", metavar="DATA", help="the samples: a .csv or .npz file")
+    parser.add_argument(
+        "--config",
+        metavar="CONFIG.toml",
+        required=True,
+        help="cost weights, initial policy, optional [regulation] and [learning] tables",
+    )
+    parser.add_argument("--json", metavar="FILE", help="also write the results to FILE as JSON")
+    parser.set_defaults(handler=_run_learn)
+
+
+def _labels(prefix: str, count: int) -> list[str]:
+    return [f"{prefix}{index + 1}" for index in range(count)]
+
+
+def _run_learn(args: argparse.Namespace) -> int:
+    data = load_trajectory(args.data)
+    config = load_learn_config(args.config, data.n, data.m, data.q)
+    try:
+        if config.regulation:
+            assert config.C is not None and config.E is not None and config.F is not None
+            learned = learn_output_regulation(
+                data,
+                config.C,
+                config.E,
+                config.F,
+                config.Q,
+                config.R,
+                config.K0,
+                interval=config.interval,
+                max_iterations=config.max_iterations,
+                tolerance=config.tolerance,
+            )
+        else:
+            learned_lqr = learn_lqr(
+                data,
+                config.Q,
+                config.R,
+                config.K0,
+                interval=config.interval,
+                max_iterations=config.max_iterations,
+                tolerance=config.tolerance,
+            )
+    except SelftuneError as exc:
+        raise type(exc)(f"{args.data}: {exc}") from None
+    result = learned if config.regulation else learned_lqr
+    states, inputs = _labels("x", data.n), _labels("u", data.m)
+    lines = [
+        f"learned from {args.data}: {data.num_samples} samples, {data.duration:.6g} s",
+        f"policy iteration: {result.iterations} steps, converged, regression rank "
+        f"{result.rank} of {result.unknowns} unknowns"
+        + (f" ({learned.rows} intervals, {learned.method} method)" if config.regulation else ""),
+        "",
+        *_matrix_block("K  optimal feedback gain, u = -K x", result.K, inputs, states),
+        *_matrix_block("P  value matrix", result.P, states, states),
+        *_matrix_block("B  estimated input matrix", result.B, states, inputs),
+    ]
+    output: dict[str, object] = {"P": result.P, "K": result.K, "B": result.B}
+    if config.regulation:
+        exogenous = _labels("w", data.q)
+        lines += [
+            *_matrix_block("X  steady-state map, x_ss = X w", learned.X, states, exogenous),
+            *_matrix_block("U  feedforward map, u_ss = U w", learned.U, inputs, exogenous),
+            *_matrix_block("L  = U + K X, u = -K x + L w", learned.L, inputs, exogenous),
+        ]
+        output.update({"X": learned.X, "U": learned.U, "L": learned.L})
+    output.update(
+        {
+            "iterations": result.iterations,
+            "converged": result.converged,
+            "rank": result.rank,
+            "unknowns": result.unknowns,
+        }
+    )
+    if args.json is not None:
+        _write_json(args.json, output)
+    print("\n".join(lines))
+    if args.json is not None:
+        print(f"\nwrote {args.json}")
+    return 0
+
+
 # -- the parser and main --------------------------------------------------------------
 
 #: Registration functions, one per subcommand, in the order of ``selftune --help``.
-_COMMANDS: tuple[Callable[[_Subparsers], None], ...] = (_add_solve,)
+_COMMANDS: tuple[Callable[[_Subparsers], None], ...] = (_add_solve, _add_learn)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -54,7 +54,7 @@ def _check_finite(array: Array, name: str) -> None:
         raise InputError(f"Trajectory.{name}: NaN or infinite value at sample {row}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Trajectory:
     """Samples of a plant's state, input and exogenous signal (SI units).
 
@@ -79,9 +79,18 @@ class Trajectory:
     t: Array
     x: Array
     u: Array
-    w: Array | None = None
+    w: Array | None
 
-    def __post_init__(self) -> None:
+    def __init__(
+        self, t: ArrayLike, x: ArrayLike, u: ArrayLike, w: ArrayLike | None = None
+    ) -> None:
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "x", x)
+        object.__setattr__(self, "u", u)
+        object.__setattr__(self, "w", w)
+        self._validate()
+
+    def _validate(self) -> None:
         try:
             t = np.array(self.t, dtype=float)
         except (TypeError, ValueError) as exc:

@@ -1,0 +1,171 @@
+"""``selftune learn``: files in, the learned controller out; bad input is one line, exit 2."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from selftune import SPMSM, lqr, solve_optimal_regulation
+from selftune.cli import main
+from selftune.io import save_trajectory
+from selftune.learning import learn_lqr, learn_output_regulation
+from selftune.simulate import held, prbs, simulate, uniform
+from selftune.trajectory import Trajectory
+
+MOTOR = SPMSM.paper()
+PROBLEM = MOTOR.regulation_problem(10.0)
+K0 = 20.0 * np.pi * np.eye(2)
+Q, R = 1e3 * np.eye(2), np.eye(2)
+
+
+def toml_matrix(M: np.ndarray) -> str:
+    return "[" + ", ".join("[" + ", ".join(repr(float(v)) for v in row) + "]" for row in M) + "]"
+
+
+def motor_data() -> Trajectory:
+    w_base = MOTOR.exogenous(10.0, 10.0)
+    return simulate(
+        PROBLEM.A,
+        PROBLEM.B,
+        D=PROBLEM.D,
+        exogenous=held(
+            lambda t: w_base + np.column_stack([np.sin(1000 * t), 0.1 * np.cos(3000 * t)])
+        ),
+        K=K0,
+        X=-PROBLEM.F,
+        exploration=uniform(1.0),
+        h=1e-5,
+        num_samples=500,
+        seed=4,
+    )
+
+
+def regulation_config(path: Path, interval: int = 10) -> Path:
+    path.write_text(
+        f"""[cost]
+Q = {toml_matrix(Q)}
+R = {toml_matrix(R)}
+[policy]
+K0 = {toml_matrix(K0)}
+[regulation]
+C = {toml_matrix(PROBLEM.C)}
+E = {toml_matrix(PROBLEM.E)}
+F = {toml_matrix(PROBLEM.F)}
+[learning]
+interval = {interval}
+"""
+    )
+    return path
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_learn_from_a_file_equals_learning_in_memory(tmp_path: Path, suffix: str) -> None:
+    data = motor_data()
+    data_file = tmp_path / f"motor{suffix}"
+    save_trajectory(data, data_file)
+    config = regulation_config(tmp_path / "learn.toml")
+    out = tmp_path / "out.json"
+    assert main(["learn", str(data_file), "--config", str(config), "--json", str(out)]) == 0
+    result = json.loads(out.read_text())
+    expected = learn_output_regulation(data, PROBLEM.C, PROBLEM.E, PROBLEM.F, Q, R, K0)
+    for key in ("P", "K", "B", "X", "U", "L"):
+        np.testing.assert_array_equal(np.array(result[key]), getattr(expected, key), err_msg=key)
+    assert result["iterations"] == expected.iterations
+    assert result["converged"] is True
+    assert (result["rank"], result["unknowns"]) == (11, 11)
+    optimum = solve_optimal_regulation(PROBLEM, Q, R)
+    assert np.linalg.norm(np.array(result["K"]) - optimum.K) < 1e-5 * np.linalg.norm(optimum.K)
+
+
+def test_learn_without_regulation_learns_state_feedback(tmp_path: Path) -> None:
+    A = np.array([[0.0, 1.0], [-2.0, 0.3]])
+    B = np.array([[0.0], [1.0]])
+    K_init = lqr(A, B, np.eye(2), np.eye(1))[0]
+    data = simulate(
+        A, B, K=K_init, exploration=prbs(1.0, 5), x0=[1.0, 0.0], h=1e-3, num_samples=4000, seed=2
+    )
+    save_trajectory(data, tmp_path / "plant.csv")
+    (tmp_path / "lqr.toml").write_text(
+        f"[cost]\nQ = {toml_matrix(np.eye(2))}\nR = [[1.0]]\n[policy]\nK0 = {toml_matrix(K_init)}\n"
+    )
+    out = tmp_path / "out.json"
+    args = ["learn", str(tmp_path / "plant.csv"), "--config", str(tmp_path / "lqr.toml")]
+    assert main([*args, "--json", str(out)]) == 0
+    result = json.loads(out.read_text())
+    assert set(result) == {"P", "K", "B", "iterations", "converged", "rank", "unknowns"}
+    expected = learn_lqr(data, np.eye(2), np.eye(1), K_init)
+    np.testing.assert_array_equal(np.array(result["K"]), expected.K)
+
+
+def one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1, captured.err
+    assert "Traceback" not in captured.err
+    return lines[0]
+
+
+@pytest.mark.parametrize(
+    ("edit", "expected"),
+    [
+        (lambda text: text.replace("[policy]\n", "[policy]\nK1 = 1\n"), "[policy] K1: unknown key"),
+        (
+            lambda text: re.sub(r"K0 = .*", "K0 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]", text),
+            "[policy] K0: must be a 2x2 matrix, got 2x3",
+        ),
+        (
+            lambda text: text.replace(
+                "[cost]\n", "[cost]\nQ = [[1.0, 2.0], [2.0, 1.0]]\n", 1
+            ).replace("Q = [[1000.0", "#", 1),
+            "Q: must be symmetric positive definite",
+        ),
+        (lambda text: text.replace("interval = 10", "interval = 0"), "interval: must be positive"),
+        (lambda text: text.replace("F = [[", "F = [[1.0, "), "[regulation] F"),
+        (lambda text: text.split("[policy]")[0], "[policy]: missing table"),
+    ],
+)
+def test_bad_config_is_one_line_naming_the_key(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    edit,
+    expected: str,  # type: ignore[no-untyped-def]
+) -> None:
+    save_trajectory(motor_data(), tmp_path / "motor.csv")
+    config = regulation_config(tmp_path / "learn.toml")
+    config.write_text(edit(config.read_text()))
+    out = tmp_path / "out.json"
+    code = main(["learn", str(tmp_path / "motor.csv"), "--config", str(config), "--json", str(out)])
+    assert code == 2
+    line = one_error_line(capsys)
+    assert "learn.toml" in line
+    assert expected in line
+    assert not out.exists()
+
+
+def test_bad_data_and_weak_excitation_are_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = regulation_config(tmp_path / "learn.toml")
+    data_file = tmp_path / "motor.csv"
+    save_trajectory(motor_data(), data_file)
+    text = data_file.read_text().splitlines()
+    text[5] = text[5].replace(text[5].split(",")[1], "nan", 1)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(text) + "\n")
+    assert main(["learn", str(bad), "--config", str(config)]) == 2
+    assert "bad.csv" in one_error_line(capsys)
+
+    short = motor_data().head(40)  # 4 intervals of 10 samples for 11 unknowns
+    save_trajectory(short, tmp_path / "short.npz")
+    assert main(["learn", str(tmp_path / "short.npz"), "--config", str(config)]) == 2
+    line = one_error_line(capsys)
+    assert "short.npz" in line and "intervals" in line
+
+    no_w = Trajectory(t=short.t, x=short.x, u=short.u)
+    save_trajectory(no_w, tmp_path / "no_w.csv")
+    assert main(["learn", str(tmp_path / "no_w.csv"), "--config", str(config)]) == 2
+    assert "exogenous" in one_error_line(capsys)
