@@ -59,6 +59,7 @@ __all__ = [
     "algorithm1",
     "algorithm2",
     "algorithm3",
+    "closed_loop_response",
     "evaluate",
     "known_flux_form",
     "offpolicy",
@@ -529,7 +530,10 @@ def _on_policy(
         feedback_settled = _relative_change(theta1, previous_theta1) < settings.feedback_tolerance
         previous_theta1 = theta1
         if not two_step:
-            U_next = feedforward(P, K_next, M, settings.R) if feedback_settled else U
+            # Only an identified M gives U; with rank lacking in the M block (a constant
+            # reference) U keeps its value, as in the paper, instead of a wrong matrix.
+            identified = "M" not in record.regression.deficient_blocks
+            U_next = feedforward(P, K_next, M, settings.R) if feedback_settled and identified else U
             item = _record(
                 record,
                 step="feedback",
@@ -616,7 +620,8 @@ def _on_policy(
                 f"rank {deficient[-1].rank} of {deficient[-1].unknowns}: with a constant "
                 "reference the exogenous block (D + AX)'P is not identifiable (its q columns "
                 "per state are collinear), so K and P are learned but the feedforward U is "
-                "not; Algorithm 2 perturbs the reference to learn it"
+                "not (U keeps its initial value); Algorithm 2 perturbs the reference to "
+                "learn it"
             )
     P_last, K_last = last.P, last.K
     return TuningResult(
@@ -915,4 +920,48 @@ def evaluate(result: TuningResult, motor: SPMSM, settings: TuningSettings) -> Tu
         final_theta_error=float(np.linalg.norm(result.theta - theta_star)) / norm,
         K_error=float(np.linalg.norm(result.K - optimum.K)) / float(np.linalg.norm(optimum.K)),
         U_error=float(np.linalg.norm(result.U - optimum.U)) / float(np.linalg.norm(optimum.U)),
+    )
+
+
+def closed_loop_response(
+    motor: SPMSM,
+    settings: TuningSettings,
+    K: Array,
+    X: Array,
+    U: Array,
+    w: Array | None = None,
+    duration: float = 0.01,
+) -> Trajectory:
+    """The torque step from rest under ``u = -K (x - X w) + U w`` (evaluation, from the model).
+
+    Parameters
+    ----------
+    motor : SPMSM
+        The true motor.
+    settings : TuningSettings
+        Speed, torque reference and sampling period.
+    K, X, U : ndarray
+        The controller.
+    w : ndarray, optional
+        The controller's ``w`` (default the true ``[p speed phi_pm, T*]``); Algorithm 3's
+        controller uses its identified flux.
+    duration : float
+        Length of the response, s.
+    """
+    problem = motor.regulation_problem(settings.speed)
+    w_true = motor.exogenous(settings.speed, settings.torque)
+    w_controller = w_true if w is None else np.asarray(w, dtype=float)
+    # The motor's back-EMF is D w_true; the controller acts on its own w.
+    scale = np.divide(w_true, w_controller, out=np.ones_like(w_true), where=w_controller != 0.0)
+    D = problem.D @ np.diag(scale)
+    return simulate(
+        problem.A,
+        problem.B,
+        D=D,
+        exogenous=constant(w_controller),
+        K=K,
+        X=X,
+        U=U,
+        h=settings.sampling,
+        num_samples=round(duration / settings.sampling),
     )

@@ -1,0 +1,345 @@
+"""The paper's Section V, regenerated: Algorithms 1-3 and off-policy on the paper's motor.
+
+:func:`reproduce` runs every algorithm with the paper's settings (PAPER_NOTES.md
+section 6) on :meth:`SPMSM.paper`, compares each with the model-based optimum, and
+simulates the torque step under the LQR, the initial, the Algorithm 1 and the Algorithm
+2 controllers (the paper's Figs. 1-3). :func:`report` renders the table the command
+prints; :func:`results_document` every printed number as JSON; :func:`write_outputs`
+writes ``results.json`` and the five figures (:mod:`selftune.figures`).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._atomic import write_json
+from .motor import SPMSM
+from .regulation import ModelBasedSolution
+from .torque import (
+    TuningEvaluation,
+    TuningResult,
+    TuningSettings,
+    closed_loop_response,
+    evaluate,
+    run_algorithm,
+)
+from .trajectory import Trajectory
+
+__all__ = [
+    "ALGORITHMS",
+    "Reproduction",
+    "report",
+    "reproduce",
+    "results_document",
+    "write_outputs",
+]
+
+Array = NDArray[np.float64]
+
+#: The algorithms, in the order of the table: key, label.
+ALGORITHMS: tuple[tuple[str, str], ...] = (
+    ("1", "Alg. 1"),
+    ("2", "Alg. 2"),
+    ("3", "Alg. 3"),
+    ("offpolicy", "off-policy"),
+)
+
+#: Length of the simulated torque step of Figs. 1-3, s.
+RESPONSE_DURATION = 0.01
+
+
+@dataclass(frozen=True)
+class Reproduction:
+    """Everything the reproduction computed (the CLI, the figures and the JSON read it).
+
+    Attributes
+    ----------
+    motor : SPMSM
+    settings : TuningSettings
+    optimum : ModelBasedSolution
+        The model-based optimum (the truth).
+    results : dict of str to TuningResult
+        Keyed ``"1"``, ``"2"``, ``"3"``, ``"offpolicy"``.
+    evaluations : dict of str to TuningEvaluation
+        The same keys.
+    responses : dict of str to Trajectory
+        Torque steps from rest under ``"lqr"``, ``"initial"``, ``"1"`` and ``"2"``.
+    wall_seconds : float
+        How long the learning and the simulations took.
+    """
+
+    motor: SPMSM
+    settings: TuningSettings
+    optimum: ModelBasedSolution
+    results: dict[str, TuningResult]
+    evaluations: dict[str, TuningEvaluation]
+    responses: dict[str, Trajectory]
+    wall_seconds: float
+
+    def controller(self, name: str) -> tuple[Array, Array, Array, Array]:
+        """``(K, X, U, w)`` of a response's controller."""
+        w_true = self.motor.exogenous(self.settings.speed, self.settings.torque)
+        if name == "lqr":
+            return self.optimum.K, self.optimum.X, self.optimum.U, w_true
+        if name == "initial":
+            return self.settings.K0, self.optimum.X, np.zeros((2, 2)), w_true
+        result = self.results[name]
+        return result.K, result.X, result.U, result.w
+
+
+def reproduce(
+    seed: int = 0,
+    *,
+    motor: SPMSM | None = None,
+    settings: TuningSettings | None = None,
+    step: Callable[[str], None] | None = None,
+) -> Reproduction:
+    """Run the paper's Section V.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the exploration signals.
+    motor : SPMSM, optional
+        Default :meth:`SPMSM.paper`.
+    settings : TuningSettings, optional
+        Default the paper's (with ``seed``).
+    step : callable, optional
+        Called with a short description before each stage (for progress display).
+    """
+    motor = SPMSM.paper() if motor is None else motor
+    settings = replace(TuningSettings() if settings is None else settings, seed=seed)
+    announce = step or (lambda _: None)
+    start = time.perf_counter()
+    results: dict[str, TuningResult] = {}
+    evaluations: dict[str, TuningEvaluation] = {}
+    for key, label in ALGORITHMS:
+        announce(f"{label}: learning")
+        results[key] = run_algorithm(key, motor, settings)  # type: ignore[arg-type]
+        evaluations[key] = evaluate(results[key], motor, settings)
+    optimum = evaluations["2"].optimum
+    announce("torque steps")
+    partial = Reproduction(motor, settings, optimum, results, evaluations, {}, 0.0)
+    responses = {}
+    for name in ("lqr", "initial", "1", "2"):
+        K, X, U, w = partial.controller(name)
+        responses[name] = closed_loop_response(motor, settings, K, X, U, w, RESPONSE_DURATION)
+    return replace(partial, responses=responses, wall_seconds=time.perf_counter() - start)
+
+
+def _number(value: float, width: int = 10) -> str:
+    if not np.isfinite(value):
+        return f"{'-':>{width}}"
+    text = f"{value:.4f}"
+    if text in ("-0.0000", "0.0000"):
+        text = "0"
+    return f"{text:>{width}}"
+
+
+def _scientific(value: float, width: int = 10) -> str:
+    return f"{value:>{width}.1e}" if np.isfinite(value) else f"{'-':>{width}}"
+
+
+def _rank_text(result: TuningResult) -> str:
+    """``"9 of 11"``, or ``"9/11+4/4"`` when a feedforward step solved the rest (eq. 13)."""
+    text = f"{result.rank}/{result.unknowns}"
+    feedforward = [item for item in result.history if item.step == "feedforward"]
+    if feedforward:
+        text += f"+{feedforward[-1].rank}/{feedforward[-1].unknowns}"
+    return text
+
+
+THETA_LABELS = (
+    "P_11",
+    "P_22",
+    "2 P_12",
+    "K_11",
+    "K_21",
+    "K_12",
+    "K_22",
+    "M_11",
+    "M_21",
+    "M_12",
+    "M_22",
+)
+
+
+def report(reproduction: Reproduction) -> str:
+    """The table ``selftune reproduce`` prints: Theta* against each algorithm's Theta."""
+    results, evaluations = reproduction.results, reproduction.evaluations
+    keys = [key for key, _ in ALGORITHMS]
+    header = f"{'':>16}{'Theta*':>10}" + "".join(f"{label:>12}" for _, label in ALGORITHMS)
+    lines = [
+        "Self-tuning torque control (Wang 2022, Sec. V) on the paper's motor:",
+        f"  R_s = {reproduction.motor.R_s} ohm, L_s = {reproduction.motor.L_s} H, "
+        f"phi_pm = {reproduction.motor.phi_pm} Wb, p = {reproduction.motor.p}; "
+        f"{reproduction.settings.speed:g} rad/s, T* = {reproduction.settings.torque:g} N m, "
+        "Q = 1e3 I, R = I",
+        f"  sampling {reproduction.settings.sampling * 1e6:g} us, episodes of "
+        f"{reproduction.settings.episode_length * 1e3:g} ms, exploration "
+        f"+-{reproduction.settings.exploration:g} V, seed {reproduction.settings.seed}",
+        "",
+        "Theta = [vecs(P); vec(K); vec(M)], M = (D + A X*)' P",
+        header,
+    ]
+    for index, label in enumerate(THETA_LABELS):
+        row = f"{label:>16}{_number(reproduction.optimum.theta[index])}"
+        row += "".join(f"{_number(results[key].theta[index], 12)}" for key in keys)
+        lines.append(row)
+    lines.append("")
+
+    def summary(label: str, values: list[str]) -> None:
+        lines.append(f"{label:>26}" + "".join(f"{value:>12}" for value in values))
+
+    summary(
+        "||Theta-Theta*||/||Theta*||",
+        [_scientific(evaluations[k].final_theta_error, 12) for k in keys],
+    )
+    summary("||K - K*|| / ||K*||", [_scientific(evaluations[k].K_error, 12) for k in keys])
+    summary("||U - U*|| / ||U*||", [_scientific(evaluations[k].U_error, 12) for k in keys])
+    summary("regression rank", [_rank_text(results[k]) for k in keys])
+    summary("iterations", [str(1 + results[k].history[-1].iteration) for k in keys])
+    summary("motor data, ms", [f"{results[k].data_seconds * 1e3:.1f}" for k in keys])
+    identified = results["3"].identified
+    motor = reproduction.motor
+    summary("identified phi_pm, Wb", ["-", "-", f"{identified['phi_pm']:.8f}", "-"])
+    summary(
+        "  relative error",
+        ["-", "-", _scientific(identified["phi_pm"] / motor.phi_pm - 1, 12), "-"],
+    )
+    summary("identified L_s, H", ["-", "-", f"{identified['L_s']:.8f}", "-"])
+    summary("  relative error", ["-", "-", _scientific(identified["L_s"] / motor.L_s - 1, 12), "-"])
+    lines.append("")
+    lines.append(
+        f"K* = {reproduction.optimum.K[0, 0]:.4f} I,  U* = "
+        f"[[{reproduction.optimum.U[0, 0]:.4f}, {reproduction.optimum.U[0, 1]:.4f}], "
+        f"[{reproduction.optimum.U[1, 0]:.4f}, {reproduction.optimum.U[1, 1]:.4f}]]; true "
+        f"phi_pm = {reproduction.motor.phi_pm} Wb, L_s = {reproduction.motor.L_s} H"
+    )
+    for key, label in ALGORITHMS:
+        for note in results[key].notes:
+            lines.append(f"{label}: {note}")
+    return "\n".join(lines)
+
+
+def _history_document(result: TuningResult, evaluation: TuningEvaluation) -> list[dict[str, Any]]:
+    rows = []
+    for index, item in enumerate(result.history):
+        rows.append(
+            {
+                "iteration": item.iteration,
+                "step": item.step,
+                "theta": item.theta,
+                "K": item.K,
+                "U": item.U,
+                "P": item.P,
+                "rank": item.rank,
+                "unknowns": item.unknowns,
+                "theta_error": evaluation.theta_error[index],
+                "learned_cost": evaluation.learned_cost[index],
+                "true_cost": evaluation.true_cost[index],
+                "data_seconds": item.data_seconds,
+            }
+        )
+    return rows
+
+
+def _finite_or_none(value: Any) -> Any:
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {key: _finite_or_none(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_finite_or_none(item) for item in value]
+    return value
+
+
+def results_document(reproduction: Reproduction) -> dict[str, Any]:
+    """Every number the command prints (and the histories), as JSON-ready data.
+
+    Non-finite numbers (e.g. Theta error of Algorithm 3's no-load step, which has other
+    unknowns) become ``null``.
+    """
+    from ._atomic import to_jsonable
+
+    settings = reproduction.settings
+    optimum = reproduction.optimum
+    w = reproduction.motor.exogenous(settings.speed, settings.torque)
+    document: dict[str, Any] = {
+        "motor": {
+            "R_s": reproduction.motor.R_s,
+            "L_s": reproduction.motor.L_s,
+            "phi_pm": reproduction.motor.phi_pm,
+            "p": reproduction.motor.p,
+        },
+        "settings": {
+            "speed": settings.speed,
+            "torque": settings.torque,
+            "Q": settings.Q,
+            "R": settings.R,
+            "sampling": settings.sampling,
+            "episode_length": settings.episode_length,
+            "K0": settings.K0,
+            "exploration": settings.exploration,
+            "perturbation": settings.perturbation,
+            "interval": settings.interval,
+            "seed": settings.seed,
+        },
+        "model_based": {
+            "K": optimum.K,
+            "P": optimum.P,
+            "X": optimum.X,
+            "U": optimum.U,
+            "theta": optimum.theta,
+            "x_e": optimum.X @ w,
+            "u_e": optimum.U @ w,
+        },
+        "algorithms": {},
+        "wall_seconds": reproduction.wall_seconds,
+    }
+    for key, _ in ALGORITHMS:
+        result, evaluation = reproduction.results[key], reproduction.evaluations[key]
+        document["algorithms"][key] = {
+            "K": result.K,
+            "P": result.P,
+            "X": result.X,
+            "U": result.U,
+            "theta": result.theta,
+            "theta_error": evaluation.final_theta_error * float(np.linalg.norm(optimum.theta)),
+            "theta_relative_error": evaluation.final_theta_error,
+            "K_relative_error": evaluation.K_error,
+            "U_relative_error": evaluation.U_error,
+            "rank": result.rank,
+            "unknowns": result.unknowns,
+            "iterations": 1 + result.history[-1].iteration,
+            "data_seconds": result.data_seconds,
+            "converged": result.converged,
+            "feedforward_learned": result.feedforward_learned,
+            "identified": result.identified,
+            "notes": list(result.notes),
+            "history": _history_document(result, evaluation),
+        }
+    return _finite_or_none(to_jsonable(document))
+
+
+def write_outputs(reproduction: Reproduction, out: str | os.PathLike[str]) -> list[Path]:
+    """Write ``results.json`` and fig1..fig5 (PNG and SVG) into ``out``; return the paths.
+
+    Every file is written atomically.
+    """
+    from .figures import save_all
+
+    directory = Path(out)
+    directory.mkdir(parents=True, exist_ok=True)
+    paths = save_all(reproduction, directory)
+    results_path = directory / "results.json"
+    write_json(results_path, results_document(reproduction))
+    return [*paths, results_path]
