@@ -373,10 +373,181 @@ def _run_learn(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- selftune reproduce ---------------------------------------------------------------
+
+
+def _progress(total: int, description: str) -> Callable[[str], None]:
+    """A step callback showing a progress bar on a terminal (stderr), silent otherwise."""
+    from tqdm import tqdm
+
+    bar = tqdm(
+        total=total,
+        desc=description,
+        file=sys.stderr,
+        disable=not sys.stderr.isatty(),
+        leave=False,
+        bar_format="{desc}: {n_fmt}/{total_fmt} {bar} {postfix}",
+    )
+    started = False
+
+    def step(label: str) -> None:
+        nonlocal started
+        if started:
+            bar.update(1)
+        started = True
+        bar.set_postfix_str(label)
+        if bar.n >= total - 1 and label == "done":
+            bar.close()
+
+    return step
+
+
+def _add_reproduce(subparsers: _Subparsers) -> None:
+    parser = subparsers.add_parser(
+        "reproduce",
+        help="regenerate the paper's Section V: table, results.json and Figs. 1-5",
+        description=(
+            "Run Algorithms 1, 2, 3 and the off-policy variant with the paper's settings on"
+            " the paper's motor (reconciled parameters), print Theta* against each learned"
+            " Theta, and write fig1..fig5 (PNG and SVG) and results.json."
+        ),
+    )
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        default="selftune-results",
+        help="directory for the figures and results.json (default: %(default)s)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="exploration seed (default: 0)")
+    parser.set_defaults(handler=_run_reproduce)
+
+
+def _run_reproduce(args: argparse.Namespace) -> int:
+    from .reproduce import ALGORITHMS, report, reproduce, write_outputs
+
+    step = _progress(len(ALGORITHMS) + 3, "reproduce")
+    reproduction = reproduce(args.seed, step=step)
+    step("figures")
+    paths = write_outputs(reproduction, args.out)
+    step("done")
+    print(report(reproduction))
+    print(
+        f"\nlearning and simulation took {reproduction.wall_seconds:.2f} s; wrote "
+        f"{len(paths)} files to {args.out}/ (fig1..fig5 .png/.svg, results.json)"
+    )
+    return 0
+
+
+# -- selftune tune --------------------------------------------------------------------
+
+
+def _add_tune(subparsers: _Subparsers) -> None:
+    parser = subparsers.add_parser(
+        "tune",
+        help="run a self-tuning session on the motor in a file and compare with the optimum",
+        description=(
+            "Self-tune the torque controller of the (simulated) motor in MOTOR.toml with one"
+            " of the paper's algorithms or the off-policy variant, then print the learned"
+            " controller against the model-based one. The learner is told only the pole"
+            " pairs, the speed, the torque reference and (except Algorithm 3) the flux."
+        ),
+    )
+    parser.add_argument("--motor", metavar="MOTOR.toml", required=True, help="the motor file")
+    parser.add_argument(
+        "--algorithm",
+        choices=["1", "2", "3", "offpolicy"],
+        default="offpolicy",
+        help="which algorithm (default: %(default)s)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="exploration seed (default: 0)")
+    parser.add_argument("--json", metavar="FILE", help="also write the results to FILE as JSON")
+    parser.set_defaults(handler=_run_tune)
+
+
+def _run_tune(args: argparse.Namespace) -> int:
+    from .config import tuning_settings
+    from .reproduce import history_document
+    from .torque import evaluate, run_algorithm
+
+    config = load_motor_config(args.motor)
+    settings = tuning_settings(config, args.seed)
+    optimum = _model_based(config)
+    try:
+        result = run_algorithm(args.algorithm, config.motor, settings)
+    except SelftuneError as exc:
+        raise type(exc)(f"{args.motor}: {exc}") from None
+    evaluation = evaluate(result, config.motor, settings)
+    names = {"1": "Algorithm 1", "2": "Algorithm 2", "3": "Algorithm 3", "offpolicy": "off-policy"}
+    states, inputs, exogenous = ["i_d", "i_q"], ["u_d", "u_q"], ["w1", "w2"]
+    lines = [
+        f"{names[args.algorithm]} on {config.source}: {result.data_seconds * 1e3:.3g} ms of "
+        f"motor data, {1 + result.history[-1].iteration} iterations, "
+        f"{'converged' if result.converged else 'NOT converged'}",
+        "",
+    ]
+    for title, learned, truth, rows, columns in (
+        ("K, V/A", result.K, optimum.K, inputs, states),
+        ("P", result.P, optimum.P, states, states),
+        ("X", result.X, optimum.X, states, exogenous),
+        ("U", result.U, optimum.U, inputs, exogenous),
+    ):
+        lines += _matrix_block(f"learned {title}", learned, rows, columns)
+        lines += _matrix_block(f"model-based {title}", truth, rows, columns)
+    lines += [
+        "",
+        f"||Theta - Theta*|| / ||Theta*|| = {evaluation.final_theta_error:.2e}",
+        f"||K - K*|| / ||K*|| = {evaluation.K_error:.2e},  "
+        f"||U - U*|| / ||U*|| = {evaluation.U_error:.2e}",
+    ]
+    if result.identified:
+        lines.append(
+            f"identified phi_pm = {result.identified['phi_pm']:.8g} Wb "
+            f"(true {config.motor.phi_pm:g}), L_s = {result.identified['L_s']:.8g} H "
+            f"(true {config.motor.L_s:g})"
+        )
+    lines += list(result.notes)
+    if args.json is not None:
+        learned_document: dict[str, object] = {
+            "K": result.K,
+            "P": result.P,
+            "X": result.X,
+            "U": result.U,
+            "theta": result.theta,
+        }
+        if result.identified:
+            learned_document.update(result.identified)
+        _write_json(
+            args.json,
+            {
+                "algorithm": args.algorithm,
+                "learned": learned_document,
+                "model_based": {
+                    "K": optimum.K,
+                    "P": optimum.P,
+                    "X": optimum.X,
+                    "U": optimum.U,
+                    "theta": optimum.theta,
+                },
+                "theta_relative_error": evaluation.final_theta_error,
+                "data_seconds": result.data_seconds,
+                "history": history_document(result, evaluation),
+            },
+        )
+    print("\n".join(lines))
+    if args.json is not None:
+        print(f"\nwrote {args.json}")
+    return 0
+
+
 # -- the parser and main --------------------------------------------------------------
 
 #: Registration functions, one per subcommand, in the order of ``selftune --help``.
-_COMMANDS: tuple[Callable[[_Subparsers], None], ...] = (_add_solve, _add_learn)
+_COMMANDS: tuple[Callable[[_Subparsers], None], ...] = (
+    _add_reproduce,
+    _add_tune,
+    _add_solve,
+    _add_learn,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

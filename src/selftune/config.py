@@ -38,7 +38,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,9 +48,14 @@ from .errors import DataFileError, InputError
 from .motor import SPMSM
 from .regulation import RegulationProblem
 
+if TYPE_CHECKING:
+    from .torque import TuningSettings
+
 __all__ = [
     "LEARN_TABLES",
     "MOTOR_TABLES",
+    "TUNE_INPUT_HOLD",
+    "TUNING_KEYS",
     "ConfigFile",
     "ConfigTable",
     "LearnConfig",
@@ -58,6 +63,7 @@ __all__ = [
     "load_learn_config",
     "load_motor_config",
     "read_toml",
+    "tuning_settings",
 ]
 
 Array = NDArray[np.float64]
@@ -578,3 +584,59 @@ def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> L
         tolerance=tolerance,
         source=config.file,
     )
+
+
+#: Keys of MOTOR.toml's optional [learning] table (``selftune tune``).
+TUNING_KEYS = (
+    "sampling",
+    "episode_length",
+    "K0",
+    "exploration",
+    "input_hold",
+    "interval",
+    "max_iterations",
+)
+
+#: ``selftune tune``'s controller update period, in samples: 2 lets the learner integrate
+#: to fourth order (the paper's experiment, 1, leaves ~1e-5 on fast motors).
+TUNE_INPUT_HOLD = 2
+
+
+def tuning_settings(config: MotorConfig, seed: int = 0) -> TuningSettings:
+    """The self-tuning settings of a motor file: its operating point, cost and [learning].
+
+    ``[learning]`` may set ``sampling`` (s), ``episode_length`` (s), ``K0`` (2x2, V/A),
+    ``exploration`` (V), ``input_hold`` (samples per controller update), ``interval``
+    (samples) and ``max_iterations``; absent keys take the paper's values
+    (:class:`~selftune.torque.TuningSettings`), except ``input_hold``, 2
+    (:data:`TUNE_INPUT_HOLD`): the controller at half the sampling rate, which lets the
+    learner integrate the data to fourth order.
+
+    Raises
+    ------
+    DataFileError
+        Naming the file and the key, for an unknown key or a bad value.
+    """
+    from .torque import TuningSettings
+
+    defaults = TuningSettings()
+    table = ConfigTable(config.source, "learning", config.learning, TUNING_KEYS)
+    try:
+        return TuningSettings(
+            speed=config.speed,
+            torque=config.torque,
+            Q=config.Q,
+            R=config.R,
+            sampling=table.positive("sampling", defaults.sampling),
+            episode_length=table.positive("episode_length", defaults.episode_length),
+            K0=table.matrix("K0", (2, 2), defaults.K0),
+            exploration=table.positive("exploration", defaults.exploration),
+            input_hold=table.positive_integer("input_hold", TUNE_INPUT_HOLD),
+            interval=table.positive_integer("interval", defaults.interval),
+            max_iterations=table.positive_integer("max_iterations", defaults.max_iterations),
+            seed=seed,
+        )
+    except DataFileError:
+        raise
+    except InputError as exc:
+        raise table.error(None, str(exc)) from None

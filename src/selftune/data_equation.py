@@ -106,32 +106,113 @@ class IntervalMoments:
         return int(self.duration.shape[0])
 
 
+def _holds(episode: Trajectory, held: bool) -> NDArray[np.bool_]:
+    """``continues[k]``: sample k + 1 is in the same hold as sample k (u and a held w equal)."""
+    same = np.all(episode.u[1:] == episode.u[:-1], axis=1)
+    if held and episode.w is not None:
+        count = episode.num_samples
+        same &= np.all(episode.w[1:count] == episode.w[: count - 1], axis=1)
+    return same
+
+
+def _quadratic_stencils(
+    t: Array, continues: NDArray[np.bool_]
+) -> tuple[NDArray[np.bool_], NDArray[np.intp], Array]:
+    """Three-point stencils inside holds, and their weights for each sample's integral.
+
+    Inside a hold (a run of samples over which u and a held w do not change) the state is
+    analytic, so the quadratic through three of the hold's sample points integrates it
+    to third order per sample. Samples are paired -- (first, second), (third, fourth), ...
+    -- and both of a pair use the same three points, so a pair's sum is Simpson's rule
+    (fourth order); the last sample of an odd hold uses the three points ending with it.
+
+    Returns
+    -------
+    in_hold : bool array (N,)
+        Samples inside a hold of two or more samples.
+    points : int array (N, 3)
+        The stencil's sample-point indices (meaningful where ``in_hold``).
+    weights : array (N, 3)
+        ``int over the sample of f = sum_i weights[k, i] f(t[points[k, i]])`` for f
+        quadratic.
+    """
+    count = t.shape[0] - 1
+    index = np.arange(count)
+    run_start = np.concatenate([[True], ~continues])
+    start_of = np.maximum.accumulate(np.where(run_start, index, 0))
+    run_id = np.cumsum(run_start) - 1
+    run_length = np.bincount(run_id)[run_id]
+    position = index - start_of
+    in_hold = run_length >= 2
+    forward = in_hold & (position % 2 == 0) & (position < run_length - 1)
+    first = np.where(forward, index, index - 1)
+    first = np.clip(first, 0, max(count - 2, 0))
+    points = first[:, None] + np.arange(3)[None, :]
+    points = np.minimum(points, count)
+    h1 = t[points[:, 1]] - t[points[:, 0]]
+    h2 = t[points[:, 2]] - t[points[:, 1]]
+    total = np.where(in_hold, h1 + h2, 1.0)
+    h1 = np.where(in_hold, h1, 1.0)
+    h2 = np.where(in_hold, h2, 1.0)
+    # Integral over [t0, t1] (forward) of the quadratic through (t0, t1, t2), and by time
+    # reversal over [t1, t2] (backward).
+    forward_weights = np.column_stack(
+        [
+            h1 * (h1 / 3.0 + h2 / 2.0) / total,
+            h1 * (total / 2.0 - h1 / 3.0) / h2,
+            -(h1**3) / (6.0 * total * h2),
+        ]
+    )
+    backward_weights = np.column_stack(
+        [
+            -(h2**3) / (6.0 * total * h1),
+            h2 * (total / 2.0 - h2 / 3.0) / h1,
+            h2 * (h2 / 3.0 + h1 / 2.0) / total,
+        ]
+    )
+    weights = np.where(forward[:, None], forward_weights, backward_weights)
+    weights[~in_hold] = 0.0
+    return in_hold, points, weights
+
+
 def _episode_moments(episode: Trajectory, interval: int, held: bool) -> tuple[Array, ...]:
     h = np.diff(episode.t)
     count = h.shape[0]
+    x = episode.x
     if episode.w is None:
-        start = episode.x[:-1]
-        end = episode.x[1:]
+        w_start = w_end = np.zeros((count, 0))
+        w_points = np.zeros((count + 1, 0))
     else:
         w = episode.w
         if held:
             w_start = w[:count]
             w_end = w_start
+            w_points = w  # unused for held signals (each sample uses its own value)
         else:
             if w.shape[0] != count + 1:
                 raise InputError(
                     f"Trajectory.w: with a non-zero E, w must be the exosystem state at all "
                     f"{count + 1} sample times, got {w.shape[0]} rows"
                 )
-            w_start = w[:-1]
-            w_end = w[1:]
-        start = np.hstack([episode.x[:-1], w_start])
-        end = np.hstack([episode.x[1:], w_end])
-    # Exact integrals for z linear inside a sample (from a to b) and u held:
+            w_start, w_end, w_points = w[:-1], w[1:], w
+    start = np.hstack([x[:-1], w_start])
+    end = np.hstack([x[1:], w_end])
+    # Samples in no hold: exact integrals for z linear from a to b, u held:
     #   int z z' = h/6 (2 a a' + 2 b b' + a b' + b a') = h/6 ((2a + b) a' + (a + 2b) b')
-    #   int z u' = h/2 (a + b) u'
-    # summed over each interval's samples by batched matrix products (no N x p x p array).
-    # Samples are padded to whole intervals with zero rows, which add nothing.
+    #   int z   = h/2 (a + b)
+    # Samples inside a hold: the quadratic through three of the hold's points
+    # (_quadratic_stencils), applied to z z' and to z.
+    in_hold, points, weights = _quadratic_stencils(episode.t, _holds(episode, held))
+    single = (~in_hold)[:, None] * (h[:, None] / 6.0)
+    terms = [((2.0 * start + end) * single, start), ((start + 2.0 * end) * single, end)]
+    integral = 3.0 * single * (start + end)
+    for i in range(3):
+        # z at the stencil point; a held w is the sample's own value throughout its hold.
+        z_i = np.hstack([x[points[:, i]], w_start if held else w_points[points[:, i]]])
+        terms.append((z_i * weights[:, i : i + 1], z_i))
+        integral = integral + z_i * weights[:, i : i + 1]
+    # Summed over each interval's samples by batched matrix products (no N x p x p array);
+    # samples are padded to whole intervals with zero rows, which add nothing.
     intervals = -(-count // interval)
     padding = intervals * interval - count
 
@@ -139,14 +220,15 @@ def _episode_moments(episode: Trajectory, interval: int, held: bool) -> tuple[Ar
         padded = np.concatenate([rows, np.zeros((padding, *rows.shape[1:]))])
         return padded.reshape(intervals, interval, *rows.shape[1:])
 
-    a, b, u, weight = grouped(start), grouped(end), grouped(episode.u), grouped(h[:, None])
-    a_t = ((2.0 * a + b) * (weight / 6.0)).transpose(0, 2, 1)
-    b_t = ((a + 2.0 * b) * (weight / 6.0)).transpose(0, 2, 1)
-    zz = a_t @ a + b_t @ b
+    zz = sum(
+        (grouped(left).transpose(0, 2, 1) @ grouped(right) for left, right in terms),
+        np.zeros((intervals, start.shape[1], start.shape[1])),
+    )
     zz = 0.5 * (zz + zz.transpose(0, 2, 1))
-    zu = ((a + b) * (0.5 * weight)).transpose(0, 2, 1) @ u
+    zu = grouped(integral).transpose(0, 2, 1) @ grouped(episode.u)
+    a, b = grouped(start), grouped(end)
     dzz = b.transpose(0, 2, 1) @ b - a.transpose(0, 2, 1) @ a
-    return zz, zu, dzz, weight.sum(axis=1)[:, 0]
+    return zz, zu, dzz, grouped(h[:, None]).sum(axis=1)[:, 0]
 
 
 def interval_moments(

@@ -36,6 +36,7 @@ from .trajectory import Trajectory
 __all__ = [
     "ALGORITHMS",
     "Reproduction",
+    "history_document",
     "report",
     "reproduce",
     "results_document",
@@ -230,7 +231,8 @@ def report(reproduction: Reproduction) -> str:
     return "\n".join(lines)
 
 
-def _history_document(result: TuningResult, evaluation: TuningEvaluation) -> list[dict[str, Any]]:
+def history_document(result: TuningResult, evaluation: TuningEvaluation) -> list[dict[str, Any]]:
+    """The per-iteration history of a self-tuning session, as JSON-ready rows."""
     rows = []
     for index, item in enumerate(result.history):
         rows.append(
@@ -325,7 +327,7 @@ def results_document(reproduction: Reproduction) -> dict[str, Any]:
             "feedforward_learned": result.feedforward_learned,
             "identified": result.identified,
             "notes": list(result.notes),
-            "history": _history_document(result, evaluation),
+            "history": history_document(result, evaluation),
         }
     return _finite_or_none(to_jsonable(document))
 

@@ -1180,6 +1180,7 @@ def simulate(
     num_samples: int | None = None,
     t: ArrayLike | None = None,
     seed: Seed = None,
+    input_hold: int = 1,
 ) -> Trajectory:
     """Simulate ``x' = A x + B u + D w`` exactly under ``u = -K (x - X w) + U w + rho``.
 
@@ -1221,6 +1222,11 @@ def simulate(
     seed : int, numpy.random.Generator or None, optional
         Source of the exploration's randomness; the same integer reproduces the run,
         None draws fresh entropy.
+    input_hold : int, optional
+        The controller updates ``u`` (and a held ``w``) every ``input_hold`` samples and
+        holds it in between, while the state is sampled every ``h`` (a controller at a
+        fraction of the measurement rate). Needs ``h`` and ``num_samples``. Learners
+        integrate such data to fourth order (see :mod:`selftune.data_equation`).
 
     Returns
     -------
@@ -1242,11 +1248,77 @@ def simulate(
     >>> bool(np.isclose(data.x[-1, 0], np.exp(-1.0), rtol=1e-12))
     True
     """
+    hold = _count(input_hold, "input_hold")
+    if hold > 1:
+        return _simulate_held_inputs(
+            A, B, D=D, exogenous=exogenous, K=K, X=X, U=U, exploration=exploration, x0=x0,
+            h=h, num_samples=num_samples, t=t, seed=seed, hold=hold,
+        )  # fmt: skip
     result = _run(
         A, B, D=D, exogenous=exogenous, K=K, X=X, U=U, exploration=exploration, x0=x0,
         h=h, num_samples=num_samples, t=t, seed=seed, batch=False, num_plants=None,
     )  # fmt: skip
     return result.trajectory(0)
+
+
+def _simulate_held_inputs(
+    A: ArrayLike,
+    B: ArrayLike,
+    *,
+    D: ArrayLike | None,
+    exogenous: ExogenousSignal | ArrayLike | None,
+    K: ArrayLike | None,
+    X: ArrayLike | None,
+    U: ArrayLike | None,
+    exploration: Exploration | ArrayLike | None,
+    x0: ArrayLike | None,
+    h: float | None,
+    num_samples: int | None,
+    t: ArrayLike | None,
+    seed: Seed,
+    hold: int,
+) -> Trajectory:
+    """:func:`simulate` with the controller at 1/``hold`` of the sampling rate.
+
+    The closed loop runs at the controller's period ``hold h``; the samples in between
+    are then filled in exactly from the discretization over ``j h``, j = 1 .. hold - 1.
+    """
+    if t is not None or h is None or num_samples is None:
+        raise InputError("input_hold: needs a uniform grid given by h and num_samples")
+    period = positive_finite(h, "h")
+    count = _count(num_samples, "num_samples")
+    if exploration is not None and not isinstance(exploration, Exploration):
+        raise InputError("input_hold: give the exploration as a generator (uniform, prbs, ...)")
+    if exogenous is not None and not isinstance(exogenous, ExogenousSignal):
+        raise InputError("input_hold: give the exogenous signal as a signal object (held, ...)")
+    updates = -(-count // hold)
+    coarse = _run(
+        A, B, D=D, exogenous=exogenous, K=K, X=X, U=U, exploration=exploration, x0=x0,
+        h=hold * period, num_samples=updates, t=None, seed=seed, batch=False, num_plants=None,
+    ).trajectory(0)  # fmt: skip
+    E = None if exogenous is None else exogenous.E
+    n, q = coarse.n, coarse.q
+    x = np.empty((updates * hold + 1, n))
+    u = np.repeat(coarse.u, hold, axis=0)
+    w = None if coarse.w is None else np.empty((updates * hold + 1, q))
+    x[::hold] = coarse.x
+    if w is not None and coarse.w is not None:
+        w[::hold] = coarse.w
+    w_start = np.zeros((updates, 0)) if coarse.w is None else coarse.w[:-1]
+    for step in range(1, hold):
+        exact = discretize(A, B, step * period, D=D, E=E)
+        x[step::hold] = coarse.x[:-1] @ exact.Phi.T + coarse.u @ exact.Gamma_u.T
+        if q:
+            x[step::hold] += w_start @ exact.Gamma_w.T
+            assert w is not None
+            w[step::hold] = w_start @ exact.Phi_w.T
+    stop = count + 1
+    return Trajectory(
+        t=np.arange(stop) * period,
+        x=x[:stop],
+        u=u[:count],
+        w=None if w is None else w[:stop],
+    )
 
 
 def simulate_batch(
