@@ -131,6 +131,11 @@ class TuningSettings:
         experiment: every sample). With 2 or more the learner integrates the data to
         fourth order instead of second (:mod:`selftune.data_equation`), which makes the
         result accurate to ~1e-9 on fast motors where one-sample holds leave ~1e-5.
+    feedforward_exploration : bool
+        Keep the input exploration on during Algorithm 2's second step (True). The paper
+        turns it off; but that step solves eq. 13 for the exogenous block alone, with
+        Theta_1 known, so exploration only adds excitation: at low speed the reference
+        perturbation alone barely moves i_d, and U came out 1.8e-5 off instead of 5e-9.
     no_load_hold : int
         Algorithm 3's no-load step explores with a PRBS of amplitude ``exploration`` held
         this many samples (10, i.e. 100 us): at no load nothing else excites the d-axis,
@@ -159,6 +164,7 @@ class TuningSettings:
     exploration: float = 1.0
     perturbation: Perturbation = "paper"
     input_hold: int = 1
+    feedforward_exploration: bool = True
     no_load_hold: int = 10
     interval: int = 10
     max_iterations: int = 20
@@ -634,7 +640,7 @@ def _on_policy(
             U,
             held(perturbed),
             num_samples=samples,
-            exploration=None,
+            exploration=uniform(settings.exploration) if settings.feedforward_exploration else None,
             seed=seed,
             assumed_flux=assumed_flux,
         )
