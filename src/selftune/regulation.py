@@ -168,12 +168,15 @@ def policy_value(A: ArrayLike, B: ArrayLike, K: ArrayLike, Q: ArrayLike, R: Arra
     ------
     UnsolvableError
         If ``A - BK`` is not Hurwitz (the cost is infinite).
+    InputError
+        If a shape is wrong, a value is not finite, or Q, R are not as required.
     """
-    A = np.asarray(A, dtype=float)
-    B = np.asarray(B, dtype=float)
-    K = np.asarray(K, dtype=float)
-    Q = np.asarray(Q, dtype=float)
-    R = np.asarray(R, dtype=float)
+    A = as_matrix(A, "A")
+    n = A.shape[0]
+    A = as_matrix(A, "A", (n, n))
+    B = as_matrix(B, "B", (n, None))
+    K = as_matrix(K, "K", (B.shape[1], n))
+    Q, R = _check_weights(Q, R, n, B.shape[1])
     closed_loop = A - B @ K
     rightmost = float(np.max(np.linalg.eigvals(closed_loop).real))
     if rightmost >= 0.0:

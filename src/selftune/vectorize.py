@@ -78,8 +78,15 @@ def vecs(P: ArrayLike) -> Array:
     Returns
     -------
     ndarray, shape (n (n + 1) / 2,)
+
+    Raises
+    ------
+    ValueError
+        If ``P`` is not a square matrix.
     """
     P = np.asarray(P, dtype=float)
+    if P.ndim != 2 or P.shape[0] != P.shape[1]:
+        raise ValueError(f"vecs: expected a square matrix, got shape {P.shape}")
     n = P.shape[0]
     rows, cols = _upper_pairs(n)
     out = P[rows, cols].copy()
@@ -116,6 +123,8 @@ def vecs_hat(x: ArrayLike) -> Array:
     ndarray, shape (..., n (n + 1) / 2)
     """
     x = np.asarray(x, dtype=float)
+    if x.ndim == 0:
+        raise ValueError("vecs_hat: expected a vector (or a stack of vectors), got a scalar")
     rows, cols = _upper_pairs(x.shape[-1])
     return x[..., rows] * x[..., cols]
 
@@ -134,8 +143,18 @@ def vecs_hat_from_outer(M: ArrayLike) -> Array:
     Returns
     -------
     ndarray, shape (..., n (n + 1) / 2)
+
+    Raises
+    ------
+    ValueError
+        If the last two axes of ``M`` are not those of a square matrix.
     """
     M = np.asarray(M, dtype=float)
+    if M.ndim < 2 or M.shape[-2] != M.shape[-1]:
+        raise ValueError(
+            "vecs_hat_from_outer: expected a square matrix (or a stack of them),"
+            f" got shape {M.shape}"
+        )
     rows, cols = _upper_pairs(M.shape[-1])
     return M[..., rows, cols]
 
