@@ -51,7 +51,7 @@ from numpy.typing import NDArray
 
 from . import __version__
 from ._atomic import to_jsonable, write_json, write_text
-from .errors import SelftuneError
+from .errors import ConvergenceError, ExcitationError
 from .learning import learn_output_regulation
 from .motor import SPMSM
 from .regulation import ModelBasedSolution, solve_optimal_regulation
@@ -393,14 +393,12 @@ def _offpolicy_errors(
 ) -> tuple[float, float]:
     try:
         result = run_algorithm("offpolicy", motor, settings)
-    except SelftuneError:  # too few intervals, or too little excitation: a failed run
+    except (ExcitationError, ConvergenceError):  # too short a batch: a failed run
         return math.inf, math.inf
     return _relative(result.K, optimum.K), _relative(result.U, optimum.U)
 
 
-def measure_data_efficiency(
-    config: BenchConfig, progress: _Progress | None = None
-) -> DataEfficiency:
+def measure_data_efficiency(config: BenchConfig, progress: bool = False) -> DataEfficiency:
     """Seconds of motor data to reach the target errors, on-policy and off-policy.
 
     On-policy: the paper's Algorithm 2 with its settings (:class:`TuningSettings`
@@ -412,13 +410,14 @@ def measure_data_efficiency(
     Parameters
     ----------
     config : BenchConfig
-    progress : _Progress, optional
+    progress : bool
+        Show a progress bar on stderr (only when it is a terminal).
 
     Returns
     -------
     DataEfficiency
     """
-    progress = progress or _Progress(False)
+    bars = _Progress(progress)
     started = time.perf_counter()
     motor = SPMSM.paper()
     settings = TuningSettings()
@@ -426,7 +425,7 @@ def measure_data_efficiency(
     target = TARGET_RELATIVE_ERROR
 
     traces: list[list[tuple[float, float, float]]] = []
-    with progress.bar(len(config.seeds), "data efficiency: on-policy") as step:
+    with bars.bar(len(config.seeds), "data efficiency: on-policy") as step:
         for seed in config.seeds:
             traces.append(_onpolicy_trace(motor, dataclasses.replace(settings, seed=seed), optimum))
             step()
@@ -453,7 +452,7 @@ def measure_data_efficiency(
         onpolicy_rows.append(row)
 
     offpolicy_rows = []
-    with progress.bar(len(config.offpolicy_samples), "data efficiency: off-policy") as step:
+    with bars.bar(len(config.offpolicy_samples), "data efficiency: off-policy") as step:
         for samples in config.offpolicy_samples:
             row = []
             for seed in config.seeds:
@@ -610,26 +609,27 @@ def _offpolicy_batch(
     return batch, C, E, F
 
 
-def measure_learning_cost(config: BenchConfig, progress: _Progress | None = None) -> LearningCost:
+def measure_learning_cost(config: BenchConfig, progress: bool = False) -> LearningCost:
     """Unknowns, rows, solves, wall time and accuracy of the two learners on the same data.
 
     Parameters
     ----------
     config : BenchConfig
-    progress : _Progress, optional
+    progress : bool
+        Show a progress bar on stderr (only when it is a terminal).
 
     Returns
     -------
     LearningCost
     """
-    progress = progress or _Progress(False)
+    bars = _Progress(progress)
     started = time.perf_counter()
     motor = SPMSM.paper()
     settings = TuningSettings()
     optimum = _optimum(motor, settings)
     datasets = []
     methods: tuple[Literal["customized", "general"], ...] = ("customized", "general")
-    with progress.bar(len(config.learning_datasets) * 2, "learning cost") as step:
+    with bars.bar(len(config.learning_datasets) * 2, "learning cost") as step:
         for sampling, samples in config.learning_datasets:
             settings = TuningSettings(sampling=sampling)
             batch, C, E, F = _offpolicy_batch(motor, settings, samples, seed=config.seeds[0])
@@ -855,7 +855,7 @@ def _exact_states(loop: _Loop, motor: SPMSM, rho: Array) -> Array:
     decay = cmath.exp(rate * loop.h)
     gain = complex(np.expm1(rate * loop.h)) / rate
     feedforward = loop.L @ loop.w
-    back_emf = _D(motor, loop.speed) @ loop.w  # D w, A/s
+    back_emf = _exogenous_matrix(motor, loop.speed) @ loop.w  # D w, A/s
     z = 0j
     K = loop.K
     states = np.empty((rho.shape[0] + 1, 2))
@@ -870,7 +870,7 @@ def _exact_states(loop: _Loop, motor: SPMSM, rho: Array) -> Array:
     return states
 
 
-def _D(motor: SPMSM, speed: float) -> Array:
+def _exogenous_matrix(motor: SPMSM, speed: float) -> Array:
     return np.asarray(motor.regulation_problem(speed).D)
 
 
@@ -1099,7 +1099,7 @@ def _measure_batch(loop: _Loop, motors: int, samples: int, repeats: int) -> Batc
         batch_motors = _random_motors(motors, seed=repeat)
         A = np.stack([m.torque_mode(loop.speed)[0] for m in batch_motors])
         B = np.stack([m.torque_mode(loop.speed)[1] for m in batch_motors])
-        D = np.stack([_D(m, loop.speed) for m in batch_motors])
+        D = np.stack([_exogenous_matrix(m, loop.speed) for m in batch_motors])
 
         def run(A: Array = A, B: Array = B, D: Array = D) -> Array:
             result = simulate_batch(
@@ -1133,22 +1133,23 @@ def _measure_batch(loop: _Loop, motors: int, samples: int, repeats: int) -> Batc
     )
 
 
-def measure_simulation(config: BenchConfig, progress: _Progress | None = None) -> Simulation:
+def measure_simulation(config: BenchConfig, progress: bool = False) -> Simulation:
     """Time per step and exactness of each simulator, and a batch of motors.
 
     Parameters
     ----------
     config : BenchConfig
-    progress : _Progress, optional
+    progress : bool
+        Show a progress bar on stderr (only when it is a terminal).
 
     Returns
     -------
     Simulation
     """
-    progress = progress or _Progress(False)
+    bars = _Progress(progress)
     started = time.perf_counter()
     loop = _Loop.paper()
-    with progress.bar(6, "simulation") as step:
+    with bars.bar(6, "simulation") as step:
         ours = _measure_simulate(loop, config.simulate_samples, config.timing_repeats)
         step()
         step_loop = _measure_step_loop(loop, config.loop_samples, config.timing_repeats)
@@ -1428,9 +1429,7 @@ def _pi_step(
     return _quadratic_cost(M, W, z0, horizon), float(current_reference[1])
 
 
-def measure_self_tuning_value(
-    config: BenchConfig, progress: _Progress | None = None
-) -> SelfTuningValue:
+def measure_self_tuning_value(config: BenchConfig, progress: bool = False) -> SelfTuningValue:
     """Cost (5) of a torque step and steady-state torque error on 8 mismatched motors.
 
     The step: at ``t = 0`` the currents are zero (the zero-torque operating point of any
@@ -1443,14 +1442,15 @@ def measure_self_tuning_value(
     ----------
     config : BenchConfig
         Unused sizes (every case always runs); kept for a uniform signature.
-    progress : _Progress, optional
+    progress : bool
+        Show a progress bar on stderr (only when it is a terminal).
 
     Returns
     -------
     SelfTuningValue
     """
     del config
-    progress = progress or _Progress(False)
+    bars = _Progress(progress)
     started = time.perf_counter()
     nominal = SPMSM.paper()
     settings = TuningSettings()
@@ -1465,7 +1465,7 @@ def measure_self_tuning_value(
     tuning = dataclasses.replace(settings, K0=K_nominal)
     cases = []
     signs = list(itertools.product((-1.0, 1.0), repeat=3))
-    with progress.bar(len(signs), "self-tuning value") as step:
+    with bars.bar(len(signs), "self-tuning value") as step:
         for sign_R, sign_L, sign_phi in signs:
             factors = (1 + MISMATCH * sign_R, 1 + MISMATCH * sign_L, 1 + MISMATCH * sign_phi)
             motor = SPMSM(
@@ -1758,12 +1758,11 @@ def run_bench(quick: bool, progress: bool = True) -> BenchReport:
     BenchReport
     """
     config = BenchConfig.quick() if quick else BenchConfig.full()
-    bars = _Progress(progress)
     started = time.perf_counter()
-    data_efficiency = measure_data_efficiency(config, bars)
-    learning_cost = measure_learning_cost(config, bars)
-    simulation = measure_simulation(config, bars)
-    self_tuning_value = measure_self_tuning_value(config, bars)
+    data_efficiency = measure_data_efficiency(config, progress)
+    learning_cost = measure_learning_cost(config, progress)
+    simulation = measure_simulation(config, progress)
+    self_tuning_value = measure_self_tuning_value(config, progress)
     return BenchReport(
         quick=quick,
         wall_seconds=time.perf_counter() - started,
