@@ -90,8 +90,8 @@ def check_positive_semidefinite(M: Array, name: str) -> Array:
 
 
 def positive_finite(value: object, name: str) -> float:
-    """A finite, strictly positive float."""
-    if isinstance(value, bool):
+    """A finite, strictly positive float (a number, not a bool or a string)."""
+    if isinstance(value, bool | str | bytes):
         raise InputError(f"{name}: must be a positive number, got {value!r}")
     try:
         number = float(value)  # type: ignore[arg-type]
@@ -103,8 +103,8 @@ def positive_finite(value: object, name: str) -> float:
 
 
 def finite_float(value: object, name: str) -> float:
-    """A finite float."""
-    if isinstance(value, bool):
+    """A finite float (a number, not a bool or a string)."""
+    if isinstance(value, bool | str | bytes):
         raise InputError(f"{name}: must be a number, got {value!r}")
     try:
         number = float(value)  # type: ignore[arg-type]

@@ -37,9 +37,9 @@ from .data_equation import (
     solve_regression,
 )
 from .errors import ConvergenceError, InputError, UnsolvableError
-from .regulation import minimize_weighted_norm
+from .regulation import RegulatorSolution, minimize_weighted_norm
 from .trajectory import Trajectory, as_trajectories
-from .vectorize import pack_theta, unpack_theta, unvec, vec
+from .vectorize import unpack_theta, unvec, vec
 
 __all__ = [
     "IterationRecord",
@@ -358,24 +358,15 @@ def learn_lqr(
 
 
 @dataclass(frozen=True)
-class LearnedSolution:
+class LearnedSolution(RegulatorSolution):
     """An optimal output regulator learned from data.
 
-    The same quantities as :class:`selftune.regulation.ModelBasedSolution` (K, P, X, U,
-    L, theta), plus the estimates the learner makes on the way and its history.
+    The attributes of :class:`~selftune.regulation.RegulatorSolution` (K, P, X, U, the
+    exogenous block, L, theta), as the model-based solution has them, plus the estimates
+    the learner makes on the way and its history.
 
     Attributes
     ----------
-    K : ndarray, shape (m, n)
-        Learned optimal feedback gain.
-    P : ndarray, shape (n, n)
-        Learned value matrix.
-    X : ndarray, shape (n, q)
-        Steady-state map (the optimal one of Remark 2 when not unique).
-    U : ndarray, shape (m, q)
-        Feedforward map.
-    exogenous_block : ndarray, shape (q, n)
-        ``(D + A X - X E)' P`` for the returned X.
     B : ndarray, shape (n, m)
         Estimated input matrix.
     method : str
@@ -388,26 +379,11 @@ class LearnedSolution:
         The general method's extra solves, one per basis element of CX + F = 0.
     """
 
-    K: Array
-    P: Array
-    X: Array
-    U: Array
-    exogenous_block: Array
     B: Array
     method: str
     history: tuple[IterationRecord, ...]
     converged: bool
     sylvester_regressions: tuple[RegressionSolution, ...] = ()
-
-    @property
-    def L(self) -> Array:
-        """Gain on w of the overall control ``u = -K x + L w``, ``L = U + K X``."""
-        return self.U + self.K @ self.X
-
-    @property
-    def theta(self) -> Array:
-        """Theta = [vecs(P); vec(K); vec((D + AX - XE)' P)]."""
-        return pack_theta(self.P, self.K, self.exogenous_block)
 
     @property
     def iterations(self) -> int:
