@@ -401,3 +401,17 @@ def test_module_entry_point_fails_cleanly(tmp_path: Path) -> None:
     assert result.stderr == f"selftune: error: {path}: [cost] R: must be a 2x2 matrix, got 1x1\n"
 
 
+
+
+def test_output_files_get_the_usual_permissions(tmp_path: Path) -> None:
+    import os
+    import stat
+
+    out = tmp_path / "solve.json"
+    assert main(["solve", "--json", str(out)]) == 0
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(out.stat().st_mode) == 0o666 & ~umask
+    out.chmod(0o640)
+    assert main(["solve", "--json", str(out)]) == 0
+    assert stat.S_IMODE(out.stat().st_mode) == 0o640

@@ -139,3 +139,22 @@ def test_the_drive_is_what_the_algorithm_sees() -> None:
     drive = Recording(motor=PAPER, speed=10.0, sampling=1e-5)
     result = algorithm1(drive, TuningSettings(max_iterations=3), PAPER.phi_pm)
     assert calls == [500, 500, 500][: len(result.history)]
+
+
+def test_a_wrong_flux_never_simulates_a_motor_that_does_not_exist() -> None:
+    """The drive makes the true back-EMF whatever flux the learner assumes; with a wrong
+    flux the back-EMF channel cannot be perturbed, and the drive says so."""
+    from dataclasses import replace
+
+    from selftune.torque import offpolicy
+
+    drive = SimulatedDrive(motor=PAPER, speed=10.0, sampling=1e-5)
+    with pytest.raises(InputError, match="back-EMF channel"):
+        offpolicy(drive, TuningSettings(), phi_pm=0.5)
+    result = offpolicy(drive, replace(TuningSettings(), perturbation="torque"), phi_pm=0.5)
+    # w_1 = p speed 0.5 stands for the true back-EMF p speed 0.46: the learned feedforward
+    # produces the true u_e for that back-EMF (torque channel aside).
+    optimum = evaluate(result, PAPER, TuningSettings()).optimum
+    back_emf_true = optimum.U[:, 0] * PAPER.exogenous(10.0, 10.0)[0]
+    learned = result.U[:, 0] * result.w[0]
+    assert np.linalg.norm(learned - back_emf_true) < 1e-6 * np.linalg.norm(back_emf_true)

@@ -539,6 +539,30 @@ def _run_tune(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- selftune bench -------------------------------------------------------------------
+
+
+def _add_bench(subparsers: _Subparsers) -> None:
+    from .bench import add_bench_arguments
+
+    parser = subparsers.add_parser(
+        "bench",
+        help="benchmarks: data efficiency, cost of learning, simulation speed, self-tuning value",
+        description=(
+            "Run every comparison in one process and write bench.md (tables) and"
+            " bench.json (numbers, units in the key names) into --out."
+        ),
+    )
+    add_bench_arguments(parser)
+    parser.set_defaults(handler=_run_bench)
+
+
+def _run_bench(args: argparse.Namespace) -> int:
+    from .bench import run_bench_command
+
+    return run_bench_command(args)
+
+
 # -- the parser and main --------------------------------------------------------------
 
 #: Registration functions, one per subcommand, in the order of ``selftune --help``.
@@ -547,6 +571,7 @@ _COMMANDS: tuple[Callable[[_Subparsers], None], ...] = (
     _add_tune,
     _add_solve,
     _add_learn,
+    _add_bench,
 )
 
 

@@ -301,7 +301,7 @@ class SimulatedDrive:
         """
         problem = self.motor.regulation_problem(self.speed)
         D = problem.D
-        if assumed_flux is not None:
+        if assumed_flux is not None and assumed_flux != self.motor.phi_pm:
             D = D @ np.diag([self.motor.phi_pm / assumed_flux, 1.0])
             values = reference.values(np.arange(num_samples + 1) * self.sampling)
             if np.ptp(values[:, 0]) > 0.0:
@@ -551,7 +551,6 @@ def _on_policy(
     *,
     two_step: bool,
     K_start: Array | None = None,
-    assumed_flux: float | None = None,
     perturbation: Perturbation | None = None,
     algorithm: str,
     history_prefix: tuple[TuningIteration, ...] = (),
@@ -583,7 +582,7 @@ def _on_policy(
             num_samples=samples,
             exploration=uniform(settings.exploration),
             seed=seed,
-            assumed_flux=assumed_flux,
+            assumed_flux=phi_pm,
         )
         seconds += episode.duration
         record = _step(episode, K, settings, X, allow_deficient=("M",), iteration=j)
@@ -642,7 +641,7 @@ def _on_policy(
             num_samples=samples,
             exploration=uniform(settings.exploration) if settings.feedforward_exploration else None,
             seed=seed,
-            assumed_flux=assumed_flux,
+            assumed_flux=phi_pm,
         )
         seconds += episode2.duration
         record2 = _step(
@@ -806,7 +805,6 @@ def algorithm3(drive: Drive, settings: TuningSettings) -> TuningResult:
         phi_pm,
         two_step=True,
         K_start=K_next,
-        assumed_flux=phi_pm,
         perturbation="torque",
         algorithm="3",
         history_prefix=tuple(history),
@@ -838,6 +836,7 @@ def offpolicy(drive: Drive, settings: TuningSettings, phi_pm: float) -> TuningRe
         num_samples=settings.samples_per_episode,
         exploration=uniform(settings.exploration),
         seed=settings.seed,
+        assumed_flux=phi_pm,
     )
     _checked(batch, settings.K0, settings)
     learned = learn_output_regulation(
