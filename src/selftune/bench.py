@@ -1739,6 +1739,12 @@ class BenchReport:
         """
         data = dataclasses.asdict(self)
         data["targets"] = [dataclasses.asdict(target) for target in self.targets()]
+        # A measurement not made (gym-electric-motor not installed) is left out, not a
+        # null number: "available" and "reason_text" say why.
+        gem = data["simulation"]["gym_electric_motor"]
+        for key in ("default_solver", "euler_solver"):
+            if gem[key] is None:
+                del gem[key]
         return _finite_json(to_jsonable(data))
 
     def to_markdown(self) -> str:
