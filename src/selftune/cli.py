@@ -466,7 +466,7 @@ def _add_tune(subparsers: _Subparsers) -> None:
 
 def _run_tune(args: argparse.Namespace) -> int:
     from .config import tuning_settings
-    from .reproduce import history_document
+    from .reproduce import history_document, regulator_document
     from .torque import evaluate, run_algorithm
 
     config = load_motor_config(args.motor)
@@ -507,13 +507,7 @@ def _run_tune(args: argparse.Namespace) -> int:
         )
     lines += list(result.notes)
     if args.json is not None:
-        learned_document: dict[str, object] = {
-            "K": result.K,
-            "P": result.P,
-            "X": result.X,
-            "U": result.U,
-            "theta": result.theta,
-        }
+        learned_document: dict[str, object] = dict(regulator_document(result))
         if result.identified:
             learned_document.update(result.identified)
         _write_json(
@@ -521,13 +515,7 @@ def _run_tune(args: argparse.Namespace) -> int:
             {
                 "algorithm": args.algorithm,
                 "learned": learned_document,
-                "model_based": {
-                    "K": optimum.K,
-                    "P": optimum.P,
-                    "X": optimum.X,
-                    "U": optimum.U,
-                    "theta": optimum.theta,
-                },
+                "model_based": regulator_document(optimum),
                 "theta_relative_error": evaluation.final_theta_error,
                 "data_seconds": result.data_seconds,
                 "history": history_document(result, evaluation),

@@ -117,6 +117,13 @@ def _check_weights(Q: ArrayLike, R: ArrayLike, n: int, m: int) -> tuple[Array, A
     return Q, R
 
 
+def _check_plant(A: ArrayLike, B: ArrayLike) -> tuple[Array, Array]:
+    """A square, finite A and a finite B with as many rows, as float matrices."""
+    A = as_matrix(A, "A")
+    n = A.shape[0]
+    return as_matrix(A, "A", (n, n)), as_matrix(B, "B", (n, None))
+
+
 def lqr(A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike) -> tuple[Array, Array]:
     """Continuous-time LQR: the stabilizing solution of the algebraic Riccati equation.
 
@@ -144,10 +151,8 @@ def lqr(A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike) -> tuple[Array, 
     InputError
         If a shape is wrong, a value is not finite, or Q, R are not as required.
     """
-    A = as_matrix(A, "A")
+    A, B = _check_plant(A, B)
     n = A.shape[0]
-    A = as_matrix(A, "A", (n, n))
-    B = as_matrix(B, "B", (n, None))
     Q, R = _check_weights(Q, R, n, B.shape[1])
     check_stabilizable(A, B)
     check_detectable(A, Q)
@@ -200,10 +205,8 @@ def policy_value(A: ArrayLike, B: ArrayLike, K: ArrayLike, Q: ArrayLike, R: Arra
     InputError
         If a shape is wrong, a value is not finite, or Q, R are not as required.
     """
-    A = as_matrix(A, "A")
+    A, B = _check_plant(A, B)
     n = A.shape[0]
-    A = as_matrix(A, "A", (n, n))
-    B = as_matrix(B, "B", (n, None))
     K = as_matrix(K, "K", (B.shape[1], n))
     Q, R = _check_weights(Q, R, n, B.shape[1])
     closed_loop = A - B @ K

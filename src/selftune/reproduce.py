@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from ._atomic import write_json
 from .motor import SPMSM
-from .regulation import ModelBasedSolution
+from .regulation import ModelBasedSolution, RegulatorSolution
 from .torque import (
     TuningEvaluation,
     TuningResult,
@@ -37,6 +37,7 @@ __all__ = [
     "ALGORITHMS",
     "Reproduction",
     "history_document",
+    "regulator_document",
     "report",
     "reproduce",
     "results_document",
@@ -254,6 +255,11 @@ def history_document(result: TuningResult, evaluation: TuningEvaluation) -> list
     return rows
 
 
+def regulator_document(solution: RegulatorSolution | TuningResult) -> dict[str, Array]:
+    """``K``, ``P``, ``X``, ``U`` and ``theta`` of a learned or model-based regulator (JSON)."""
+    return {name: getattr(solution, name) for name in ("K", "P", "X", "U", "theta")}
+
+
 def _finite_or_none(value: Any) -> Any:
     if isinstance(value, float) and not np.isfinite(value):
         return None
@@ -296,11 +302,7 @@ def results_document(reproduction: Reproduction) -> dict[str, Any]:
             "seed": settings.seed,
         },
         "model_based": {
-            "K": optimum.K,
-            "P": optimum.P,
-            "X": optimum.X,
-            "U": optimum.U,
-            "theta": optimum.theta,
+            **regulator_document(optimum),
             "x_e": optimum.X @ w,
             "u_e": optimum.U @ w,
         },
@@ -310,11 +312,7 @@ def results_document(reproduction: Reproduction) -> dict[str, Any]:
     for key, _ in ALGORITHMS:
         result, evaluation = reproduction.results[key], reproduction.evaluations[key]
         document["algorithms"][key] = {
-            "K": result.K,
-            "P": result.P,
-            "X": result.X,
-            "U": result.U,
-            "theta": result.theta,
+            **regulator_document(result),
             "theta_error": evaluation.final_theta_error * float(np.linalg.norm(optimum.theta)),
             "theta_relative_error": evaluation.final_theta_error,
             "K_relative_error": evaluation.K_error,
