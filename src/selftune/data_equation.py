@@ -20,8 +20,14 @@ Quadrature, consistent with how the data were made (PAPER_NOTES.md section 4):
 
 - ``u`` is held over each sample, so ``int u xbar'`` is ``u_k`` times the integral of
   ``xbar``; the ``K_j xbar`` part is integrated as the state-dependent term it is;
-- inside each sample the state is interpolated linearly between its samples, and every
-  integral is exact for that interpolant (second order in the sampling period h);
+- inside a sample whose input changes at both ends, the state is interpolated linearly
+  between its samples, and every integral is exact for that interpolant (second order
+  in the sampling period h);
+- inside a hold -- consecutive samples with the same input (and the same held ``w``),
+  read off the data, e.g. a controller updating every second sample -- the state is
+  analytic, and each sample is integrated with the quadratic through three of the hold's
+  sample points; paired samples then add up to Simpson's rule (fourth order in h; an odd
+  hold's last sample is third order);
 - a held ``w`` (E = 0) is constant inside each sample and ``xbar`` jumps where ``w``
   steps: ``psi_P`` sums the within-sample changes and leaves the jumps out, which keeps
   the equation exact (the ``-X w'`` term of pitfall 2 never appears);

@@ -12,6 +12,11 @@ episodes) is reused for every policy-iteration step (Jiang & Jiang 2012).
 Policy iteration (Kleinman) starts from a stabilizing ``K0``; at step j the data
 equation (:mod:`selftune.data_equation`) is solved for ``P_j`` (the value of ``K_j``),
 ``K_(j+1) = R^-1 B' P_j`` and, for output regulation, ``M = (D + A X - X E)' P_j``.
+
+Accuracy on noise-free data is set by the quadrature of the data equation: second order
+in the sampling period when the input changes every sample, fourth order when it is
+held over two or more samples (found in the data). On the paper's motor, 5 ms at 10 us:
+``||Theta - Theta*|| / ||Theta*||`` about 3e-7, and 1e-9 to 1e-10 with a two-sample hold.
 """
 
 from __future__ import annotations
