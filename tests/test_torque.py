@@ -25,7 +25,7 @@ PAPER = SPMSM.paper()
 
 @pytest.fixture(scope="module")
 def paper_results() -> dict[str, object]:
-    paper_settings = TuningSettings()
+    paper_settings = TuningSettings.paper()
     return {
         name: (run_algorithm(name, PAPER, paper_settings), paper_settings)  # type: ignore[arg-type]
         for name in ("1", "2", "3", "offpolicy")

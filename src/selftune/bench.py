@@ -425,7 +425,7 @@ def measure_data_efficiency(config: BenchConfig, progress: bool = False) -> Data
     bars = _Progress(progress)
     started = time.perf_counter()
     motor = SPMSM.paper()
-    settings = TuningSettings()
+    settings = TuningSettings.paper()
     optimum = _optimum(motor, settings)
     target = TARGET_RELATIVE_ERROR
 
@@ -630,13 +630,13 @@ def measure_learning_cost(config: BenchConfig, progress: bool = False) -> Learni
     bars = _Progress(progress)
     started = time.perf_counter()
     motor = SPMSM.paper()
-    settings = TuningSettings()
+    settings = TuningSettings.paper()
     optimum = _optimum(motor, settings)
     datasets = []
     methods: tuple[Literal["customized", "general"], ...] = ("customized", "general")
     with bars.bar(len(config.learning_datasets) * 2, "learning cost") as step:
         for sampling, samples in config.learning_datasets:
-            settings = TuningSettings(sampling=sampling)
+            settings = TuningSettings.paper(sampling=sampling)
             batch, C, E, F = _offpolicy_batch(motor, settings, samples, seed=config.seeds[0])
             learners = {
                 method: functools.partial(
@@ -836,7 +836,7 @@ class _Loop:
     @classmethod
     def paper(cls) -> _Loop:
         motor = SPMSM.paper()
-        settings = TuningSettings()
+        settings = TuningSettings.paper()
         problem = motor.regulation_problem(settings.speed)
         optimum = _optimum(motor, settings)
         return cls(
@@ -1467,7 +1467,7 @@ def measure_self_tuning_value(config: BenchConfig, progress: bool = False) -> Se
     bars = _Progress(progress)
     started = time.perf_counter()
     nominal = SPMSM.paper()
-    settings = TuningSettings()
+    settings = TuningSettings.paper()
     horizon = COST_HORIZON_SECONDS
     design = _TrueMotor.of(nominal, settings)
     K_nominal = np.asarray(design.optimum.K)

@@ -54,7 +54,6 @@ if TYPE_CHECKING:
 __all__ = [
     "LEARN_TABLES",
     "MOTOR_TABLES",
-    "TUNE_INPUT_HOLD",
     "TUNING_KEYS",
     "ConfigFile",
     "ConfigTable",
@@ -597,10 +596,6 @@ TUNING_KEYS = (
     "max_iterations",
 )
 
-#: ``selftune tune``'s controller update period, in samples: 2 lets the learner integrate
-#: to fourth order (the paper's experiment, 1, leaves ~1e-5 on fast motors).
-TUNE_INPUT_HOLD = 2
-
 
 def tuning_settings(config: MotorConfig, seed: int = 0) -> TuningSettings:
     """The self-tuning settings of a motor file: its operating point, cost and [learning].
@@ -608,9 +603,8 @@ def tuning_settings(config: MotorConfig, seed: int = 0) -> TuningSettings:
     ``[learning]`` may set ``sampling`` (s), ``episode_length`` (s), ``K0`` (2x2, V/A),
     ``exploration`` (V), ``input_hold`` (samples per controller update), ``interval``
     (samples) and ``max_iterations``; absent keys take the paper's values
-    (:class:`~selftune.torque.TuningSettings`), except ``input_hold``, 2
-    (:data:`TUNE_INPUT_HOLD`): the controller at half the sampling rate, which lets the
-    learner integrate the data to fourth order.
+    (:class:`~selftune.torque.TuningSettings`), except ``input_hold``, 2: the controller
+    at half the sampling rate, which lets the learner integrate the data to fourth order.
 
     Raises
     ------
@@ -631,7 +625,7 @@ def tuning_settings(config: MotorConfig, seed: int = 0) -> TuningSettings:
             episode_length=table.positive("episode_length", defaults.episode_length),
             K0=table.matrix("K0", (2, 2), defaults.K0),
             exploration=table.positive("exploration", defaults.exploration),
-            input_hold=table.positive_integer("input_hold", TUNE_INPUT_HOLD),
+            input_hold=table.positive_integer("input_hold", defaults.input_hold),
             interval=table.positive_integer("interval", defaults.interval),
             max_iterations=table.positive_integer("max_iterations", defaults.max_iterations),
             seed=seed,

@@ -113,12 +113,12 @@ def reproduce(
     motor : SPMSM, optional
         Default :meth:`SPMSM.paper`.
     settings : TuningSettings, optional
-        Default the paper's (with ``seed``).
+        Default :meth:`TuningSettings.paper` (with ``seed``).
     step : callable, optional
         Called with a short description before each stage (for progress display).
     """
     motor = SPMSM.paper() if motor is None else motor
-    settings = replace(TuningSettings() if settings is None else settings, seed=seed)
+    settings = replace(TuningSettings.paper() if settings is None else settings, seed=seed)
     announce = step or (lambda _: None)
     start = time.perf_counter()
     results: dict[str, TuningResult] = {}
