@@ -254,8 +254,34 @@ def _estimated_B(P: Array, K: Array, R: Array) -> Array:
     return np.asarray(np.linalg.solve(P, (R @ K).T), dtype=np.float64)
 
 
+class _PolicyIterationFacts:
+    """``iterations``, ``rank``, ``unknowns`` and ``rows`` read off a policy-iteration history."""
+
+    history: tuple[IterationRecord, ...]
+
+    @property
+    def iterations(self) -> int:
+        """Number of policy-iteration steps."""
+        return len(self.history)
+
+    @property
+    def rank(self) -> int:
+        """Rank of the last policy-iteration regression."""
+        return self.history[-1].regression.rank
+
+    @property
+    def unknowns(self) -> int:
+        """Number of unknowns of each policy-iteration regression."""
+        return self.history[-1].regression.unknowns
+
+    @property
+    def rows(self) -> int:
+        """Number of regression rows (intervals)."""
+        return self.history[-1].regression.rows
+
+
 @dataclass(frozen=True)
-class LQRLearningResult:
+class LQRLearningResult(_PolicyIterationFacts):
     """Optimal state feedback learned from data.
 
     Attributes
@@ -275,21 +301,6 @@ class LQRLearningResult:
     B: Array
     history: tuple[IterationRecord, ...]
     converged: bool
-
-    @property
-    def iterations(self) -> int:
-        """Number of policy-iteration steps (least-squares solves)."""
-        return len(self.history)
-
-    @property
-    def rank(self) -> int:
-        """Rank of the last regression."""
-        return self.history[-1].regression.rank
-
-    @property
-    def unknowns(self) -> int:
-        """Number of unknowns of each regression."""
-        return self.history[-1].regression.unknowns
 
 
 def learn_lqr(
@@ -363,7 +374,7 @@ def learn_lqr(
 
 
 @dataclass(frozen=True)
-class LearnedSolution(RegulatorSolution):
+class LearnedSolution(RegulatorSolution, _PolicyIterationFacts):
     """An optimal output regulator learned from data.
 
     The attributes of :class:`~selftune.regulation.RegulatorSolution` (K, P, X, U, the
@@ -391,29 +402,9 @@ class LearnedSolution(RegulatorSolution):
     sylvester_regressions: tuple[RegressionSolution, ...] = ()
 
     @property
-    def iterations(self) -> int:
-        """Number of policy-iteration steps."""
-        return len(self.history)
-
-    @property
     def least_squares_solves(self) -> int:
         """All least-squares solves: the policy-iteration steps plus the Sylvester solves."""
         return len(self.history) + len(self.sylvester_regressions)
-
-    @property
-    def rank(self) -> int:
-        """Rank of the last policy-iteration regression."""
-        return self.history[-1].regression.rank
-
-    @property
-    def unknowns(self) -> int:
-        """Number of unknowns of each policy-iteration regression."""
-        return self.history[-1].regression.unknowns
-
-    @property
-    def rows(self) -> int:
-        """Number of regression rows (intervals)."""
-        return self.history[-1].regression.rows
 
 
 def solutions_of_output_equation(C: Array, F: Array) -> tuple[Array, list[Array]]:
