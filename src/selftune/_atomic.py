@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from collections.abc import Callable, Iterator
@@ -12,7 +13,7 @@ from typing import IO, Any
 
 import numpy as np
 
-__all__ = ["atomic_path", "to_jsonable", "write_json", "write_text"]
+__all__ = ["atomic_path", "finite_or_null", "to_jsonable", "write_json", "write_text"]
 
 
 @contextmanager
@@ -73,6 +74,17 @@ def to_jsonable(value: Any) -> Any:
         return {str(key): to_jsonable(item) for key, item in value.items()}
     if isinstance(value, list | tuple):
         return [to_jsonable(item) for item in value]
+    return value
+
+
+def finite_or_null(value: Any) -> Any:
+    """Replace non-finite floats (recursively, in dicts and lists) by None: JSON has no inf."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {key: finite_or_null(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [finite_or_null(item) for item in value]
     return value
 
 

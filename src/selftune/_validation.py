@@ -113,3 +113,10 @@ def finite_float(value: object, name: str) -> float:
     if not np.isfinite(number):
         raise InputError(f"{name}: must be finite, got {value!r}")
     return number
+
+
+def check_weights(Q: ArrayLike, R: ArrayLike, n: int, m: int) -> tuple[Array, Array]:
+    """Cost weights: Q (n x n) symmetric positive semidefinite, R (m x m) positive definite."""
+    Q = check_positive_semidefinite(as_matrix(Q, "Q", (n, n)), "Q")
+    R = check_positive_definite(as_matrix(R, "R", (m, m)), "R")
+    return Q, R

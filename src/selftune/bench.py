@@ -55,7 +55,7 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from . import __version__
-from ._atomic import to_jsonable, write_json, write_text
+from ._atomic import finite_or_null, to_jsonable, write_json, write_text
 from .errors import ConvergenceError, ExcitationError
 from .learning import learn_output_regulation
 from .motor import SPMSM
@@ -1745,21 +1745,11 @@ class BenchReport:
         for key in ("default_solver", "euler_solver"):
             if gem[key] is None:
                 del gem[key]
-        return _finite_json(to_jsonable(data))
+        return finite_or_null(to_jsonable(data))
 
     def to_markdown(self) -> str:
         """The tables of ``bench.md``."""
         return _markdown(self)
-
-
-def _finite_json(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {key: _finite_json(item) for key, item in value.items()}
-    if isinstance(value, list):
-        return [_finite_json(item) for item in value]
-    return value
 
 
 def run_bench(quick: bool, progress: bool = True) -> BenchReport:

@@ -31,8 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._validation import (
     as_matrix,
-    check_positive_definite,
-    check_positive_semidefinite,
+    check_weights,
 )
 from .data_equation import (
     IntervalMoments,
@@ -50,6 +49,7 @@ __all__ = [
     "IterationRecord",
     "LQRLearningResult",
     "LearnedSolution",
+    "estimated_B",
     "feedforward",
     "learn_lqr",
     "learn_output_regulation",
@@ -87,12 +87,6 @@ class IterationRecord:
     theta: Array
     change: float
     regression: RegressionSolution = field(repr=False)
-
-
-def _check_weights(Q: ArrayLike, R: ArrayLike, n: int, m: int) -> tuple[Array, Array]:
-    Q = check_positive_semidefinite(as_matrix(Q, "Q", (n, n)), "Q")
-    R = check_positive_definite(as_matrix(R, "R", (m, m)), "R")
-    return Q, R
 
 
 def _smallest_eigenvalue(P: Array) -> float:
@@ -249,7 +243,7 @@ def _check_settings(max_iterations: int, tolerance: float) -> None:
         raise InputError(f"tolerance: must be a positive number, got {tolerance!r}")
 
 
-def _estimated_B(P: Array, K: Array, R: Array) -> Array:
+def estimated_B(P: Array, K: Array, R: Array) -> Array:
     """``B = (R K_(j+1) P_j^-1)'`` from ``K_(j+1) = R^-1 B' P_j``."""
     return np.asarray(np.linalg.solve(P, (R @ K).T), dtype=np.float64)
 
@@ -348,7 +342,7 @@ def learn_lqr(
     """
     episodes = as_trajectories(data)
     n, m = episodes[0].n, episodes[0].m
-    Q, R = _check_weights(Q, R, n, m)
+    Q, R = check_weights(Q, R, n, m)
     K0 = as_matrix(K0, "K0", (m, n))
     _check_settings(max_iterations, tolerance)
     if any(episode.w is not None and np.any(episode.w) for episode in episodes):
@@ -367,7 +361,7 @@ def learn_lqr(
     return LQRLearningResult(
         K=last.K,
         P=last.P,
-        B=_estimated_B(last.P, last.K, R),
+        B=estimated_B(last.P, last.K, R),
         history=tuple(history),
         converged=converged,
     )
@@ -496,7 +490,7 @@ def learn_output_regulation(
     r = C.shape[0]
     E = as_matrix(E, "E", (q, q))
     F = as_matrix(F, "F", (r, q))
-    Q, R = _check_weights(Q, R, n, m)
+    Q, R = check_weights(Q, R, n, m)
     K0 = as_matrix(K0, "K0", (m, n))
     _check_settings(max_iterations, tolerance)
     if method not in ("auto", "customized", "general"):
@@ -522,7 +516,7 @@ def learn_output_regulation(
             raise _not_converged(history, tolerance)
         last = history[-1]
         P, K, M = unpack_theta(last.theta, n, m, q)
-        B = _estimated_B(P, K, R)
+        B = estimated_B(P, K, R)
         U = feedforward(P, K, M, R, weight_U)
         return LearnedSolution(
             K=K,
@@ -543,7 +537,7 @@ def learn_output_regulation(
         raise _not_converged(history, tolerance)
     last = history[-1]
     P, K, M0 = unpack_theta(last.theta, n, m, q)
-    B = _estimated_B(P, K, R)
+    B = estimated_B(P, K, R)
     D = np.linalg.solve(P, M0.T)
     policy = history[-2].K if len(history) > 1 else K0  # K_j that the last step evaluated
     sylvester: list[Array] = []
@@ -596,7 +590,7 @@ def feedforward(P: Array, K: Array, M: Array, R: Array, weight_U: Array | None =
     give U (the least ``Tr(U' W U)`` one, ``W = weight_U`` or R, when B has more columns
     than rank).
     """
-    B = _estimated_B(P, K, R)
+    B = estimated_B(P, K, R)
     drift = np.asarray(np.linalg.solve(P, M.T), dtype=np.float64)
     weight = R if weight_U is None else weight_U
     q = drift.shape[1]

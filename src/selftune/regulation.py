@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from ._validation import (
     as_matrix,
     check_positive_definite,
-    check_positive_semidefinite,
+    check_weights,
 )
 from .errors import UnsolvableError
 from .vectorize import pack_theta, unvec, vec
@@ -111,12 +111,6 @@ def check_detectable(A: ArrayLike, Q: ArrayLike) -> None:
             )
 
 
-def _check_weights(Q: ArrayLike, R: ArrayLike, n: int, m: int) -> tuple[Array, Array]:
-    Q = check_positive_semidefinite(as_matrix(Q, "Q", (n, n)), "Q")
-    R = check_positive_definite(as_matrix(R, "R", (m, m)), "R")
-    return Q, R
-
-
 def _check_plant(A: ArrayLike, B: ArrayLike) -> tuple[Array, Array]:
     """A square, finite A and a finite B with as many rows, as float matrices."""
     A = as_matrix(A, "A")
@@ -153,7 +147,7 @@ def lqr(A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike) -> tuple[Array, 
     """
     A, B = _check_plant(A, B)
     n = A.shape[0]
-    Q, R = _check_weights(Q, R, n, B.shape[1])
+    Q, R = check_weights(Q, R, n, B.shape[1])
     check_stabilizable(A, B)
     check_detectable(A, Q)
     try:
@@ -208,7 +202,7 @@ def policy_value(A: ArrayLike, B: ArrayLike, K: ArrayLike, Q: ArrayLike, R: Arra
     A, B = _check_plant(A, B)
     n = A.shape[0]
     K = as_matrix(K, "K", (B.shape[1], n))
-    Q, R = _check_weights(Q, R, n, B.shape[1])
+    Q, R = check_weights(Q, R, n, B.shape[1])
     closed_loop = A - B @ K
     rightmost = float(np.max(np.linalg.eigvals(closed_loop).real))
     if rightmost >= 0.0:
@@ -492,7 +486,7 @@ def solve_optimal_regulation(
     InputError
         If Q, R have the wrong shape or are not symmetric positive (semi)definite.
     """
-    Q, R = _check_weights(Q, R, problem.n, problem.m)
+    Q, R = check_weights(Q, R, problem.n, problem.m)
     problem.check_solvable()
     K, P = lqr(problem.A, problem.B, Q, R)
     X, U = problem.solve_regulator_equations(Q if _is_definite(Q) else None, R)

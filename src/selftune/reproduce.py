@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ._atomic import write_json
+from ._atomic import finite_or_null, to_jsonable, write_json
 from .motor import SPMSM
 from .regulation import ModelBasedSolution, RegulatorSolution
 from .torque import (
@@ -260,23 +260,12 @@ def regulator_document(solution: RegulatorSolution | TuningResult) -> dict[str, 
     return {name: getattr(solution, name) for name in ("K", "P", "X", "U", "theta")}
 
 
-def _finite_or_none(value: Any) -> Any:
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {key: _finite_or_none(item) for key, item in value.items()}
-    if isinstance(value, list):
-        return [_finite_or_none(item) for item in value]
-    return value
-
-
 def results_document(reproduction: Reproduction) -> dict[str, Any]:
     """Every number the command prints (and the histories), as JSON-ready data.
 
     Non-finite numbers (e.g. Theta error of Algorithm 3's no-load step, which has other
     unknowns) become ``null``.
     """
-    from ._atomic import to_jsonable
 
     settings = reproduction.settings
     optimum = reproduction.optimum
@@ -327,7 +316,7 @@ def results_document(reproduction: Reproduction) -> dict[str, Any]:
             "notes": list(result.notes),
             "history": history_document(result, evaluation),
         }
-    return _finite_or_none(to_jsonable(document))
+    return finite_or_null(to_jsonable(document))
 
 
 def write_outputs(reproduction: Reproduction, out: str | os.PathLike[str]) -> list[Path]:

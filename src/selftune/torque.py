@@ -38,6 +38,7 @@ from .data_equation import interval_moments
 from .errors import ConvergenceError, InputError
 from .learning import (
     IterationRecord,
+    estimated_B,
     feedforward,
     learn_output_regulation,
     policy_step,
@@ -463,10 +464,6 @@ def _relative_change(new: Array, old: Array | None) -> float:
     return float(np.linalg.norm(new - old)) / max(float(np.linalg.norm(new)), 1e-300)
 
 
-def _estimated_B(P: Array, K: Array, R: Array) -> Array:
-    return np.asarray(np.linalg.solve(P, (R @ K).T), dtype=np.float64)
-
-
 def _unknowns(episode: Trajectory) -> int:
     n, m, q = episode.n, episode.m, episode.q
     return sum(theta_sizes(n, m, q))
@@ -717,7 +714,7 @@ def _on_policy(
         X=X,
         U=last.U,
         theta=last.theta,
-        B=_estimated_B(P_last, K_last, settings.R),
+        B=estimated_B(P_last, K_last, settings.R),
         w=w,
         history=tuple(history),
         data_seconds=seconds,
@@ -815,7 +812,7 @@ def algorithm3(drive: Drive, settings: TuningSettings) -> TuningResult:
             f"iterations (last relative change {history[-1].change:.3g})"
         )
     P, K_next, DP = unpack_theta(record.theta, n, m, q)
-    B = _estimated_B(P, K_next, settings.R)
+    B = estimated_B(P, K_next, settings.R)
     D = np.linalg.solve(P, DP.T)
     L_s = 2.0 / float(np.trace(B))
     phi_pm = -float(D[1, 0]) * L_s
