@@ -11,7 +11,7 @@ from tempfile import TemporaryDirectory
 import numpy as np
 
 import selftune
-from selftune.simulate import held, uniform
+from selftune.sim import held, uniform
 
 motor = selftune.SPMSM.paper()
 problem = motor.regulation_problem(speed=10.0)

@@ -4,7 +4,8 @@ Run:  python examples/tune_motors.py
 """
 
 import selftune
-from selftune.torque import TuningSettings, evaluate, run_algorithm
+from selftune.report import evaluate
+from selftune.tuning import TuningSettings, run_algorithm
 
 motors = {
     "paper": (selftune.SPMSM.paper(), 10.0, 10.0),

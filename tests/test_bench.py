@@ -8,7 +8,6 @@ by exactly the flux error, ...). Timings are only checked to be finite and posit
 
 from __future__ import annotations
 
-import argparse
 import itertools
 import json
 import math
@@ -18,7 +17,10 @@ from typing import Any
 import pytest
 
 from selftune import bench
-from selftune.bench import BenchReport, add_bench_arguments, run_bench, run_bench_command
+from selftune.bench import BenchReport, bench_command, run_bench
+from selftune.bench import _gem as bench_gem
+from selftune.bench._loop import Loop
+from selftune.cli import build_parser
 
 SECTIONS = ("data_efficiency", "learning_cost", "simulation", "self_tuning_value")
 
@@ -188,8 +190,8 @@ def test_simulation_is_exact_and_the_speedup_is_the_ratio_of_times(report: Bench
 
 
 def test_without_gym_electric_motor_the_bench_says_so(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(bench, "_gem_version", lambda: None)
-    measured = bench._measure_gem(bench._Loop.paper(), samples=10)
+    monkeypatch.setattr(bench_gem, "gem_version", lambda: None)
+    measured = bench_gem.measure_gem(Loop.paper(), samples=10)
     assert not measured.available and measured.default_solver is None
     assert measured.reason_text is not None and "not installed" in measured.reason_text
 
@@ -247,17 +249,16 @@ def test_markdown_has_every_table_and_says_which_targets_are_met(report: BenchRe
 
 
 def test_arguments() -> None:
-    parser = argparse.ArgumentParser()
-    add_bench_arguments(parser)
-    defaults = parser.parse_args([])
+    parser = build_parser()
+    defaults = parser.parse_args(["bench"])
     assert defaults.quick is False and defaults.out == "."
-    given = parser.parse_args(["--quick", "--out", "results"])
+    given = parser.parse_args(["bench", "--quick", "--out", "results"])
     assert given.quick is True and given.out == "results"
 
 
 def test_the_command_writes_both_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "new" / "dir"
-    status = run_bench_command(argparse.Namespace(quick=True, out=str(out)))
+    status = bench_command(str(out), quick=True)
     assert status == 0
     assert sorted(path.name for path in out.iterdir()) == ["bench.json", "bench.md"]
     data = json.loads((out / "bench.json").read_text(encoding="utf-8"))

@@ -19,7 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import selftune
-from selftune import cli
+from selftune import commands
 from selftune.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -268,7 +268,7 @@ def test_numerical_trouble_is_an_error_not_wrong_numbers(
         warnings.warn("overflow encountered in matmul", RuntimeWarning, stacklevel=1)
         return selftune.solve_optimal_regulation(*args, **kwargs)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(cli, "solve_optimal_regulation", overflowing)
+    monkeypatch.setattr(commands, "solve_optimal_regulation", overflowing)
     output = tmp_path / "out.json"
     code, out, err = run(["solve", "--json", str(output)])
     line = assert_clean_failure(code, err, "paper preset", "not numerically meaningful")
@@ -399,8 +399,6 @@ def test_module_entry_point_fails_cleanly(tmp_path: Path) -> None:
     assert result.returncode == 2
     assert result.stdout == ""
     assert result.stderr == f"selftune: error: {path}: [cost] R: must be a 2x2 matrix, got 1x1\n"
-
-
 
 
 def test_output_files_get_the_usual_permissions(tmp_path: Path) -> None:

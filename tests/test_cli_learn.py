@@ -11,10 +11,8 @@ import pytest
 
 from selftune import SPMSM, lqr, solve_optimal_regulation
 from selftune.cli import main
-from selftune.io import save_trajectory
-from selftune.learning import learn_lqr, learn_output_regulation
-from selftune.simulate import held, prbs, simulate, uniform
-from selftune.trajectory import Trajectory
+from selftune.learn import Trajectory, learn_lqr, learn_output_regulation, save_trajectory
+from selftune.sim import held, prbs, simulate, uniform
 
 MOTOR = SPMSM.paper()
 PROBLEM = MOTOR.regulation_problem(10.0)
@@ -75,7 +73,6 @@ def test_learn_from_a_file_equals_learning_in_memory(tmp_path: Path, suffix: str
     for key in ("P", "K", "B", "X", "U", "L"):
         np.testing.assert_array_equal(np.array(result[key]), getattr(expected, key), err_msg=key)
     assert result["iterations"] == expected.iterations
-    assert result["converged"] is True
     assert (result["rank"], result["unknowns"]) == (11, 11)
     optimum = solve_optimal_regulation(PROBLEM, Q, R)
     assert np.linalg.norm(np.array(result["K"]) - optimum.K) < 1e-5 * np.linalg.norm(optimum.K)

@@ -120,7 +120,7 @@ def test_motor_config_is_frozen_and_checks_its_fields() -> None:
         config.speed = 3.0  # type: ignore[misc]
     with pytest.raises(ValueError):
         config.Q[0, 0] = 1.0
-    with pytest.raises(InputError, match="R: must be positive definite"):
+    with pytest.raises(InputError, match="R: must be symmetric positive definite"):
         MotorConfig(motor=SPMSM.paper(), R=np.zeros((2, 2)))
     with pytest.raises(InputError, match="speed"):
         MotorConfig(motor=SPMSM.paper(), speed=float("nan"))

@@ -8,16 +8,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from selftune import RegulationProblem, lqr, solve_optimal_regulation
-from selftune.data_equation import (
-    _holds,
-    _quadratic_stencils,
+from selftune.learn import (
+    Trajectory,
     interval_moments,
+    learn_output_regulation,
     regression,
     solve_regression,
 )
-from selftune.learning import learn_output_regulation
-from selftune.simulate import exosystem, simulate, sum_of_sines, uniform
-from selftune.trajectory import Trajectory
+from selftune.learn._moments import _holds, _quadratic_stencils
+from selftune.sim import exosystem, simulate, sum_of_sines, uniform
 
 
 @settings(max_examples=50)
@@ -145,7 +144,7 @@ def test_partially_known_theta_keeps_the_given_blocks() -> None:
     A, B = -np.eye(2) + 0.1 * rng.normal(size=(2, 2)), np.eye(2)
     data = simulate(A, B, exploration=uniform(1.0), x0=[1.0, 1.0], h=1e-2, num_samples=300, seed=1)
     moments = interval_moments(data, 5)
-    problem = regression(moments, np.zeros((2, 2)), np.eye(2), np.eye(2), exogenous=False)
+    problem = regression(moments, np.zeros((2, 2)), np.eye(2), np.eye(2))
     full = solve_regression(problem)
     known_P = full.theta[:3]
     partial = solve_regression(problem, known={"P": known_P})

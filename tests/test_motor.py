@@ -21,7 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from selftune import SPMSM, InputError, ModelBasedSolution, solve_optimal_regulation
-from selftune.vectorize import unpack_theta
+from selftune.core import unpack_theta
 
 
 def _examples(count: int) -> settings:
@@ -135,7 +135,10 @@ def test_the_printed_feedforward_is_not_an_exact_solution(
     exact_residual, output_residual = problem.regulator_residuals(
         paper_solution.X, paper_solution.U
     )
-    assert exact_residual <= 1e-12 and output_residual <= 1e-15
+    # Rounding level: C X + F with X = -F solved from the regulator equations is exact to a
+    # few units in the last place of F.
+    rounding = 16 * np.finfo(float).eps * float(np.linalg.norm(problem.F))
+    assert exact_residual <= 1e-12 and output_residual <= rounding
     assert printed_residual > 0.05
 
 
@@ -160,12 +163,6 @@ def test_table_parameters_with_the_texts_weight_give_the_numbers_in_the_notes() 
     solution = solve_optimal_regulation(motor.regulation_problem(SPEED), 1e4 * np.eye(2), R_PAPER)
     _assert_to_decimals(solution.P, 6.1231 * np.eye(2), FOUR_DECIMALS)
     _assert_to_decimals(solution.K, 99.562 * np.eye(2), THREE_DECIMALS)
-
-
-def test_paper_parameters() -> None:
-    motor = SPMSM.paper()
-    assert (motor.R_s, motor.L_s, motor.phi_pm, motor.p) == (0.439, 0.0601, 0.46, 2)
-    assert isinstance(motor.p, int)
 
 
 # -- 7b. closed forms for random motors -----------------------------------------------------------

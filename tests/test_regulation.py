@@ -41,7 +41,7 @@ from selftune import (
     policy_value,
     solve_optimal_regulation,
 )
-from selftune.vectorize import unpack_theta
+from selftune.core import unpack_theta
 
 
 def _examples(count: int) -> settings:
@@ -821,7 +821,7 @@ def test_a_stable_unobserved_mode_is_accepted() -> None:
 
 def test_bad_weights_are_input_errors() -> None:
     A = -np.eye(2)
-    with pytest.raises(InputError, match="R: must be positive definite"):
+    with pytest.raises(InputError, match="R: must be symmetric positive definite"):
         lqr(A, np.eye(2), np.eye(2), np.diag([1.0, 0.0]))
     with pytest.raises(InputError, match="Q: must be positive semidefinite"):
         lqr(A, np.eye(2), np.diag([1.0, -1.0]), np.eye(2))

@@ -13,7 +13,8 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from selftune import SPMSM, InputError, solve_optimal_regulation
-from selftune.simulate import (
+from selftune.learn import Trajectory
+from selftune.sim import (
     Exploration,
     TrajectoryBatch,
     constant,
@@ -27,7 +28,6 @@ from selftune.simulate import (
     sum_of_sines,
     uniform,
 )
-from selftune.trajectory import Trajectory
 
 Array = NDArray[np.float64]
 
@@ -282,13 +282,13 @@ def test_discretize_against_closed_form() -> None:
     h = 0.2
     d = discretize(A, B, h, D=D)
     Phi = scipy.linalg.expm(A * h)
-    np.testing.assert_allclose(d.Phi, Phi, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(d.Ad, Phi, rtol=1e-12, atol=1e-14)
     integral = np.linalg.solve(A, Phi - np.eye(4))  # int_0^h expm(A s) ds, A invertible
-    np.testing.assert_allclose(d.Gamma_u, integral @ B, rtol=1e-10, atol=1e-13)
-    np.testing.assert_allclose(d.Gamma_w, integral @ D, rtol=1e-10, atol=1e-13)
-    np.testing.assert_array_equal(d.Phi_w, np.eye(3))
+    np.testing.assert_allclose(d.Bd, integral @ B, rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(d.Ed, integral @ D, rtol=1e-10, atol=1e-13)
+    np.testing.assert_array_equal(d.Ew, np.eye(3))
     E = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -0.5]])
-    np.testing.assert_allclose(discretize(A, B, h, D=D, E=E).Phi_w, scipy.linalg.expm(E * h))
+    np.testing.assert_allclose(discretize(A, B, h, D=D, E=E).Ew, scipy.linalg.expm(E * h))
     assert d.h == h
 
 
@@ -546,7 +546,7 @@ def test_long_run_agrees_with_step_by_step_recursion() -> None:
     x = np.empty((N + 1, 3))
     x[0] = data.x[0]
     for k in range(N):
-        x[k + 1] = d.Phi @ x[k] + d.Gamma_u @ data.u[k] + d.Gamma_w @ data.w[k]
+        x[k + 1] = d.Ad @ x[k] + d.Bd @ data.u[k] + d.Ed @ data.w[k]
     assert relative_error(data.x, x) < 1e-11
 
 
@@ -596,9 +596,9 @@ def test_random_sizes_agree_with_the_plain_recursion(case: dict[str, int]) -> No
         w = np.empty((N + 1, q))
         x[0], w[0] = x0[i], batch.w[i, 0]
         for k in range(N):
-            w[k + 1] = d.Phi_w @ w[k] if E is not None else batch.w[i, k + 1]
+            w[k + 1] = d.Ew @ w[k] if E is not None else batch.w[i, k + 1]
             u = -K[i] @ (x[k] - X @ w[k]) + U @ w[k] + batch.exploration[i, k]
-            x[k + 1] = d.Phi @ x[k] + d.Gamma_u @ u + d.Gamma_w @ w[k]
+            x[k + 1] = d.Ad @ x[k] + d.Bd @ u + d.Ed @ w[k]
         assert relative_error(batch.x[i], x) < 1e-10
         assert relative_error(batch.w[i], w) < 1e-10
         assert np.all(np.abs(batch.exploration[i]) <= 1.0)
@@ -641,9 +641,9 @@ B2 = np.eye(2)
         ({"exploration": "uniform"}, "exploration: not numeric"),
         ({"h": -1.0}, "h: must be a positive"),
         ({"h": None}, "give the sampling period h"),
-        ({"num_samples": 0}, "num_samples: expected a positive integer"),
-        ({"num_samples": 2.5}, "num_samples: expected a positive integer"),
-        ({"num_samples": True}, "num_samples: expected a positive integer"),
+        ({"num_samples": 0}, "num_samples: expected a whole number >= 1"),
+        ({"num_samples": 2.5}, "num_samples: expected a whole number >= 1"),
+        ({"num_samples": True}, "num_samples: expected a whole number >= 1"),
         ({"t": [0.0, 1.0]}, "not both"),
         ({"h": None, "num_samples": None, "t": [0.0, 1.0, 1.0]}, r"strictly increasing.*t\[2\]"),
         ({"h": None, "num_samples": None, "t": [0.0]}, "at least 2 sample times"),
@@ -664,7 +664,7 @@ def test_validation_errors_name_the_argument(kwargs: dict[str, object], match: s
     [
         (lambda: uniform(-1.0), "uniform: amplitude: amplitudes must be positive"),
         (lambda: uniform(np.ones((2, 2))), "uniform: amplitude: expected a number or a vector"),
-        (lambda: prbs(1.0, 0), "prbs: hold_samples: expected a positive integer"),
+        (lambda: prbs(1.0, 0), "prbs: hold_samples: expected a whole number >= 1"),
         (lambda: prbs(1.0, 1.5), "prbs: hold_samples"),
         (lambda: sum_of_sines(1.0, [10.0, -5.0]), "frequencies: must be positive"),
         (lambda: sum_of_sines(1.0, []), "frequencies: expected a non-empty"),

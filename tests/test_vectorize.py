@@ -3,7 +3,7 @@
 The references below are loops over the paper's definitions (Wang 2022, Sec. III-A):
 ``vec`` stacks columns; ``vecs(P) = [P_11..P_nn, 2P_12, .., 2P_(n-1)n]``;
 ``vecs_hat(x) = [x_1^2..x_n^2, x_1x_2, .., x_(n-1)x_n]``. They share no code with
-:mod:`selftune.vectorize`.
+:mod:`selftune.core._vectorize`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from selftune.vectorize import (
+from selftune.core import (
     pack_theta,
     theta_sizes,
     unpack_theta,
@@ -211,15 +211,6 @@ def test_vecs_hat_from_outer_dot_vecs_is_the_trace_of_the_product(
     S = S + S.T
     scale = float(np.sum(np.abs(S) * np.abs(P)))
     assert abs(vecs_hat_from_outer(S) @ vecs(P) - np.trace(S @ P)) <= 1e-13 * max(scale, 1e-300)
-
-
-@given(
-    st.integers(min_value=1, max_value=8),
-    st.integers(min_value=1, max_value=4),
-    st.integers(min_value=0, max_value=4),
-)
-def test_theta_sizes(n: int, m: int, q: int) -> None:
-    assert theta_sizes(n, m, q) == (n * (n + 1) // 2, m * n, q * n)
 
 
 @given(

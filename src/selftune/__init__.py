@@ -3,11 +3,18 @@
 The library learns the optimal feedback and feedforward of a linear plant from sampled
 data (no model needed), and computes the model-based optimum to compare against.
 
-The data flow, one module per arrow::
+The packages follow the data flow (each uses only those listed before it, and ``learn``
+never uses ``model``; an import contract checks both)::
 
-    motor (SPMSM)  ->  regulation problem (A..F)  ->  model-based optimum   [the truth]
-    simulate -> Trajectory (io: CSV/NPZ) -> data_equation -> learning      [the method]
-    torque: the paper's Algorithms 1-3 and off-policy on a drive
+    errors, core   exceptions; validation rules, thresholds, generic numerics  [neutral]
+    model          the motor, the linear problem, the model-based optimum     [the truth]
+    learn          Trajectory, file formats, the data equation, the learners  [the method]
+    sim            signals, the exact simulator, simulated drives
+    config         MOTOR.toml and CONFIG.toml
+    tuning         the paper's Algorithms 1-3 and off-policy on a drive
+    report         evaluation against the truth, the paper's reproduction, figures
+    bench          the benchmarks, one module per study
+    commands, cli  what each command does; argument parsing
 """
 
 from __future__ import annotations
@@ -21,23 +28,24 @@ from .errors import (
     SelftuneError,
     UnsolvableError,
 )
-from .io import load_trajectory, save_trajectory
-from .learning import (
+from .learn import (
     LearnedSolution,
     LQRLearningResult,
+    Trajectory,
     learn_lqr,
     learn_output_regulation,
+    load_trajectory,
+    save_trajectory,
 )
-from .motor import SPMSM
-from .regulation import (
+from .model import (
+    SPMSM,
     ModelBasedSolution,
     RegulationProblem,
     lqr,
     policy_value,
     solve_optimal_regulation,
 )
-from .simulate import simulate, simulate_batch
-from .trajectory import Trajectory
+from .sim import simulate, simulate_batch
 
 __version__ = "0.1.0"
 

@@ -1,15 +1,11 @@
-"""The ``selftune`` command line.
+"""The ``selftune`` command line: argument parsing only.
 
-Each subcommand is one handler function, ``_run_<name>(args) -> int``, and one
-registration function, ``_add_<name>(subparsers)``, listed in :data:`_COMMANDS`. Handlers
-raise :class:`~selftune.errors.SelftuneError` on bad input; :func:`main` turns it (and
-``OSError``) into one line on stderr, ``selftune: error: <message>``, and exit code 2.
-
-Commands
---------
-``selftune solve [--motor MOTOR.toml] [--speed S] [--torque T] [--json FILE]``
-    The model-based optimal torque controller (K*, P*, X*, U*, Theta*) and the operating
-    point (x_e, u_e), for the paper's motor or the one in MOTOR.toml.
+Each subcommand is one registration function, ``_add_<name>(subparsers)``, listed in
+:data:`_COMMANDS`, and one handler, ``_run_<name>(args) -> int``, which imports what its
+command needs when it runs (:mod:`selftune.commands`, :mod:`selftune.bench`) and calls it
+with plain values. Handlers raise :class:`~selftune.errors.SelftuneError` on bad input;
+:func:`main` turns it (and ``OSError``) into one line on stderr,
+``selftune: error: <message>``, and exit code 2.
 """
 
 from __future__ import annotations
@@ -19,32 +15,21 @@ import dataclasses
 import math
 import os
 import sys
-import warnings
 from collections.abc import Callable, Sequence
-from typing import TypeAlias
-
-import numpy as np
-from numpy.typing import NDArray
+from typing import TYPE_CHECKING, TypeAlias
 
 from . import __version__
-from ._atomic import write_json
-from .config import MotorConfig, load_learn_config, load_motor_config
 from .errors import SelftuneError
-from .io import load_trajectory
-from .learning import learn_lqr, learn_output_regulation
-from .regulation import ModelBasedSolution, solve_optimal_regulation
 
-__all__ = ["build_parser", "main", "solve_report"]
+if TYPE_CHECKING:
+    from .config import MotorConfig
 
-Array = NDArray[np.float64]
+__all__ = ["build_parser", "main"]
 
 #: Exit code of a usage error or of bad input (argparse uses 2 as well).
 EXIT_USAGE = 2
 
 _Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
-
-
-# -- shared options and helpers -------------------------------------------------------
 
 
 def _finite_float(text: str) -> float:
@@ -81,6 +66,8 @@ def _add_motor_options(parser: argparse.ArgumentParser) -> None:
 
 def _motor_config(args: argparse.Namespace) -> MotorConfig:
     """The configuration named by ``--motor`` (or the paper's), with the overrides applied."""
+    from .config import MotorConfig, load_motor_config
+
     config = MotorConfig.default() if args.motor is None else load_motor_config(args.motor)
     overrides = {
         name: value
@@ -90,38 +77,11 @@ def _motor_config(args: argparse.Namespace) -> MotorConfig:
     return dataclasses.replace(config, **overrides) if overrides else config
 
 
-def _number(value: float) -> str:
-    """Four decimals, and never ``-0.0000``."""
-    text = f"{value:.4f}"
-    return text[1:] if text == "-0.0000" else text
+def _add_json_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--json", metavar="FILE", help="also write the results to FILE as JSON")
 
 
-def _vector(values: Array) -> str:
-    return "[" + ", ".join(_number(float(value)) for value in values) + "]"
-
-
-def _matrix_block(
-    title: str, matrix: Array, rows: Sequence[str], columns: Sequence[str]
-) -> list[str]:
-    """A titled matrix with labelled rows and columns."""
-    cells = [[_number(float(value)) for value in row] for row in matrix]
-    width = max([len(cell) for row in cells for cell in row] + [len(c) for c in columns])
-    label_width = max(len(label) for label in rows)
-    lines = [title, " " * (2 + label_width) + "".join(f"  {c:>{width}}" for c in columns)]
-    for label, row in zip(rows, cells, strict=True):
-        lines.append(f"  {label:<{label_width}}" + "".join(f"  {c:>{width}}" for c in row))
-    return lines
-
-
-def _write_json(path: str, data: dict[str, object]) -> None:
-    """Write ``data`` to ``path`` atomically; a failure names ``path``."""
-    try:
-        write_json(path, data)
-    except OSError as exc:
-        raise SelftuneError(f"{path}: cannot write the file ({exc.strerror or exc})") from None
-
-
-# -- selftune solve -------------------------------------------------------------------
+# -- the commands ---------------------------------------------------------------------
 
 
 def _add_solve(subparsers: _Subparsers) -> None:
@@ -143,141 +103,10 @@ def _add_solve(subparsers: _Subparsers) -> None:
     parser.set_defaults(handler=_run_solve)
 
 
-def solve_report(config: MotorConfig, solution: ModelBasedSolution) -> str:
-    """The human-readable report that ``selftune solve`` prints.
-
-    Parameters
-    ----------
-    config : MotorConfig
-        The motor, operating point and weights that were solved.
-    solution : ModelBasedSolution
-        The result of :func:`~selftune.regulation.solve_optimal_regulation`.
-
-    Returns
-    -------
-    str
-        Several lines, numbers to 4 decimals.
-    """
-    motor = config.motor
-    w = config.exogenous()
-    x_e, u_e = solution.X @ w, solution.U @ w
-    state, inputs = ("i_d", "i_q"), ("u_d", "u_q")
-    exogenous = ("w_1", "w_2")
-    inertia = "" if motor.J is None else f", J = {motor.J:g} kg m^2"
-    lines = [
-        f"Model-based optimal torque control ({config.source})",
-        f"  motor: R_s = {motor.R_s:g} ohm, L_s = {motor.L_s:g} H,"
-        f" phi_pm = {motor.phi_pm:g} Wb, p = {motor.p}{inertia}",
-        f"  operating point: speed = {config.speed:g} rad/s (mechanical),"
-        f" torque = {config.torque:g} N m",
-        f"  cost weights: Q = {_compact(config.Q)}, R = {_compact(config.R)}",
-        "  state x = [i_d, i_q] (A), input u = [u_d, u_q] (V),",
-        f"  exogenous w = [p speed phi_pm (V), T* (N m)] = {_vector(w)}",
-        "  control u = -K* (x - X* w) + U* w",
-        "",
-    ]
-    lines += _matrix_block("K*  optimal feedback gain, V/A", solution.K, inputs, state)
-    lines += [""]
-    lines += _matrix_block(
-        "P*  value matrix: optimal cost-to-go (x - X* w)' P* (x - X* w)", solution.P, state, state
-    )
-    lines += [""]
-    lines += _matrix_block(
-        "X*  steady-state map, x_e = X* w (A/V, A/(N m))", solution.X, state, exogenous
-    )
-    lines += [""]
-    lines += _matrix_block(
-        "U*  feedforward map, u_e = U* w (V/V, V/(N m))", solution.U, inputs, exogenous
-    )
-    lines += [
-        "",
-        "Theta* = [vecs(P*); vec(K*); vec((D + A X*)' P*)]  (unknowns of the data equation)",
-        f"  {_vector(solution.theta)}",
-        "",
-        "Operating point",
-        f"  x_e = X* w = {_vector(x_e)} A  [i_d, i_q]",
-        f"  u_e = U* w = {_vector(u_e)} V  [u_d, u_q]",
-    ]
-    return "\n".join(lines)
-
-
-def _check_numerics(
-    source: str, caught: Sequence[warnings.WarningMessage], *results: Array
-) -> None:
-    """Raise if a computation warned (overflow, lost precision) or gave non-finite numbers.
-
-    Extreme inputs (a weight of 1e300, an inductance of 1e-300) pass every check on their
-    own but make the numerics meaningless; better an error than wrong numbers.
-    """
-    numeric = [w for w in caught if issubclass(w.category, RuntimeWarning)]
-    if numeric or not all(np.all(np.isfinite(result)) for result in results):
-        reason = f" ({numeric[0].message})" if numeric else ""
-        raise SelftuneError(
-            f"{source}: the solution is not numerically meaningful{reason};"
-            " check that the values are in SI units and of a realistic size"
-        )
-    for other in caught:  # anything else: show it as usual
-        warnings.showwarning(other.message, other.category, other.filename, other.lineno)
-
-
-def _compact(M: Array) -> str:
-    """A small matrix on one line, ``[[1000, 0], [0, 1000]]``."""
-    return "[" + ", ".join("[" + ", ".join(f"{v:g}" for v in row) + "]" for row in M) + "]"
-
-
-def _model_based(config: MotorConfig) -> ModelBasedSolution:
-    """The model-based optimum of ``config``; any failure names ``config.source``.
-
-    For every command that needs the truth (``solve``, and those comparing against it).
-    """
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", RuntimeWarning)
-        try:
-            solution = solve_optimal_regulation(config.regulation_problem(), config.Q, config.R)
-            w = config.exogenous()
-            steady_state = (solution.X @ w, solution.U @ w)
-        except SelftuneError as exc:
-            raise type(exc)(f"{config.source}: {exc}") from None
-    _check_numerics(config.source, caught, solution.theta, *steady_state)
-    return solution
-
-
 def _run_solve(args: argparse.Namespace) -> int:
-    config = _motor_config(args)
-    solution = _model_based(config)
-    w = config.exogenous()
-    x_e, u_e = solution.X @ w, solution.U @ w
-    if args.json is not None:
-        motor = config.motor
-        _write_json(
-            args.json,
-            {
-                "K": solution.K,
-                "P": solution.P,
-                "X": solution.X,
-                "U": solution.U,
-                "theta": solution.theta,
-                "x_e": x_e,
-                "u_e": u_e,
-                "w": w,
-                "motor": {
-                    "R_s": motor.R_s,
-                    "L_s": motor.L_s,
-                    "phi_pm": motor.phi_pm,
-                    "p": motor.p,
-                    "J": motor.J,
-                },
-                "operating_point": {"speed": config.speed, "torque": config.torque},
-                "cost": {"Q": config.Q, "R": config.R},
-            },
-        )
-    print(solve_report(config, solution))
-    if args.json is not None:
-        print(f"\nwrote {args.json}")
-    return 0
+    from .commands import solve_command
 
-
-# -- selftune learn -------------------------------------------------------------------
+    return solve_command(_motor_config(args), args.json)
 
 
 def _add_learn(subparsers: _Subparsers) -> None:
@@ -298,108 +127,14 @@ def _add_learn(subparsers: _Subparsers) -> None:
         required=True,
         help="cost weights, initial policy, optional [regulation] and [learning] tables",
     )
-    parser.add_argument("--json", metavar="FILE", help="also write the results to FILE as JSON")
+    _add_json_option(parser)
     parser.set_defaults(handler=_run_learn)
 
 
-def _labels(prefix: str, count: int) -> list[str]:
-    return [f"{prefix}{index + 1}" for index in range(count)]
-
-
 def _run_learn(args: argparse.Namespace) -> int:
-    data = load_trajectory(args.data)
-    config = load_learn_config(args.config, data.n, data.m, data.q)
-    try:
-        if config.regulation:
-            assert config.C is not None and config.E is not None and config.F is not None
-            learned = learn_output_regulation(
-                data,
-                config.C,
-                config.E,
-                config.F,
-                config.Q,
-                config.R,
-                config.K0,
-                interval=config.interval,
-                max_iterations=config.max_iterations,
-                tolerance=config.tolerance,
-            )
-        else:
-            learned_lqr = learn_lqr(
-                data,
-                config.Q,
-                config.R,
-                config.K0,
-                interval=config.interval,
-                max_iterations=config.max_iterations,
-                tolerance=config.tolerance,
-            )
-    except SelftuneError as exc:
-        raise type(exc)(f"{args.data}: {exc}") from None
-    result = learned if config.regulation else learned_lqr
-    states, inputs = _labels("x", data.n), _labels("u", data.m)
-    lines = [
-        f"learned from {args.data}: {data.num_samples} samples, {data.duration:.6g} s",
-        f"policy iteration: {result.iterations} steps, converged, regression rank "
-        f"{result.rank} of {result.unknowns} unknowns"
-        + (f" ({learned.rows} intervals, {learned.method} method)" if config.regulation else ""),
-        "",
-        *_matrix_block("K  optimal feedback gain, u = -K x", result.K, inputs, states),
-        *_matrix_block("P  value matrix", result.P, states, states),
-        *_matrix_block("B  estimated input matrix", result.B, states, inputs),
-    ]
-    output: dict[str, object] = {"P": result.P, "K": result.K, "B": result.B}
-    if config.regulation:
-        exogenous = _labels("w", data.q)
-        lines += [
-            *_matrix_block("X  steady-state map, x_ss = X w", learned.X, states, exogenous),
-            *_matrix_block("U  feedforward map, u_ss = U w", learned.U, inputs, exogenous),
-            *_matrix_block("L  = U + K X, u = -K x + L w", learned.L, inputs, exogenous),
-        ]
-        output.update({"X": learned.X, "U": learned.U, "L": learned.L})
-    output.update(
-        {
-            "iterations": result.iterations,
-            "converged": result.converged,
-            "rank": result.rank,
-            "unknowns": result.unknowns,
-        }
-    )
-    if args.json is not None:
-        _write_json(args.json, output)
-    print("\n".join(lines))
-    if args.json is not None:
-        print(f"\nwrote {args.json}")
-    return 0
+    from .commands import learn_command
 
-
-# -- selftune reproduce ---------------------------------------------------------------
-
-
-def _progress(total: int, description: str) -> Callable[[str], None]:
-    """A step callback showing a progress bar on a terminal (stderr), silent otherwise."""
-    from tqdm import tqdm
-
-    bar = tqdm(
-        total=total,
-        desc=description,
-        file=sys.stderr,
-        disable=not sys.stderr.isatty(),
-        leave=False,
-        bar_format="{desc}: {n_fmt}/{total_fmt} {bar} {postfix}",
-    )
-    started = False
-
-    def step(label: str) -> None:
-        nonlocal started
-        if started:
-            bar.update(1)
-        started = True
-        bar.set_postfix_str(label)
-        if bar.n >= total - 1 and label == "done":
-            bar.close()
-
-    return step
+    return learn_command(args.data, args.config, args.json)
 
 
 def _add_reproduce(subparsers: _Subparsers) -> None:
@@ -423,22 +158,9 @@ def _add_reproduce(subparsers: _Subparsers) -> None:
 
 
 def _run_reproduce(args: argparse.Namespace) -> int:
-    from .reproduce import ALGORITHMS, report, reproduce, write_outputs
+    from .commands import reproduce_command
 
-    step = _progress(len(ALGORITHMS) + 3, "reproduce")
-    reproduction = reproduce(args.seed, step=step)
-    step("figures")
-    paths = write_outputs(reproduction, args.out)
-    step("done")
-    print(report(reproduction))
-    print(
-        f"\nlearning and simulation took {reproduction.wall_seconds:.2f} s; wrote "
-        f"{len(paths)} files to {args.out}/ (fig1..fig5 .png/.svg, results.json)"
-    )
-    return 0
-
-
-# -- selftune tune --------------------------------------------------------------------
+    return reproduce_command(args.out, args.seed)
 
 
 def _add_tune(subparsers: _Subparsers) -> None:
@@ -460,79 +182,18 @@ def _add_tune(subparsers: _Subparsers) -> None:
         help="which algorithm (default: %(default)s)",
     )
     parser.add_argument("--seed", type=int, default=0, help="exploration seed (default: 0)")
-    parser.add_argument("--json", metavar="FILE", help="also write the results to FILE as JSON")
+    _add_json_option(parser)
     parser.set_defaults(handler=_run_tune)
 
 
 def _run_tune(args: argparse.Namespace) -> int:
-    from .config import tuning_settings
-    from .reproduce import history_document, regulator_document
-    from .torque import evaluate, run_algorithm
+    from .commands import tune_command
+    from .config import load_motor_config
 
-    config = load_motor_config(args.motor)
-    settings = tuning_settings(config, args.seed)
-    optimum = _model_based(config)
-    try:
-        result = run_algorithm(args.algorithm, config.motor, settings)
-    except SelftuneError as exc:
-        raise type(exc)(f"{args.motor}: {exc}") from None
-    evaluation = evaluate(result, config.motor, settings)
-    names = {"1": "Algorithm 1", "2": "Algorithm 2", "3": "Algorithm 3", "offpolicy": "off-policy"}
-    states, inputs, exogenous = ["i_d", "i_q"], ["u_d", "u_q"], ["w1", "w2"]
-    lines = [
-        f"{names[args.algorithm]} on {config.source}: {result.data_seconds * 1e3:.3g} ms of "
-        f"motor data, {1 + result.history[-1].iteration} iterations, "
-        f"{'converged' if result.converged else 'NOT converged'}",
-        "",
-    ]
-    for title, learned, truth, rows, columns in (
-        ("K, V/A", result.K, optimum.K, inputs, states),
-        ("P", result.P, optimum.P, states, states),
-        ("X", result.X, optimum.X, states, exogenous),
-        ("U", result.U, optimum.U, inputs, exogenous),
-    ):
-        lines += _matrix_block(f"learned {title}", learned, rows, columns)
-        lines += _matrix_block(f"model-based {title}", truth, rows, columns)
-    lines += [
-        "",
-        f"||Theta - Theta*|| / ||Theta*|| = {evaluation.final_theta_error:.2e}",
-        f"||K - K*|| / ||K*|| = {evaluation.K_error:.2e},  "
-        f"||U - U*|| / ||U*|| = {evaluation.U_error:.2e}",
-    ]
-    if result.identified:
-        lines.append(
-            f"identified phi_pm = {result.identified['phi_pm']:.8g} Wb "
-            f"(true {config.motor.phi_pm:g}), L_s = {result.identified['L_s']:.8g} H "
-            f"(true {config.motor.L_s:g})"
-        )
-    lines += list(result.notes)
-    if args.json is not None:
-        learned_document: dict[str, object] = dict(regulator_document(result))
-        if result.identified:
-            learned_document.update(result.identified)
-        _write_json(
-            args.json,
-            {
-                "algorithm": args.algorithm,
-                "learned": learned_document,
-                "model_based": regulator_document(optimum),
-                "theta_relative_error": evaluation.final_theta_error,
-                "data_seconds": result.data_seconds,
-                "history": history_document(result, evaluation),
-            },
-        )
-    print("\n".join(lines))
-    if args.json is not None:
-        print(f"\nwrote {args.json}")
-    return 0
-
-
-# -- selftune bench -------------------------------------------------------------------
+    return tune_command(load_motor_config(args.motor), args.algorithm, args.seed, args.json)
 
 
 def _add_bench(subparsers: _Subparsers) -> None:
-    from .bench import add_bench_arguments
-
     parser = subparsers.add_parser(
         "bench",
         help="benchmarks: data efficiency, cost of learning, simulation speed, self-tuning value",
@@ -541,17 +202,25 @@ def _add_bench(subparsers: _Subparsers) -> None:
             " bench.json (numbers, units in the key names) into --out."
         ),
     )
-    add_bench_arguments(parser)
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="CI-sized run: smaller sweeps and repeats (well under a minute)",
+    )
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        default=".",
+        help="directory for bench.md and bench.json (default: the current directory)",
+    )
     parser.set_defaults(handler=_run_bench)
 
 
 def _run_bench(args: argparse.Namespace) -> int:
-    from .bench import run_bench_command
+    from .bench import bench_command
 
-    return run_bench_command(args)
+    return bench_command(args.out, args.quick)
 
-
-# -- the parser and main --------------------------------------------------------------
 
 #: Registration functions, one per subcommand, in the order of ``selftune --help``.
 _COMMANDS: tuple[Callable[[_Subparsers], None], ...] = (
@@ -564,7 +233,12 @@ _COMMANDS: tuple[Callable[[_Subparsers], None], ...] = (
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``selftune`` with every subcommand registered."""
+    """The argument parser of ``selftune`` with every subcommand registered.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+    """
     parser = argparse.ArgumentParser(
         prog="selftune",
         description=(

@@ -1,4 +1,4 @@
-"""The paper's Figs. 1-5, drawn from a :class:`~selftune.reproduce.Reproduction`.
+"""The paper's Figs. 1-5, drawn from a :class:`~selftune.report.Reproduction`.
 
 Colours and line styles are the paper's: green solid the LQR (model-based optimum),
 blue dashed the initial controller, cyan dashed Algorithm 1, red dashed Algorithm 2.
@@ -25,12 +25,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
-from numpy.typing import NDArray
 
-from ._atomic import atomic_path
+from ..core import Array, atomic_path
 
 if TYPE_CHECKING:
-    from .reproduce import Reproduction
+    from ._reproduce import Reproduction
 
 __all__ = [
     "STYLES",
@@ -41,8 +40,6 @@ __all__ = [
     "save_all",
     "save_figure",
 ]
-
-Array = NDArray[np.float64]
 
 #: Line style of each controller: label, colour, line style (the paper's colour code).
 STYLES: dict[str, tuple[str, str, str]] = {

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
@@ -23,6 +24,13 @@ def atomic_path(path: str | os.PathLike[str], suffix: str = "") -> Iterator[Path
     On any exception the temporary file is removed and ``path`` is left untouched.
     ``suffix`` gives the temporary file an extension (some writers, e.g. numpy's
     ``savez`` or matplotlib's ``savefig``, choose a format by it).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write.
+    suffix : str, optional
+        Extension of the temporary file (default ``".tmp"``).
     """
     target = Path(path)
     directory = target.parent if str(target.parent) else Path(".")
@@ -54,7 +62,15 @@ def _mode_for(target: Path) -> int:
 
 
 def write_text(path: str | os.PathLike[str], text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    """Write ``text`` (UTF-8) to ``path`` atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write.
+    text : str
+        Its content.
+    """
     with atomic_path(path) as temporary:
         temporary.write_text(text, encoding="utf-8")
 
@@ -65,12 +81,26 @@ def _write_with(path: str | os.PathLike[str], writer: Callable[[IO[str]], None])
 
 
 def to_jsonable(value: Any) -> Any:
-    """Convert numpy arrays and scalars (recursively, in dicts, lists, tuples) to JSON types."""
+    """Convert a value to JSON types, recursively.
+
+    numpy arrays become nested lists and numpy scalars numbers; a dataclass instance
+    becomes the mapping of its fields (so a JSON document is derived from the typed
+    result, not hand-copied); mappings, lists and tuples are converted item by item.
+
+    Parameters
+    ----------
+    value : Any
+        The value to convert.
+    """
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):
         return value.item()
-    if isinstance(value, dict):
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {
+            item.name: to_jsonable(getattr(value, item.name)) for item in dataclasses.fields(value)
+        }
+    if isinstance(value, Mapping):
         return {str(key): to_jsonable(item) for key, item in value.items()}
     if isinstance(value, list | tuple):
         return [to_jsonable(item) for item in value]
@@ -78,7 +108,13 @@ def to_jsonable(value: Any) -> Any:
 
 
 def finite_or_null(value: Any) -> Any:
-    """Replace non-finite floats (recursively, in dicts and lists) by None: JSON has no inf."""
+    """Replace non-finite floats (recursively, in dicts and lists) by None: JSON has no inf.
+
+    Parameters
+    ----------
+    value : Any
+        A JSON-ready value (see :func:`to_jsonable`).
+    """
     if isinstance(value, float) and not math.isfinite(value):
         return None
     if isinstance(value, dict):
@@ -89,5 +125,13 @@ def finite_or_null(value: Any) -> Any:
 
 
 def write_json(path: str | os.PathLike[str], data: Any) -> None:
-    """Write ``data`` as indented JSON atomically; numpy values become lists and numbers."""
+    """Write ``data`` as indented JSON atomically; numpy values become lists and numbers.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file to write.
+    data : Any
+        The document; converted by :func:`to_jsonable`.
+    """
     _write_with(path, lambda stream: json.dump(to_jsonable(data), stream, indent=2))

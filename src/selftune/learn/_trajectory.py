@@ -15,7 +15,7 @@ What ``w`` means depends on the exosystem matrix E that the learner is given:
 - ``E != 0``: ``w[k]`` is the exosystem state ``w' = E w`` sampled at ``t[k]``; all
   N + 1 rows are needed.
 
-File formats (CSV and NPZ) live in :mod:`selftune.io`.
+File formats (CSV and NPZ) live in :mod:`selftune.learn._io`.
 """
 
 from __future__ import annotations
@@ -24,13 +24,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
-from .errors import InputError
+from ..core import Array, first_non_increasing, positive_integer
+from ..errors import InputError
 
 __all__ = ["Trajectory", "as_trajectories"]
-
-Array = NDArray[np.float64]
 
 
 def _as_2d(value: ArrayLike, name: str) -> Array:
@@ -102,9 +101,8 @@ class Trajectory:
                 f"Trajectory.t: need at least 2 sample times (1 sample), got {t.shape[0]}"
             )
         _check_finite(t, "t")
-        steps = np.diff(t)
-        if np.any(steps <= 0.0):
-            k = int(np.argmax(steps <= 0.0))
+        k = first_non_increasing(t)
+        if k is not None:
             raise InputError(
                 f"Trajectory.t: times must be strictly increasing, but t[{k + 1}] = "
                 f"{t[k + 1]!r} <= t[{k}] = {t[k]!r}"
@@ -171,8 +169,15 @@ class Trajectory:
         return float(self.t[-1] - self.t[0])
 
     def head(self, num_samples: int) -> Trajectory:
-        """The first ``num_samples`` samples (``num_samples + 1`` sample times)."""
-        if not 1 <= num_samples <= self.num_samples:
+        """The first ``num_samples`` samples (``num_samples + 1`` sample times).
+
+        Parameters
+        ----------
+        num_samples : int
+            Number of samples kept, between 1 and :attr:`num_samples`.
+        """
+        num_samples = positive_integer(num_samples, "head: num_samples")
+        if num_samples > self.num_samples:
             raise InputError(
                 f"head: num_samples must be between 1 and {self.num_samples}, got {num_samples}"
             )
@@ -183,6 +188,11 @@ class Trajectory:
 
 def as_trajectories(data: Trajectory | Sequence[Trajectory]) -> list[Trajectory]:
     """One trajectory or several (episodes) as a non-empty list of consistent trajectories.
+
+    Parameters
+    ----------
+    data : Trajectory or sequence of Trajectory
+        One trajectory, or the episodes.
 
     Raises
     ------

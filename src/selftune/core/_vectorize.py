@@ -60,7 +60,21 @@ def vec(T: ArrayLike) -> Array:
 
 
 def unvec(v: ArrayLike, rows: int, cols: int) -> Array:
-    """Inverse of :func:`vec`: a ``rows x cols`` matrix from its stacked columns."""
+    """Inverse of :func:`vec`: a ``rows x cols`` matrix from its stacked columns.
+
+    Parameters
+    ----------
+    v : array_like, shape (rows * cols,)
+        The stacked columns.
+    rows : int
+        Number of rows.
+    cols : int
+        Number of columns.
+
+    Returns
+    -------
+    ndarray, shape (rows, cols)
+    """
     v = np.asarray(v, dtype=float)
     if v.shape != (rows * cols,):
         raise ValueError(f"unvec: expected a vector of length {rows * cols}, got shape {v.shape}")
@@ -95,7 +109,19 @@ def vecs(P: ArrayLike) -> Array:
 
 
 def unvecs(v: ArrayLike, n: int) -> Array:
-    """Inverse of :func:`vecs`: the symmetric ``n x n`` matrix."""
+    """Inverse of :func:`vecs`: the symmetric ``n x n`` matrix.
+
+    Parameters
+    ----------
+    v : array_like, shape (n (n + 1) / 2,)
+        ``vecs`` of the matrix.
+    n : int
+        Size of the matrix.
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+    """
     v = np.asarray(v, dtype=float)
     if v.shape != (n * (n + 1) // 2,):
         raise ValueError(
@@ -160,7 +186,17 @@ def vecs_hat_from_outer(M: ArrayLike) -> Array:
 
 
 def theta_sizes(n: int, m: int, q: int) -> tuple[int, int, int]:
-    """Lengths of the three blocks of Theta: ``(n(n+1)/2, m n, q n)``."""
+    """Lengths of the three blocks of Theta: ``(n(n+1)/2, m n, q n)``.
+
+    Parameters
+    ----------
+    n : int
+        State dimension.
+    m : int
+        Input dimension.
+    q : int
+        Exogenous-signal dimension.
+    """
     return n * (n + 1) // 2, m * n, q * n
 
 
@@ -183,7 +219,28 @@ def pack_theta(P: ArrayLike, K: ArrayLike, M: ArrayLike | None = None) -> Array:
 
 
 def unpack_theta(theta: ArrayLike, n: int, m: int, q: int = 0) -> tuple[Array, Array, Array]:
-    """Split Theta into ``(P, K, M)``; ``M`` has shape (q, n) (empty when q = 0)."""
+    """Split Theta into ``(P, K, M)``; ``M`` has shape (q, n) (empty when q = 0).
+
+    Parameters
+    ----------
+    theta : array_like, shape (n (n + 1) / 2 + m n + q n,)
+        Theta = [vecs(P); vec(K); vec(M)].
+    n : int
+        State dimension.
+    m : int
+        Input dimension.
+    q : int, optional
+        Exogenous-signal dimension (default 0: plain LQR, no ``M`` block).
+
+    Returns
+    -------
+    P : ndarray, shape (n, n)
+        Value matrix.
+    K : ndarray, shape (m, n)
+        Feedback gain.
+    M : ndarray, shape (q, n)
+        The exogenous block ``(D + A X)' P``.
+    """
     theta = np.asarray(theta, dtype=float)
     size_P, size_K, size_M = theta_sizes(n, m, q)
     if theta.shape != (size_P + size_K + size_M,):

@@ -5,7 +5,7 @@ section 6) on :meth:`SPMSM.paper`, compares each with the model-based optimum, a
 simulates the torque step under the LQR, the initial, the Algorithm 1 and the Algorithm
 2 controllers (the paper's Figs. 1-3). :func:`report` renders the table the command
 prints; :func:`results_document` every printed number as JSON; :func:`write_outputs`
-writes ``results.json`` and the five figures (:mod:`selftune.figures`).
+writes ``results.json`` and the five figures (:mod:`._figures`).
 """
 
 from __future__ import annotations
@@ -18,33 +18,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
-from ._atomic import finite_or_null, to_jsonable, write_json
-from .motor import SPMSM
-from .regulation import ModelBasedSolution, RegulatorSolution
-from .torque import (
-    TuningEvaluation,
-    TuningResult,
-    TuningSettings,
-    closed_loop_response,
-    evaluate,
-    run_algorithm,
-)
-from .trajectory import Trajectory
+from ..core import Array, finite_or_null, fixed, scientific, to_jsonable, write_json
+from ..learn import Trajectory
+from ..model import SPMSM, ModelBasedSolution
+from ..tuning import TuningResult, TuningSettings, run_algorithm
+from ._documents import history_document, regulator_document
+from ._evaluate import TuningEvaluation, closed_loop_response, evaluate
 
 __all__ = [
     "ALGORITHMS",
     "Reproduction",
-    "history_document",
-    "regulator_document",
     "report",
     "reproduce",
     "results_document",
     "write_outputs",
 ]
-
-Array = NDArray[np.float64]
 
 #: The algorithms, in the order of the table: key, label.
 ALGORITHMS: tuple[tuple[str, str], ...] = (
@@ -87,7 +76,13 @@ class Reproduction:
     wall_seconds: float
 
     def controller(self, name: str) -> tuple[Array, Array, Array, Array]:
-        """``(K, X, U, w)`` of a response's controller."""
+        """``(K, X, U, w)`` of a response's controller.
+
+        Parameters
+        ----------
+        name : str
+            ``"lqr"`` (the optimum), ``"initial"`` (K0, no feedforward), or an algorithm's key.
+        """
         w_true = self.motor.exogenous(self.settings.speed, self.settings.torque)
         if name == "lqr":
             return self.optimum.K, self.optimum.X, self.optimum.U, w_true
@@ -137,17 +132,10 @@ def reproduce(
     return replace(partial, responses=responses, wall_seconds=time.perf_counter() - start)
 
 
-def _number(value: float, width: int = 10) -> str:
-    if not np.isfinite(value):
-        return f"{'-':>{width}}"
-    text = f"{value:.4f}"
-    if text in ("-0.0000", "0.0000"):
-        text = "0"
-    return f"{text:>{width}}"
-
-
-def _scientific(value: float, width: int = 10) -> str:
-    return f"{value:>{width}.1e}" if np.isfinite(value) else f"{'-':>{width}}"
+def _cell(value: float, width: int) -> str:
+    """A table cell: four decimals, ``0`` for a zero, ``-`` for a non-finite value."""
+    text = fixed(value)
+    return f"{'0' if text == '0.0000' else text:>{width}}"
 
 
 def _rank_text(result: TuningResult) -> str:
@@ -175,7 +163,13 @@ THETA_LABELS = (
 
 
 def report(reproduction: Reproduction) -> str:
-    """The table ``selftune reproduce`` prints: Theta* against each algorithm's Theta."""
+    """The table ``selftune reproduce`` prints: Theta* against each algorithm's Theta.
+
+    Parameters
+    ----------
+    reproduction : Reproduction
+        What :func:`reproduce` computed.
+    """
     results, evaluations = reproduction.results, reproduction.evaluations
     keys = [key for key, _ in ALGORITHMS]
     header = f"{'':>16}{'Theta*':>10}" + "".join(f"{label:>12}" for _, label in ALGORITHMS)
@@ -193,8 +187,8 @@ def report(reproduction: Reproduction) -> str:
         header,
     ]
     for index, label in enumerate(THETA_LABELS):
-        row = f"{label:>16}{_number(reproduction.optimum.theta[index])}"
-        row += "".join(f"{_number(results[key].theta[index], 12)}" for key in keys)
+        row = f"{label:>16}{_cell(reproduction.optimum.theta[index], 10)}"
+        row += "".join(f"{_cell(results[key].theta[index], 12)}" for key in keys)
         lines.append(row)
     lines.append("")
 
@@ -203,10 +197,10 @@ def report(reproduction: Reproduction) -> str:
 
     summary(
         "||Theta-Theta*||/||Theta*||",
-        [_scientific(evaluations[k].final_theta_error, 12) for k in keys],
+        [scientific(evaluations[k].final_theta_error, 12) for k in keys],
     )
-    summary("||K - K*|| / ||K*||", [_scientific(evaluations[k].K_error, 12) for k in keys])
-    summary("||U - U*|| / ||U*||", [_scientific(evaluations[k].U_error, 12) for k in keys])
+    summary("||K - K*|| / ||K*||", [scientific(evaluations[k].K_error, 12) for k in keys])
+    summary("||U - U*|| / ||U*||", [scientific(evaluations[k].U_error, 12) for k in keys])
     summary("regression rank", [_rank_text(results[k]) for k in keys])
     summary("iterations", [str(1 + results[k].history[-1].iteration) for k in keys])
     summary("motor data, ms", [f"{results[k].data_seconds * 1e3:.1f}" for k in keys])
@@ -215,10 +209,10 @@ def report(reproduction: Reproduction) -> str:
     summary("identified phi_pm, Wb", ["-", "-", f"{identified['phi_pm']:.8f}", "-"])
     summary(
         "  relative error",
-        ["-", "-", _scientific(identified["phi_pm"] / motor.phi_pm - 1, 12), "-"],
+        ["-", "-", scientific(identified["phi_pm"] / motor.phi_pm - 1, 12), "-"],
     )
     summary("identified L_s, H", ["-", "-", f"{identified['L_s']:.8f}", "-"])
-    summary("  relative error", ["-", "-", _scientific(identified["L_s"] / motor.L_s - 1, 12), "-"])
+    summary("  relative error", ["-", "-", scientific(identified["L_s"] / motor.L_s - 1, 12), "-"])
     lines.append("")
     lines.append(
         f"K* = {reproduction.optimum.K[0, 0]:.4f} I,  U* = "
@@ -232,64 +226,24 @@ def report(reproduction: Reproduction) -> str:
     return "\n".join(lines)
 
 
-def history_document(result: TuningResult, evaluation: TuningEvaluation) -> list[dict[str, Any]]:
-    """The per-iteration history of a self-tuning session, as JSON-ready rows."""
-    rows = []
-    for index, item in enumerate(result.history):
-        rows.append(
-            {
-                "iteration": item.iteration,
-                "step": item.step,
-                "theta": item.theta,
-                "K": item.K,
-                "U": item.U,
-                "P": item.P,
-                "rank": item.rank,
-                "unknowns": item.unknowns,
-                "theta_error": evaluation.theta_error[index],
-                "learned_cost": evaluation.learned_cost[index],
-                "true_cost": evaluation.true_cost[index],
-                "data_seconds": item.data_seconds,
-            }
-        )
-    return rows
-
-
-def regulator_document(solution: RegulatorSolution | TuningResult) -> dict[str, Array]:
-    """``K``, ``P``, ``X``, ``U`` and ``theta`` of a learned or model-based regulator (JSON)."""
-    return {name: getattr(solution, name) for name in ("K", "P", "X", "U", "theta")}
-
-
 def results_document(reproduction: Reproduction) -> dict[str, Any]:
     """Every number the command prints (and the histories), as JSON-ready data.
 
     Non-finite numbers (e.g. Theta error of Algorithm 3's no-load step, which has other
     unknowns) become ``null``.
+
+    Parameters
+    ----------
+    reproduction : Reproduction
+        What :func:`reproduce` computed.
     """
 
     settings = reproduction.settings
     optimum = reproduction.optimum
     w = reproduction.motor.exogenous(settings.speed, settings.torque)
     document: dict[str, Any] = {
-        "motor": {
-            "R_s": reproduction.motor.R_s,
-            "L_s": reproduction.motor.L_s,
-            "phi_pm": reproduction.motor.phi_pm,
-            "p": reproduction.motor.p,
-        },
-        "settings": {
-            "speed": settings.speed,
-            "torque": settings.torque,
-            "Q": settings.Q,
-            "R": settings.R,
-            "sampling": settings.sampling,
-            "episode_length": settings.episode_length,
-            "K0": settings.K0,
-            "exploration": settings.exploration,
-            "perturbation": settings.perturbation,
-            "interval": settings.interval,
-            "seed": settings.seed,
-        },
+        "motor": reproduction.motor,
+        "settings": settings,
         "model_based": {
             **regulator_document(optimum),
             "x_e": optimum.X @ w,
@@ -323,8 +277,15 @@ def write_outputs(reproduction: Reproduction, out: str | os.PathLike[str]) -> li
     """Write ``results.json`` and fig1..fig5 (PNG and SVG) into ``out``; return the paths.
 
     Every file is written atomically.
+
+    Parameters
+    ----------
+    reproduction : Reproduction
+        What :func:`reproduce` computed.
+    out : str or os.PathLike
+        Output directory (created if absent).
     """
-    from .figures import save_all
+    from ._figures import save_all
 
     directory = Path(out)
     directory.mkdir(parents=True, exist_ok=True)

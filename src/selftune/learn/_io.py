@@ -37,9 +37,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ._atomic import atomic_path
-from .errors import DataFileError, InputError
-from .trajectory import Trajectory
+from ..core import Array, atomic_path, first_non_increasing
+from ..errors import DataFileError, InputError
+from ._trajectory import Trajectory
 
 __all__ = [
     "load_csv",
@@ -50,7 +50,6 @@ __all__ = [
     "save_trajectory",
 ]
 
-Array = NDArray[np.float64]
 PathLike = str | os.PathLike[str]
 
 _SUFFIXES = (".csv", ".npz")
@@ -370,9 +369,8 @@ def load_csv(path: PathLike) -> Trajectory:
             "number out of range (not finite)",
         )
     t = table[:, 0]
-    steps = np.diff(t)
-    if np.any(steps <= 0.0):
-        k = int(np.argmax(steps <= 0.0))
+    k = first_non_increasing(t)
+    if k is not None:
         raise _error(
             target,
             f"line {k + 3}, column 1 (t): time {float(t[k + 1])!r} is not greater than "

@@ -18,15 +18,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
-from ._validation import as_vector, finite_float, positive_finite
-from .errors import InputError
-from .regulation import RegulationProblem
+from ..core import PAPER_MOTOR, PAPER_TABLE_MOTOR, Array, as_vector, finite_float, positive_finite
+from ..errors import InputError
+from ._problem import RegulationProblem
 
 __all__ = ["SPMSM"]
-
-Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -81,7 +79,7 @@ class SPMSM:
         ``R_s = 0.439 ohm, L_s = 0.0601 H, phi_pm = 0.46 Wb, p = 2, J = 0.0163 kg m^2``
         (PAPER_NOTES.md, erratum 1).
         """
-        return cls(R_s=0.439, L_s=0.0601, phi_pm=0.46, p=2, J=0.0163)
+        return cls(**PAPER_MOTOR)  # type: ignore[arg-type]
 
     @classmethod
     def paper_table(cls) -> SPMSM:
@@ -89,7 +87,7 @@ class SPMSM:
 
         These values do not reproduce the paper's results; see :meth:`paper`.
         """
-        return cls(R_s=0.439, L_s=0.0615, phi_pm=0.5, p=2, J=0.0163)
+        return cls(**PAPER_TABLE_MOTOR)  # type: ignore[arg-type]
 
     @property
     def gamma(self) -> float:
@@ -99,7 +97,13 @@ class SPMSM:
     # -- full model ---------------------------------------------------------------------
 
     def torque(self, i_q: ArrayLike) -> Array:
-        """Electromagnetic torque ``(3 p / 2) phi_pm i_q``, N m (``i_q`` in A)."""
+        """Electromagnetic torque ``(3 p / 2) phi_pm i_q``, N m (``i_q`` in A).
+
+        Parameters
+        ----------
+        i_q : array_like
+            q-axis current, A.
+        """
         return 1.5 * self.p * self.phi_pm * np.asarray(i_q, dtype=float)
 
     def full_model(self, x: ArrayLike, u: ArrayLike, load_torque: float = 0.0) -> Array:
@@ -143,14 +147,35 @@ class SPMSM:
     # -- torque-control mode ------------------------------------------------------------
 
     def torque_mode(self, speed: float) -> tuple[Array, Array]:
-        """``(A, B)`` of the current dynamics at a held mechanical speed (rad/s)."""
+        """``(A, B)`` of the current dynamics at a held mechanical speed (rad/s).
+
+        Parameters
+        ----------
+        speed : float
+            Mechanical speed, rad/s, held by the load machine.
+
+        Returns
+        -------
+        A : ndarray, shape (2, 2)
+            State matrix of ``x = [i_d, i_q]``, 1/s.
+        B : ndarray, shape (2, 2)
+            Input matrix ``I / L_s``, 1/H.
+        """
         electrical_speed = self.p * finite_float(speed, "speed")
         A = np.array([[-self.gamma, electrical_speed], [-electrical_speed, -self.gamma]])
         B = np.eye(2) / self.L_s
         return A, B
 
     def exogenous(self, speed: float, torque: float) -> Array:
-        """``w = [p speed phi_pm, T*]`` of the known-flux regulation form (eq. 8)."""
+        """``w = [p speed phi_pm, T*]`` of the known-flux regulation form (eq. 8).
+
+        Parameters
+        ----------
+        speed : float
+            Mechanical speed, rad/s.
+        torque : float
+            Torque reference ``T*``, N m.
+        """
         speed = finite_float(speed, "speed")
         return np.array([self.p * speed * self.phi_pm, finite_float(torque, "torque")])
 
@@ -160,6 +185,11 @@ class SPMSM:
         ``w = [p speed phi_pm, T*]``, ``e = [i_d, i_q - i_q*]``::
 
             D = [[0, 0], [-1/L_s, 0]],  F = [[0, 0], [0, -2/(3 p phi_pm)]],  C = I,  E = 0
+
+        Parameters
+        ----------
+        speed : float
+            Mechanical speed, rad/s, held by the load machine.
         """
         A, B = self.torque_mode(speed)
         D = np.array([[0.0, 0.0], [-1.0 / self.L_s, 0.0]])
@@ -167,20 +197,37 @@ class SPMSM:
         return RegulationProblem(A=A, B=B, C=np.eye(2), D=D, E=np.zeros((2, 2)), F=F)
 
     def no_load_exogenous(self, speed: float) -> Array:
-        """``w = [p speed]`` of the no-load, unknown-flux form (eq. 15)."""
+        """``w = [p speed]`` of the no-load, unknown-flux form (eq. 15).
+
+        Parameters
+        ----------
+        speed : float
+            Mechanical speed, rad/s.
+        """
         return np.array([self.p * finite_float(speed, "speed")])
 
     def no_load_problem(self, speed: float) -> RegulationProblem:
         """The no-load, unknown-flux form (eq. 15, corrected sign): ``T* = 0``, ``w = [p speed]``.
 
         ``D = [[0], [-phi_pm / L_s]]``, ``F = 0``, ``C = I``, ``E = 0``; hence ``X* = 0``.
+
+        Parameters
+        ----------
+        speed : float
+            Mechanical speed, rad/s, held by the load machine.
         """
         A, B = self.torque_mode(speed)
         D = np.array([[0.0], [-self.phi_pm / self.L_s]])
         return RegulationProblem(A=A, B=B, C=np.eye(2), D=D, E=np.zeros((1, 1)), F=np.zeros((2, 1)))
 
     def current_reference(self, torque: float) -> Array:
-        """``x_e = [0, 2 T* / (3 p phi_pm)]``, A, for the torque reference ``T*`` (N m)."""
+        """``x_e = [0, 2 T* / (3 p phi_pm)]``, A, for the torque reference ``T*`` (N m).
+
+        Parameters
+        ----------
+        torque : float
+            Torque reference ``T*``, N m.
+        """
         return np.array([0.0, 2.0 * finite_float(torque, "torque") / (3.0 * self.p * self.phi_pm)])
 
     def equilibrium(self, speed: float, torque: float) -> tuple[Array, Array]:
@@ -188,6 +235,20 @@ class SPMSM:
 
         ``x_e = [0, i_q*]`` and ``u_e = [-p speed L_s i_q*, R_s i_q* + p speed phi_pm]``
         (A and V). The same point is ``(X* w, U* w)`` of :meth:`regulation_problem`.
+
+        Parameters
+        ----------
+        speed : float
+            Mechanical speed, rad/s.
+        torque : float
+            Torque reference ``T*``, N m.
+
+        Returns
+        -------
+        x_e : ndarray, shape (2,)
+            Currents ``[i_d, i_q]``, A.
+        u_e : ndarray, shape (2,)
+            Voltages ``[u_d, u_q]``, V.
         """
         x_e = self.current_reference(torque)
         electrical_speed = self.p * finite_float(speed, "speed")

@@ -1,0 +1,81 @@
+"""``selftune bench``: data efficiency, cost of learning, simulation speed, value of self-tuning.
+
+One module per study. Every comparison runs in one process on this machine;
+:func:`run_bench` returns a typed :class:`BenchReport` (:mod:`._report`), which
+:meth:`BenchReport.to_json` and :meth:`BenchReport.to_markdown` render for ``bench.json``
+and ``bench.md``. Each field name carries its unit
+(``offpolicy_seconds``, ``us_per_step``, ``cost_volt2_seconds``, ...), and the JSON keys
+are the field names.
+
+1. :func:`measure_data_efficiency` (:mod:`._data_efficiency`): seconds of motor data
+   until ``||K - K*|| / ||K*|| <= 1e-4`` and ``||U - U*|| / ||U*|| <= 1e-4`` on the paper's case:
+   the paper's on-policy Algorithm 2 (episodes of 5 ms) against the off-policy variant
+   (one batch, as short as it can be, against the identifiability floor of 11 intervals).
+2. :func:`measure_learning_cost` (:mod:`._learning_cost`): the customized learner
+   against the general one of Gao & Jiang (2016) on the same data.
+3. :func:`measure_simulation` (:mod:`._simulation`): microseconds per control step of
+   the current loop at 10 us sampling: :func:`~selftune.sim.simulate` against scipy's ``solve_ivp``
+   (RK45) and gym-electric-motor's PMSM environment (optional extra ``[bench]``), each
+   checked against the exact solution; and a batch of 1,000 motors.
+4. :func:`measure_self_tuning_value` (:mod:`._value`): the cost (5) of a torque step and
+   the steady-state torque error when R_s, L_s and phi_pm are 30% off (8 motors): LQR +
+   feedforward and PI
+   designed on nominal values (and on nominal R_s, L_s with the measured flux), the
+   self-tuned controllers (off-policy with the flux known; Algorithm 3 with it identified),
+   and the true optimum.
+
+The learners never see a model; the model-based optimum and the exact closed-form
+solution are used only to score them.
+"""
+
+from __future__ import annotations
+
+from ._common import (
+    CONTROLLERS,
+    COST_HORIZON_SECONDS,
+    EXACT_RELATIVE_ERROR,
+    MISMATCH,
+    TARGET_DATA_RATIO,
+    TARGET_RELATIVE_ERROR,
+    TARGET_SPEEDUP,
+    BenchConfig,
+)
+from ._data_efficiency import DataEfficiency, ErrorCurve, measure_data_efficiency
+from ._gem import GymElectricMotor
+from ._learning_cost import LearningCost, LearningDataset, LearningRun, measure_learning_cost
+from ._loop import SimulatorMeasurement
+from ._report import BenchReport, Environment, TargetOutcome, bench_command, run_bench
+from ._simulation import BatchMeasurement, Simulation, measure_simulation
+from ._value import ControllerOutcome, MismatchCase, SelfTuningValue, measure_self_tuning_value
+
+__all__ = [
+    "CONTROLLERS",
+    "COST_HORIZON_SECONDS",
+    "EXACT_RELATIVE_ERROR",
+    "MISMATCH",
+    "TARGET_DATA_RATIO",
+    "TARGET_RELATIVE_ERROR",
+    "TARGET_SPEEDUP",
+    "BatchMeasurement",
+    "BenchConfig",
+    "BenchReport",
+    "ControllerOutcome",
+    "DataEfficiency",
+    "Environment",
+    "ErrorCurve",
+    "GymElectricMotor",
+    "LearningCost",
+    "LearningDataset",
+    "LearningRun",
+    "MismatchCase",
+    "SelfTuningValue",
+    "Simulation",
+    "SimulatorMeasurement",
+    "TargetOutcome",
+    "bench_command",
+    "measure_data_efficiency",
+    "measure_learning_cost",
+    "measure_self_tuning_value",
+    "measure_simulation",
+    "run_bench",
+]

@@ -1,0 +1,337 @@
+"""The bench report: every study's result, its targets, and bench.md and bench.json."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import platform
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy
+import scipy.linalg
+
+from .. import __version__
+from ..core import (
+    finite_or_null,
+    to_jsonable,
+    write_json,
+    write_text,
+)
+from ._common import (
+    CONTROLLER_TITLES,
+    EXACT_RELATIVE_ERROR,
+    TARGET_DATA_RATIO,
+    TARGET_SPEEDUP,
+    BenchConfig,
+    table,
+)
+from ._data_efficiency import DataEfficiency, markdown_data, measure_data_efficiency
+from ._gem import gem_version
+from ._learning_cost import LearningCost, markdown_learning, measure_learning_cost
+from ._simulation import Simulation, markdown_simulation, measure_simulation
+from ._value import SelfTuningValue, markdown_value, measure_self_tuning_value
+
+
+@dataclass(frozen=True)
+class Environment:
+    """Where the bench ran.
+
+    Attributes
+    ----------
+    python_version, numpy_version, scipy_version, selftune_version : str
+    gym_electric_motor_version : str or None
+        None when not installed.
+    platform_text : str
+        Operating system and machine.
+    machine_cores_count : int
+        Logical cores (``os.cpu_count()``).
+    load_average_processes : float or None
+        1-minute load average when the bench ended (other work on the machine slows the
+        timings), processes; None where the system has none.
+    """
+
+    python_version: str
+    numpy_version: str
+    scipy_version: str
+    selftune_version: str
+    gym_electric_motor_version: str | None
+    platform_text: str
+    machine_cores_count: int
+    load_average_processes: float | None
+
+    @classmethod
+    def here(cls) -> Environment:
+        """This machine and these packages."""
+        return cls(
+            python_version=platform.python_version(),
+            numpy_version=np.__version__,
+            scipy_version=scipy.__version__,
+            selftune_version=__version__,
+            gym_electric_motor_version=gem_version(),
+            platform_text=platform.platform(),
+            machine_cores_count=os.cpu_count() or 1,
+            load_average_processes=os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
+        )
+
+
+@dataclass(frozen=True)
+class TargetOutcome:
+    """One target of the bench, met or missed.
+
+    Attributes
+    ----------
+    name_text : str
+    target_text : str
+        The target, in words.
+    value_text : str
+        What was measured.
+    met : bool or None
+        None when it could not be measured (``why_text`` says why).
+    why_text : str
+    """
+
+    name_text: str
+    target_text: str
+    value_text: str
+    met: bool | None
+    why_text: str
+
+
+@dataclass(frozen=True)
+class BenchReport:
+    """Everything ``selftune bench`` measured; renders ``bench.json`` and ``bench.md``.
+
+    Attributes
+    ----------
+    quick : bool
+        True for the CI-sized run (``--quick``).
+    wall_seconds : float
+        Time the whole bench took, s.
+    environment : Environment
+    data_efficiency : DataEfficiency
+    learning_cost : LearningCost
+    simulation : Simulation
+    self_tuning_value : SelfTuningValue
+    """
+
+    quick: bool
+    wall_seconds: float
+    environment: Environment
+    data_efficiency: DataEfficiency
+    learning_cost: LearningCost
+    simulation: Simulation
+    self_tuning_value: SelfTuningValue
+
+    def targets(self) -> list[TargetOutcome]:
+        """The bench's targets, each met or missed, with why."""
+        return [
+            _data_target(self.data_efficiency),
+            _speed_target(self.simulation),
+            _exact_target(self.simulation),
+            _value_target(self.self_tuning_value),
+        ]
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON object of ``bench.json``: field names as keys, units in the names.
+
+        Non-finite numbers become None (JSON has no infinity).
+        """
+        data = dataclasses.asdict(self)
+        data["targets"] = [dataclasses.asdict(target) for target in self.targets()]
+        # A measurement not made (gym-electric-motor not installed) is left out, not a
+        # null number: "available" and "reason_text" say why.
+        gem = data["simulation"]["gym_electric_motor"]
+        for key in ("default_solver", "euler_solver"):
+            if gem[key] is None:
+                del gem[key]
+        return finite_or_null(to_jsonable(data))
+
+    def to_markdown(self) -> str:
+        """The tables of ``bench.md``."""
+        return _markdown(self)
+
+
+def _data_target(data: DataEfficiency) -> TargetOutcome:
+    ratio = data.data_ratio_vs_paper
+    return TargetOutcome(
+        name_text="data_ratio_vs_paper",
+        target_text=f">= {TARGET_DATA_RATIO:g}x less data than the paper's Algorithm 2",
+        value_text="not reached" if ratio is None else f"{ratio:.1f}x",
+        met=None if ratio is None else ratio >= TARGET_DATA_RATIO,
+        why_text=(
+            "on-policy spends a new 5 ms episode on every iteration (feedback episodes "
+            "until Theta_1 settles, then feedforward episodes); off-policy reuses one "
+            "short batch for every iteration"
+            if ratio is not None
+            else "a method did not reach the target error in the sweep"
+        ),
+    )
+
+
+def _speed_target(simulation: Simulation) -> TargetOutcome:
+    speedup = simulation.speedup_vs_gem
+    gem = simulation.gym_electric_motor
+    return TargetOutcome(
+        name_text="speedup_vs_gem",
+        target_text=f">= {TARGET_SPEEDUP:g}x faster per step than gym-electric-motor",
+        value_text="not measured" if speedup is None else f"{speedup:.0f}x",
+        met=None if speedup is None else speedup >= TARGET_SPEEDUP,
+        why_text=(
+            gem.reason_text or ""
+            if speedup is None
+            else "one vectorized call for the whole closed loop against a Python "
+            "env.step and an ODE solve per sample; an interactive Python loop on "
+            f"discretize is {simulation.step_loop_speedup_vs_gem or 0:.0f}x"
+        ),
+    )
+
+
+def _exact_target(simulation: Simulation) -> TargetOutcome:
+    worst_error = max(
+        simulation.selftune_simulate.max_relative_error, simulation.batch.max_relative_error
+    )
+    return TargetOutcome(
+        name_text="exact simulation",
+        target_text=f"max relative error <= {EXACT_RELATIVE_ERROR:g} against the exact solution",
+        value_text=f"{worst_error:.1e}",
+        met=worst_error <= EXACT_RELATIVE_ERROR,
+        why_text="zero-order hold by the matrix exponential: only rounding remains",
+    )
+
+
+def _value_target(value: SelfTuningValue) -> TargetOutcome:
+    tuned_excess = value.worst_excess_cost_percent("self_tuned")
+    nominal_excess = {
+        name: value.worst_excess_cost_percent(name)
+        for name in ("lqr_nominal", "lqr_true_flux", "pi_nominal", "pi_true_flux")
+    }
+    return TargetOutcome(
+        name_text="self-tuning value",
+        target_text="self-tuned cost within 0.01% of the optimum on every motor, every "
+        "nominal design worse",
+        value_text=f"worst excess cost: self-tuned {tuned_excess:.2g}%; "
+        + ", ".join(
+            f"{CONTROLLER_TITLES[name].split()[0]} {excess:.3g}%"
+            for name, excess in nominal_excess.items()
+        ),
+        met=tuned_excess <= 0.01 and min(nominal_excess.values()) > tuned_excess,
+        why_text="the off-policy run learns the true motor's K* and U* from 5 ms of "
+        "data; most of what the nominal designs lose is the flux error (compare (a), "
+        "(b) with (a'), (b'))",
+    )
+
+
+def run_bench(quick: bool, progress: bool = True) -> BenchReport:
+    """Run every comparison of the bench on this machine.
+
+    Parameters
+    ----------
+    quick : bool
+        The CI-sized run (:meth:`BenchConfig.quick`, well under a minute) instead of the
+        full one (:meth:`BenchConfig.full`, a few minutes on 2 cores).
+    progress : bool
+        Show progress bars on stderr (only when it is a terminal).
+
+    Returns
+    -------
+    BenchReport
+    """
+    config = BenchConfig.quick() if quick else BenchConfig.full()
+    started = time.perf_counter()
+    data_efficiency = measure_data_efficiency(config, progress)
+    learning_cost = measure_learning_cost(config, progress)
+    simulation = measure_simulation(config, progress)
+    self_tuning_value = measure_self_tuning_value(config, progress)
+    return BenchReport(
+        quick=quick,
+        wall_seconds=time.perf_counter() - started,
+        environment=Environment.here(),
+        data_efficiency=data_efficiency,
+        learning_cost=learning_cost,
+        simulation=simulation,
+        self_tuning_value=self_tuning_value,
+    )
+
+
+def _markdown(report: BenchReport) -> str:
+    environment = report.environment
+    lines = [
+        "# selftune bench" + (" (quick)" if report.quick else ""),
+        "",
+        f"Python {environment.python_version}, numpy {environment.numpy_version}, scipy "
+        f"{environment.scipy_version}, selftune {environment.selftune_version}, "
+        "gym-electric-motor "
+        + (environment.gym_electric_motor_version or "not installed")
+        + f"; {environment.platform_text}, {environment.machine_cores_count} cores"
+        + (
+            ""
+            if environment.load_average_processes is None
+            else f", load average {environment.load_average_processes:.1f} at the end"
+        )
+        + ". "
+        f"Whole bench: {report.wall_seconds:.1f} s. Regenerate: `selftune bench"
+        + (" --quick" if report.quick else "")
+        + "`.",
+        "",
+        "## Targets",
+        "",
+    ]
+    lines += table(
+        ["target", "goal", "measured", "met", "why"],
+        [
+            [
+                target.name_text,
+                target.target_text,
+                target.value_text,
+                {True: "met", False: "MISSED", None: "not measured"}[target.met],
+                target.why_text,
+            ]
+            for target in report.targets()
+        ],
+    )
+    for section in (
+        markdown_data(report.data_efficiency),
+        markdown_learning(report.learning_cost),
+        markdown_simulation(report.simulation),
+        markdown_value(report.self_tuning_value),
+    ):
+        lines += ["", *section]
+    return "\n".join(lines) + "\n"
+
+
+def bench_command(out: str, quick: bool) -> int:
+    """Run the bench, print its tables, write ``bench.md`` and ``bench.json`` to ``out``.
+
+    Parameters
+    ----------
+    out : str
+        Directory for the two files, created if missing.
+    quick : bool
+        The CI-sized run (:meth:`BenchConfig.quick`).
+
+    Returns
+    -------
+    int
+        0.
+
+    Raises
+    ------
+    OSError
+        If the directory or the files cannot be written (nothing partial is left).
+    """
+    report = run_bench(quick=quick, progress=True)
+    directory = Path(out)
+    directory.mkdir(parents=True, exist_ok=True)
+    markdown = report.to_markdown()
+    write_text(directory / "bench.md", markdown)
+    write_json(directory / "bench.json", report.to_json())
+    print(markdown, end="")
+    print(
+        f"\nwrote {directory / 'bench.md'} and {directory / 'bench.json'} "
+        f"({report.wall_seconds:.1f} s)"
+    )
+    return 0

@@ -1,0 +1,128 @@
+"""The learning configuration of ``selftune learn``, CONFIG.toml (:func:`load_learn_config`)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+
+from ..core import Array
+from ._toml import ConfigFile
+
+__all__ = ["LEARN_TABLES", "LearnConfig", "load_learn_config"]
+
+
+#: The tables of a learning configuration (``selftune learn``) and their keys.
+LEARN_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
+    {
+        "cost": ("Q", "R"),
+        "policy": ("K0",),
+        "regulation": ("C", "E", "F"),
+        "learning": ("interval", "max_iterations", "tolerance"),
+    }
+)
+
+
+@dataclass(frozen=True, eq=False)
+class LearnConfig:
+    """The content of a learning configuration file (``selftune learn --config``).
+
+    Attributes
+    ----------
+    Q, R : ndarray
+        Cost weights, symmetric positive definite.
+    K0 : ndarray, shape (m, n)
+        Stabilizing initial feedback.
+    C, E, F : ndarray or None
+        The known output and exosystem matrices; None for plain optimal state feedback.
+    interval : int
+        Samples per regression interval.
+    max_iterations : int
+        Upper bound on policy-iteration steps.
+    tolerance : float
+        Relative change of P at which iteration stops.
+    source : str
+        The file name, for messages.
+    """
+
+    Q: Array
+    R: Array
+    K0: Array
+    C: Array | None
+    E: Array | None
+    F: Array | None
+    interval: int = 10
+    max_iterations: int = 50
+    tolerance: float = 1e-9
+    source: str = ""
+
+    @property
+    def regulation(self) -> bool:
+        """Whether the file asks for output regulation (has a [regulation] table)."""
+        return self.C is not None
+
+
+def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> LearnConfig:
+    """Read a learning configuration for data with n states, m inputs and q exogenous signals.
+
+    The format::
+
+        [cost]
+        Q = [[...]]           # n x n, symmetric positive definite
+        R = [[...]]           # m x m, symmetric positive definite
+        [policy]
+        K0 = [[...]]          # m x n stabilizing gain that policy iteration starts from
+        [regulation]          # optional: omit it to learn plain optimal state feedback
+        C = [[...]]           # r x n
+        E = [[...]]           # q x q (all zeros: w held over each sample)
+        F = [[...]]           # r x q
+        [learning]            # optional
+        interval = 10         # samples per regression interval
+        max_iterations = 50
+        tolerance = 1e-9
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The TOML file.
+    n : int
+        Number of states of the data.
+    m : int
+        Number of inputs of the data.
+    q : int
+        Number of exogenous signals of the data (0: none).
+
+    Raises
+    ------
+    DataFileError
+        One line naming the file, the table and the key, for anything missing, unknown,
+        of the wrong shape (the shapes follow from the data), or out of range.
+    """
+    config = ConfigFile(path, LEARN_TABLES)
+    cost = config.table("cost", required=True)
+    policy = config.table("policy", required=True)
+    learning = config.table("learning")
+    C = E = F = None
+    if "regulation" in config:
+        regulation = config.table("regulation")
+        if q == 0:
+            raise regulation.error(
+                None, "the data have no exogenous signal w (no w columns) to regulate against"
+            )
+        C = regulation.matrix("C", (None, n))
+        E = regulation.matrix("E", (q, q))
+        F = regulation.matrix("F", (C.shape[0], q))
+    tolerance = learning.positive("tolerance", 1e-9)
+    return LearnConfig(
+        Q=cost.positive_definite("Q", n),
+        R=cost.positive_definite("R", m),
+        K0=policy.matrix("K0", (m, n)),
+        C=C,
+        E=E,
+        F=F,
+        interval=learning.positive_integer("interval", 10),
+        max_iterations=learning.positive_integer("max_iterations", 50),
+        tolerance=tolerance,
+        source=config.file,
+    )

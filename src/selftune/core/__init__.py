@@ -1,0 +1,129 @@
+"""The neutral layer: validation rules, numerical thresholds and generic numerical tools.
+
+Everything in selftune may use this package; it uses nothing of selftune but
+:mod:`selftune.errors`. It holds the one home of each input rule and threshold
+(:mod:`._validation`), the vectorization conventions of the paper (:mod:`._vectorize`),
+atomic file output (:mod:`._atomic`), the generic LQR and Lyapunov solvers
+(:mod:`._linalg`), exact zero-order-hold discretization (:mod:`._discretize`) and the
+paper's settings (:mod:`._paper`).
+"""
+
+from __future__ import annotations
+
+from ._atomic import atomic_path, finite_or_null, to_jsonable, write_json, write_text
+from ._discretize import Discretization, augmented, discretize, expm_stack
+from ._linalg import (
+    check_detectable,
+    check_plant,
+    check_stabilizable,
+    format_eigenvalue,
+    lqr,
+    minimize_weighted_norm,
+    policy_value,
+    unique_eigenvalues,
+)
+from ._paper import (
+    PAPER_EPISODE_LENGTH,
+    PAPER_EXPLORATION,
+    PAPER_MOTOR,
+    PAPER_SAMPLING,
+    PAPER_SPEED,
+    PAPER_TABLE_MOTOR,
+    PAPER_TORQUE,
+    paper_K0,
+    paper_Q,
+    paper_R,
+)
+from ._regulator import RegulatorSolution
+from ._text import compact, fixed, labels, matrix_block, scientific, vector
+from ._validation import (
+    DEFINITENESS_TOLERANCE,
+    RANK_TOLERANCE,
+    Array,
+    as_matrix,
+    as_vector,
+    check_positive_definite,
+    check_positive_semidefinite,
+    check_symmetric,
+    check_weights,
+    finite_float,
+    first_non_increasing,
+    is_positive_definite,
+    numerical_rank,
+    positive_finite,
+    positive_integer,
+    symmetric_tolerance,
+)
+from ._vectorize import (
+    pack_theta,
+    theta_sizes,
+    unpack_theta,
+    unvec,
+    unvecs,
+    vec,
+    vecs,
+    vecs_hat,
+    vecs_hat_from_outer,
+)
+
+__all__ = [
+    "DEFINITENESS_TOLERANCE",
+    "PAPER_EPISODE_LENGTH",
+    "PAPER_EXPLORATION",
+    "PAPER_MOTOR",
+    "PAPER_SAMPLING",
+    "PAPER_SPEED",
+    "PAPER_TABLE_MOTOR",
+    "PAPER_TORQUE",
+    "RANK_TOLERANCE",
+    "Array",
+    "Discretization",
+    "RegulatorSolution",
+    "as_matrix",
+    "as_vector",
+    "atomic_path",
+    "augmented",
+    "check_detectable",
+    "check_plant",
+    "check_positive_definite",
+    "check_positive_semidefinite",
+    "check_stabilizable",
+    "check_symmetric",
+    "check_weights",
+    "compact",
+    "discretize",
+    "expm_stack",
+    "finite_float",
+    "finite_or_null",
+    "first_non_increasing",
+    "fixed",
+    "format_eigenvalue",
+    "is_positive_definite",
+    "labels",
+    "lqr",
+    "matrix_block",
+    "minimize_weighted_norm",
+    "numerical_rank",
+    "pack_theta",
+    "paper_K0",
+    "paper_Q",
+    "paper_R",
+    "policy_value",
+    "positive_finite",
+    "positive_integer",
+    "scientific",
+    "symmetric_tolerance",
+    "theta_sizes",
+    "to_jsonable",
+    "unique_eigenvalues",
+    "unpack_theta",
+    "unvec",
+    "unvecs",
+    "vec",
+    "vecs",
+    "vecs_hat",
+    "vecs_hat_from_outer",
+    "vector",
+    "write_json",
+    "write_text",
+]

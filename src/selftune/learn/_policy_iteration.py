@@ -1,0 +1,342 @@
+"""Kleinman's policy iteration on the continuous-time data equation, off-policy.
+
+At step j the data equation (:mod:`._regression`) is solved for ``P_j`` (the value of
+the policy ``K_j``), ``K_(j+1) = R^-1 B' P_j`` and, with an exogenous signal,
+``M = (D + A X - X E)' P_j``. One batch of data is reused for every step (Jiang & Jiang
+2012). The learners of :mod:`._continuous` and the paper's algorithms
+(:mod:`selftune.tuning`) are built from :func:`policy_step`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..core import (
+    Array,
+    minimize_weighted_norm,
+    positive_finite,
+    positive_integer,
+    unpack_theta,
+    unvec,
+    vec,
+)
+from ..errors import ConvergenceError, InputError
+from ._moments import IntervalMoments
+from ._regression import RegressionSolution, regression, solve_regression
+
+__all__ = [
+    "MAX_TOLERANCE",
+    "IterationRecord",
+    "PolicyIterationFacts",
+    "check_iteration_settings",
+    "estimated_B",
+    "feedforward",
+    "not_converged",
+    "policy_iteration",
+    "policy_step",
+]
+
+
+@dataclass(frozen=True)
+class IterationRecord:
+    """One policy-iteration step.
+
+    Attributes
+    ----------
+    iteration : int
+        j, counting from 0 (``K_0`` is the initial policy).
+    P : ndarray, shape (n, n)
+        ``P_j``, the learned value of the policy ``K_j``.
+    K : ndarray, shape (m, n)
+        ``K_(j+1)``, the improved policy.
+    theta : ndarray
+        The solved unknowns ``[vecs(P_j); vec(K_(j+1)); vec(M_j)]``.
+    change : float
+        ``||P_j - P_(j-1)||_F / ||P_j||_F`` (inf at j = 0).
+    regression : RegressionSolution
+        Rank, residual and conditioning of the step's regression.
+    """
+
+    iteration: int
+    P: Array
+    K: Array
+    theta: Array
+    change: float
+    regression: RegressionSolution = field(repr=False)
+
+
+#: The loosest stopping tolerance accepted (see :func:`check_iteration_settings`).
+MAX_TOLERANCE = 1e-3
+
+
+def _smallest_eigenvalue(P: Array) -> float:
+    return float(np.min(np.linalg.eigvalsh(0.5 * (P + P.T))))
+
+
+def _rounding_floor(solution: RegressionSolution) -> float:
+    """The relative change of P that rounding alone causes in a solve of this conditioning.
+
+    A least-squares solve is accurate to about ``condition * eps``; once P changes by no
+    more than that, further steps only move it by rounding, and the iteration has
+    converged as far as the data allow.
+    """
+    return 100.0 * float(np.finfo(float).eps) * solution.condition
+
+
+def policy_iteration(
+    moments: IntervalMoments,
+    K0: Array,
+    Q: Array,
+    R: Array,
+    *,
+    X: Array | None = None,
+    max_iterations: int = 50,
+    tolerance: float = 1e-9,
+    allow_deficient: Sequence[str] = (),
+) -> tuple[list[IterationRecord], bool]:
+    """Off-policy policy iteration on precomputed data moments.
+
+    Parameters
+    ----------
+    moments : IntervalMoments
+        The data, reused for every step.
+    K0 : ndarray, shape (m, n)
+        Initial stabilizing policy.
+    Q, R : ndarray
+        Cost weights.
+    X : ndarray, shape (n, q), optional
+        ``xbar = x - X w``.
+    max_iterations : int
+        Upper bound on the number of steps.
+    tolerance : float
+        Stop when the relative change of P is at most this (or at most the rounding
+        floor ``100 eps cond`` of the regression, when that is larger).
+    allow_deficient : sequence of str
+        Blocks allowed to lack rank (see :func:`solve_regression`).
+
+    Returns
+    -------
+    history : list of IterationRecord
+    converged : bool
+
+    Raises
+    ------
+    ExcitationError
+        If the data do not determine the unknowns.
+    ConvergenceError
+        If a learned ``P_j`` is not positive definite.
+    """
+    K = K0
+    history: list[IterationRecord] = []
+    for iteration in range(max_iterations):
+        record = policy_step(
+            moments,
+            K,
+            Q,
+            R,
+            X=X,
+            allow_deficient=allow_deficient,
+            iteration=iteration,
+        )
+        if history:
+            previous = history[-1].P
+            change = float(np.linalg.norm(record.P - previous)) / float(np.linalg.norm(record.P))
+            record = replace(record, change=change)
+        history.append(record)
+        if record.change <= max(tolerance, _rounding_floor(record.regression)):
+            return history, True
+        K = record.K
+    return history, False
+
+
+def policy_step(
+    moments: IntervalMoments,
+    K: Array,
+    Q: Array,
+    R: Array,
+    *,
+    X: Array | None = None,
+    allow_deficient: Sequence[str] = (),
+    known: Mapping[str, Array] | None = None,
+    iteration: int = 0,
+) -> IterationRecord:
+    """One policy-iteration step: evaluate ``K`` (= K_j) on the data, improve it.
+
+    Parameters
+    ----------
+    moments : IntervalMoments
+        The data.
+    K : ndarray, shape (m, n)
+        The policy ``K_j`` to evaluate.
+    Q, R : ndarray
+        Cost weights.
+    X : ndarray, shape (n, q), optional
+        ``xbar = x - X w``.
+    allow_deficient : sequence of str
+        Blocks allowed to lack rank (see :func:`~selftune.learn.solve_regression`).
+    known : mapping of str to ndarray, optional
+        Blocks of Theta already learned (see :func:`~selftune.learn.solve_regression`).
+    iteration : int
+        The step's number j, for the record and for messages.
+
+    Returns
+    -------
+    IterationRecord
+        With ``change`` inf: :func:`policy_iteration` fills it in.
+
+    Raises
+    ------
+    ExcitationError
+        If the data do not determine the unknowns.
+    ConvergenceError
+        If the learned ``P_j`` is not positive definite.
+    """
+    n, m = moments.n, moments.m
+    q = moments.q
+    solution = solve_regression(
+        regression(moments, K, Q, R, X),
+        allow_deficient=allow_deficient,
+        known=known,
+    )
+    P, K_next, _ = unpack_theta(solution.theta, n, m, q)
+    smallest = _smallest_eigenvalue(P)
+    if smallest <= 0.0:
+        raise ConvergenceError(
+            f"policy iteration step {iteration}: the learned P is not positive definite "
+            f"(smallest eigenvalue {smallest:.3g}); K0 may not stabilize the plant, or the "
+            "data are too noisy or too short"
+        )
+    return IterationRecord(
+        iteration=iteration,
+        P=P,
+        K=K_next,
+        theta=solution.theta,
+        change=float("inf"),
+        regression=solution,
+    )
+
+
+def not_converged(history: list[IterationRecord], tolerance: float) -> ConvergenceError:
+    """The error to raise when policy iteration used up its steps without converging.
+
+    Parameters
+    ----------
+    history : list of IterationRecord
+        The policy-iteration steps taken (the last one's ``change`` is reported).
+    tolerance : float
+        Relative change of P at which the iteration would have stopped.
+    """
+    return ConvergenceError(
+        f"policy iteration did not converge in {len(history)} steps: the last relative change "
+        f"of P was {history[-1].change:.3g} > tolerance {tolerance:.3g}; allow more iterations, "
+        "or loosen the tolerance if the data are noisy"
+    )
+
+
+def check_iteration_settings(max_iterations: int, tolerance: float) -> tuple[int, float]:
+    """``max_iterations`` a whole number >= 1 and ``tolerance`` in (0, :data:`MAX_TOLERANCE`].
+
+    Policy iteration converges quadratically, so once P changes by at most 1e-3 the next
+    policy is exact to about the square of that; a looser tolerance would stop before the
+    iteration has converged and return a policy the data do not support.
+
+    Parameters
+    ----------
+    max_iterations : int
+        Upper bound on policy-iteration steps.
+    tolerance : float
+        Relative change of P at which the iteration stops.
+
+    Returns
+    -------
+    max_iterations : int
+    tolerance : float
+    """
+    max_iterations = positive_integer(max_iterations, "max_iterations")
+    tolerance = positive_finite(tolerance, "tolerance")
+    if tolerance > MAX_TOLERANCE:
+        raise InputError(
+            f"tolerance: the relative change of P at which iteration stops must be at most "
+            f"{MAX_TOLERANCE:g} (e.g. 1e-9), got {tolerance!r}"
+        )
+    return max_iterations, tolerance
+
+
+def estimated_B(P: Array, K: Array, R: Array) -> Array:
+    """``B = (R K_(j+1) P_j^-1)'`` from ``K_(j+1) = R^-1 B' P_j``.
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+        Learned value matrix ``P_j``.
+    K : ndarray, shape (m, n)
+        Learned next gain ``K_(j+1)``.
+    R : ndarray, shape (m, m)
+        Input weight.
+
+    Returns
+    -------
+    B : ndarray, shape (n, m)
+    """
+    return np.asarray(np.linalg.solve(P, (R @ K).T), dtype=np.float64)
+
+
+class PolicyIterationFacts:
+    """``iterations``, ``rank``, ``unknowns`` and ``rows`` read off a policy-iteration history."""
+
+    history: tuple[IterationRecord, ...]
+
+    @property
+    def iterations(self) -> int:
+        """Number of policy-iteration steps."""
+        return len(self.history)
+
+    @property
+    def rank(self) -> int:
+        """Rank of the last policy-iteration regression."""
+        return self.history[-1].regression.rank
+
+    @property
+    def unknowns(self) -> int:
+        """Number of unknowns of each policy-iteration regression."""
+        return self.history[-1].regression.unknowns
+
+    @property
+    def rows(self) -> int:
+        """Number of regression rows (intervals)."""
+        return self.history[-1].regression.rows
+
+
+def feedforward(P: Array, K: Array, M: Array, R: Array, weight_U: Array | None = None) -> Array:
+    """The feedforward U from learned ``P_j``, ``K_(j+1)`` and ``M = (D + AX - XE)' P_j``.
+
+    ``B = (R K P^-1)'`` and the regulator equation ``B U = -(D + A X - X E) = -P^-1 M'``
+    give U (the least ``Tr(U' W U)`` one, ``W = weight_U`` or R, when B has more columns
+    than rank).
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+        Learned value matrix ``P_j``.
+    K : ndarray, shape (m, n)
+        Learned next gain ``K_(j+1)``.
+    M : ndarray, shape (q, n)
+        Learned exogenous block ``(D + AX - XE)' P_j``.
+    R : ndarray, shape (m, m)
+        Input weight.
+    weight_U : ndarray, shape (m, m), optional
+        Weight of the least-norm U (default R).
+
+    Returns
+    -------
+    U : ndarray, shape (m, q)
+    """
+    B = estimated_B(P, K, R)
+    drift = np.asarray(np.linalg.solve(P, M.T), dtype=np.float64)
+    weight = R if weight_U is None else weight_U
+    q = drift.shape[1]
+    vec_U = minimize_weighted_norm(np.kron(np.eye(q), B), -vec(drift), np.kron(np.eye(q), weight))
+    return unvec(vec_U, B.shape[1], q)

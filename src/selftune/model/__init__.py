@@ -1,0 +1,27 @@
+"""The model side: the motor, the linear regulation problem and its model-based optimum.
+
+This is the truth the learners are judged by. Nothing in :mod:`selftune.learn` may
+import it (an import contract checks that); the learners see only sampled data.
+
+- :class:`SPMSM`: the surface-mounted PMSM and its torque-control forms (eq. 8, 15);
+- :class:`RegulationProblem`: ``x' = A x + B u + D w, w' = E w, e = C x + F w`` and its
+  regulator equations;
+- :func:`solve_optimal_regulation`: the optimal ``K*, P*, X*, U*``.
+"""
+
+from __future__ import annotations
+
+from ..core import RegulatorSolution, lqr, policy_value
+from ._motor import SPMSM
+from ._optimum import ModelBasedSolution, solve_optimal_regulation
+from ._problem import RegulationProblem
+
+__all__ = [
+    "SPMSM",
+    "ModelBasedSolution",
+    "RegulationProblem",
+    "RegulatorSolution",
+    "lqr",
+    "policy_value",
+    "solve_optimal_regulation",
+]

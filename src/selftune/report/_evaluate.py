@@ -1,0 +1,179 @@
+"""Self-tuning results compared with the model-based optimum (evaluation only).
+
+The sessions of :mod:`selftune.tuning` never see the model; this module is where a
+result meets the truth: the parameter error against ``Theta*``, the true cost of each
+applied policy, and the closed-loop torque step on the true motor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core import Array, policy_value
+from ..learn import Trajectory
+from ..model import SPMSM, ModelBasedSolution, solve_optimal_regulation
+from ..sim import constant, simulate
+from ..tuning import TuningResult, TuningSettings
+
+__all__ = ["TuningEvaluation", "closed_loop_response", "evaluate", "policy_true_cost"]
+
+
+@dataclass(frozen=True)
+class TuningEvaluation:
+    """A :class:`TuningResult` compared with the model-based optimum (evaluation only).
+
+    Attributes
+    ----------
+    optimum : ModelBasedSolution
+    theta_error : ndarray, shape (iterations,)
+        ``||Theta_j - Theta*||`` (2-norm) after each iteration.
+    learned_cost : ndarray, shape (iterations,)
+        ``xbar(0)' P_j xbar(0)``, the learned cost-to-go of ``K_j`` from ``x(0) = 0``.
+    true_cost : ndarray, shape (iterations,)
+        The true cost of the applied policy ``(K_j, U_j)`` from ``x(0) = 0``: the cost
+        (5) of its transient to its own steady state (equal to (5) when the policy
+        regulates, i.e. ``U_j = U*``); ``inf`` if it does not stabilize.
+    final_theta_error : float
+        ``||Theta - Theta*|| / ||Theta*||`` of the result.
+    K_error, U_error : float
+        ``||K - K*|| / ||K*||`` and ``||U - U*|| / ||U*||``.
+    """
+
+    optimum: ModelBasedSolution
+    theta_error: Array
+    learned_cost: Array
+    true_cost: Array
+    final_theta_error: float
+    K_error: float
+    U_error: float
+
+
+def policy_true_cost(
+    motor: SPMSM, settings: TuningSettings, K: Array, X: Array, U: Array, w: Array
+) -> float:
+    """Cost (5) of the policy ``u = -K (x - X w) + U w`` from rest, to its own steady state.
+
+    Parameters
+    ----------
+    motor : SPMSM
+        The true motor.
+    settings : TuningSettings
+        Speed, torque reference and cost weights.
+    K : ndarray, shape (2, 2)
+        Feedback gain, V/A.
+    X : ndarray, shape (2, 2)
+        Steady-state map of the controller.
+    U : ndarray, shape (2, 2)
+        Feedforward of the controller.
+    w : ndarray, shape (2,)
+        The controller's ``w`` (its flux may differ from the true one).
+
+    Returns
+    -------
+    float
+        The cost; ``inf`` if the policy does not stabilize the motor.
+    """
+    problem = motor.regulation_problem(settings.speed)
+    A, B, D = problem.A, problem.B, problem.D
+    w_true = motor.exogenous(settings.speed, settings.torque)
+    closed_loop = A - B @ K
+    if np.max(np.linalg.eigvals(closed_loop).real) >= 0:
+        return float("inf")
+    # The controller acts on its own w (identified flux for Algorithm 3); the motor on w_true.
+    steady = np.linalg.solve(closed_loop, -(B @ (U + K @ X) @ w + D @ w_true))
+    value = policy_value(A, B, K, settings.Q, settings.R)
+    start = -steady
+    return float(start @ value @ start)
+
+
+def evaluate(result: TuningResult, motor: SPMSM, settings: TuningSettings) -> TuningEvaluation:
+    """Compare a self-tuning result with the model-based optimum of ``motor``.
+
+    Parameters
+    ----------
+    result : TuningResult
+        The self-tuning result.
+    motor : SPMSM
+        The true motor.
+    settings : TuningSettings
+        The settings the result was learned with.
+    """
+    optimum = solve_optimal_regulation(
+        motor.regulation_problem(settings.speed), settings.Q, settings.R
+    )
+    theta_star = optimum.theta
+    x_bar0 = -result.X @ result.w
+    theta_error = []
+    learned_cost = []
+    true_cost = []
+    for item in result.history:
+        if item.theta.shape == theta_star.shape:
+            theta_error.append(float(np.linalg.norm(item.theta - theta_star)))
+        else:
+            theta_error.append(float("nan"))  # Algorithm 3's no-load step has 9 unknowns
+        x0 = x_bar0 if item.step != "no-load" else np.zeros(2)
+        learned_cost.append(float(x0 @ item.P @ x0) if item.step != "no-load" else float("nan"))
+        if item.step == "no-load":
+            true_cost.append(float("nan"))
+        else:
+            true_cost.append(
+                policy_true_cost(
+                    motor, settings, item.K_applied, result.X, item.U_applied, result.w
+                )
+            )
+    norm = float(np.linalg.norm(theta_star))
+    return TuningEvaluation(
+        optimum=optimum,
+        theta_error=np.array(theta_error),
+        learned_cost=np.array(learned_cost),
+        true_cost=np.array(true_cost),
+        final_theta_error=float(np.linalg.norm(result.theta - theta_star)) / norm,
+        K_error=float(np.linalg.norm(result.K - optimum.K)) / float(np.linalg.norm(optimum.K)),
+        U_error=float(np.linalg.norm(result.U - optimum.U)) / float(np.linalg.norm(optimum.U)),
+    )
+
+
+def closed_loop_response(
+    motor: SPMSM,
+    settings: TuningSettings,
+    K: Array,
+    X: Array,
+    U: Array,
+    w: Array | None = None,
+    duration: float = 0.01,
+) -> Trajectory:
+    """The torque step from rest under ``u = -K (x - X w) + U w`` (evaluation, from the model).
+
+    Parameters
+    ----------
+    motor : SPMSM
+        The true motor.
+    settings : TuningSettings
+        Speed, torque reference and sampling period.
+    K, X, U : ndarray
+        The controller.
+    w : ndarray, optional
+        The controller's ``w`` (default the true ``[p speed phi_pm, T*]``); Algorithm 3's
+        controller uses its identified flux.
+    duration : float
+        Length of the response, s.
+    """
+    problem = motor.regulation_problem(settings.speed)
+    w_true = motor.exogenous(settings.speed, settings.torque)
+    w_controller = w_true if w is None else np.asarray(w, dtype=float)
+    # The motor's back-EMF is D w_true; the controller acts on its own w.
+    scale = np.divide(w_true, w_controller, out=np.ones_like(w_true), where=w_controller != 0.0)
+    D = problem.D @ np.diag(scale)
+    return simulate(
+        problem.A,
+        problem.B,
+        D=D,
+        exogenous=constant(w_controller),
+        K=K,
+        X=X,
+        U=U,
+        h=settings.sampling,
+        num_samples=round(duration / settings.sampling),
+    )

@@ -1,0 +1,147 @@
+"""The ideal drive: a motor held at a speed by a load machine, simulated exactly.
+
+It implements the :class:`selftune.tuning.Drive` protocol: the self-tuning algorithms
+only call :meth:`SimulatedDrive.run` and :meth:`SimulatedDrive.run_no_load` and only read
+the trajectories they return.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core import Array
+from ..errors import InputError
+from ..learn import Trajectory
+from ..model import SPMSM
+from ._exploration import Exploration
+from ._signals import ExogenousSignal, constant
+from ._simulator import simulate
+
+__all__ = ["SimulatedDrive"]
+
+
+@dataclass(frozen=True)
+class SimulatedDrive:
+    """A motor held at a speed by a load machine, simulated exactly (the test bench).
+
+    It stands in for a real drive: the algorithms only call :meth:`run` and
+    :meth:`run_no_load` and only read the trajectories they return. Episodes start from
+    rest (``x(0) = 0``).
+
+    Parameters
+    ----------
+    motor : SPMSM
+        The true motor.
+    speed : float
+        Held mechanical speed, rad/s.
+    sampling : float
+        Sampling period, s.
+    input_hold : int
+        The controller updates u every ``input_hold`` samples (1: every sample).
+    """
+
+    motor: SPMSM
+    speed: float
+    sampling: float
+    input_hold: int = 1
+
+    @property
+    def pole_pairs(self) -> int:
+        """Number of pole pairs."""
+        return self.motor.p
+
+    def run(
+        self,
+        K: Array,
+        X: Array,
+        U: Array,
+        reference: ExogenousSignal,
+        *,
+        num_samples: int,
+        exploration: Exploration | None,
+        seed: int,
+        assumed_flux: float | None = None,
+    ) -> Trajectory:
+        """One episode of the known-flux form, ``x' = A x + B u + D w``.
+
+        ``reference`` is the controller's ``w = [p speed phi, T*]`` (held). When the
+        controller assumes a flux ``assumed_flux`` other than the true one, the back-EMF
+        the motor produces is ``D w`` with the true flux, i.e. ``D diag(phi/assumed, 1) w``;
+        this is exact only while ``w_1`` is constant, so the first channel must not be
+        perturbed then.
+
+        Parameters
+        ----------
+        K : ndarray, shape (2, 2)
+            Feedback gain, V/A.
+        X : ndarray, shape (2, 2)
+            Steady-state map, ``x_ss = X w``.
+        U : ndarray, shape (2, 2)
+            Feedforward, ``u_ss = U w``.
+        reference : ExogenousSignal
+            The controller's ``w = [p speed phi, T*]`` (held).
+        num_samples : int
+            Length of the episode, samples.
+        exploration : Exploration or None
+            Exploration ``rho`` added to the input; None for none.
+        seed : int
+            Seed of the exploration.
+        assumed_flux : float, optional
+            Flux linkage the controller's ``w`` assumes, Wb (default: the true one).
+        """
+        problem = self.motor.regulation_problem(self.speed)
+        D = problem.D
+        if assumed_flux is not None and assumed_flux != self.motor.phi_pm:
+            D = D @ np.diag([self.motor.phi_pm / assumed_flux, 1.0])
+            values = reference.values(np.arange(num_samples + 1) * self.sampling)
+            if np.ptp(values[:, 0]) > 0.0:
+                raise InputError(
+                    "reference: with an assumed flux, the back-EMF channel w_1 must be "
+                    "constant (perturb the torque reference only)"
+                )
+        return simulate(
+            problem.A,
+            problem.B,
+            D=D,
+            exogenous=reference,
+            K=K,
+            X=X,
+            U=U,
+            exploration=exploration,
+            h=self.sampling,
+            num_samples=num_samples,
+            seed=seed,
+            input_hold=self.input_hold,
+        )
+
+    def run_no_load(
+        self, K: Array, *, num_samples: int, exploration: Exploration | None, seed: int
+    ) -> Trajectory:
+        """One no-load episode (eq. 15): ``w = [p speed]``, ``T* = 0``, ``u = -K x + rho``.
+
+        Parameters
+        ----------
+        K : ndarray, shape (2, 2)
+            Feedback gain, V/A.
+        num_samples : int
+            Length of the episode, samples.
+        exploration : Exploration or None
+            Exploration ``rho`` added to the input; None for none.
+        seed : int
+            Seed of the exploration.
+        """
+        problem = self.motor.no_load_problem(self.speed)
+        return simulate(
+            problem.A,
+            problem.B,
+            D=problem.D,
+            exogenous=constant(self.motor.no_load_exogenous(self.speed)),
+            K=K,
+            exploration=exploration,
+            h=self.sampling,
+            num_samples=num_samples,
+            seed=seed,
+            input_hold=self.input_hold,
+        )

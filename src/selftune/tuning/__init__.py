@@ -1,0 +1,45 @@
+"""Self-tuning sessions on a drive: the paper's Algorithms 1-3 and the off-policy variant.
+
+The learner knows only what a drive engineer knows without a motor model -- the pole
+pairs ``p``, the held mechanical speed, the torque reference, the cost weights and (for
+Algorithms 1 and 2) the magnet flux -- and sees only the trajectories a :class:`Drive`
+returns. The model-based comparison (:func:`selftune.report.evaluate`) lives elsewhere.
+
+- :func:`algorithm1`, :func:`algorithm2`, :func:`algorithm3`: on-policy, a new episode
+  each iteration (:mod:`._onpolicy`);
+- :func:`offpolicy`: one batch of data reused for every step (:mod:`._offpolicy`);
+- :func:`run_algorithm`: a session on a simulated motor, by name.
+"""
+
+from __future__ import annotations
+
+from ._drive import Drive
+from ._episodes import DIVERGED_CURRENT, NOISE_FLOOR_FACTOR
+from ._knowledge import PAPER_PERTURBATION, known_flux_form, reference_perturbation
+from ._offpolicy import offpolicy
+from ._onpolicy import algorithm1, algorithm2, algorithm3
+from ._results import TuningIteration, TuningResult
+from ._session import ALGORITHMS, AlgorithmName, run_algorithm
+from ._settings import TUNING_KEYS, Perturbation, TuningSettings, tuning_settings
+
+__all__ = [
+    "ALGORITHMS",
+    "DIVERGED_CURRENT",
+    "NOISE_FLOOR_FACTOR",
+    "PAPER_PERTURBATION",
+    "TUNING_KEYS",
+    "AlgorithmName",
+    "Drive",
+    "Perturbation",
+    "TuningIteration",
+    "TuningResult",
+    "TuningSettings",
+    "algorithm1",
+    "algorithm2",
+    "algorithm3",
+    "known_flux_form",
+    "offpolicy",
+    "reference_perturbation",
+    "run_algorithm",
+    "tuning_settings",
+]
