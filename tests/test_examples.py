@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -31,11 +32,28 @@ def run_script(path: Path) -> str:
     return out.getvalue()
 
 
+#: A relative error an example prints: "K error 1.3e-09", "... / ||Theta*|| = 2.8e-10", in any
+#: number format (2.1, 2.1e+00, 3e-7).
+ERROR_FIGURE = re.compile(
+    r"(?:error|\|\|Theta\*\|\|)\s*[=:]?\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
+)
+
+
+def error_figures(printed: str) -> list[float]:
+    """Every relative error an example printed."""
+    return [float(value) for value in ERROR_FIGURE.findall(printed)]
+
+
+def test_error_figures_are_read_in_any_format() -> None:
+    printed = "K error 2.1e+00, U error 3, Theta error 0.5\n||Theta - Theta*|| / ||Theta*|| = 1e-7"
+    assert error_figures(printed) == [2.1, 3.0, 0.5, 1e-7]
+
+
 def test_every_example_script_runs_and_learns() -> None:
     scripts = sorted(EXAMPLES.glob("*.py"))
     assert scripts
     for script in scripts:
         printed = run_script(script)
-        errors = [float(word.rstrip(",")) for word in printed.split() if "e-" in word]
+        errors = error_figures(printed)
         assert errors, f"{script.name} printed no error figure"
         assert max(errors) < 1e-6, f"{script.name}: {printed}"
