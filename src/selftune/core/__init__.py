@@ -11,6 +11,7 @@ paper's settings (:mod:`._paper`).
 from __future__ import annotations
 
 from ._atomic import atomic_path, finite_or_null, to_jsonable, write_json, write_text
+from ._control_law import ControlLaw, state_names
 from ._discretize import Discretization, augmented, discretize, expm_stack
 from ._linalg import (
     check_detectable,
@@ -77,6 +78,7 @@ __all__ = [
     "PAPER_TORQUE",
     "RANK_TOLERANCE",
     "Array",
+    "ControlLaw",
     "Discretization",
     "RegulatorSolution",
     "as_matrix",
@@ -112,6 +114,7 @@ __all__ = [
     "positive_finite",
     "positive_integer",
     "scientific",
+    "state_names",
     "symmetric_tolerance",
     "theta_sizes",
     "to_jsonable",
