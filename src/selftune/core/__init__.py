@@ -4,15 +4,24 @@ Everything in selftune may use this package; it uses nothing of selftune but
 :mod:`selftune.errors`. It holds the one home of each input rule and threshold
 (:mod:`._validation`), the vectorization conventions of the paper (:mod:`._vectorize`),
 atomic file output (:mod:`._atomic`), the generic LQR and Lyapunov solvers
-(:mod:`._linalg`), exact zero-order-hold discretization (:mod:`._discretize`) and the
-paper's settings (:mod:`._paper`).
+(:mod:`._linalg`), their discrete-time counterparts with the delay and integrator
+augmentations (:mod:`._dlinalg`), exact zero-order-hold discretization
+(:mod:`._discretize`) and the paper's settings (:mod:`._paper`).
 """
 
 from __future__ import annotations
 
 from ._atomic import atomic_path, finite_or_null, to_jsonable, write_json, write_text
-from ._control_law import ControlLaw, state_names
-from ._discretize import Discretization, augmented, discretize, expm_stack
+from ._control_law import ControlLaw, WithLaw, state_names
+from ._discretize import Discretization, augmented, discretize, expm_stack, rotating_hold
+from ._dlinalg import (
+    continuous_from_discrete,
+    delay_augmented,
+    dlqr,
+    dpolicy_value,
+    integrator_augmented,
+    sampled_data_weights,
+)
 from ._linalg import (
     check_detectable,
     check_plant,
@@ -21,6 +30,8 @@ from ._linalg import (
     lqr,
     minimize_weighted_norm,
     policy_value,
+    regulator_equations,
+    solve_regulator,
     unique_eigenvalues,
 )
 from ._paper import (
@@ -81,6 +92,7 @@ __all__ = [
     "ControlLaw",
     "Discretization",
     "RegulatorSolution",
+    "WithLaw",
     "as_matrix",
     "as_vector",
     "atomic_path",
@@ -93,13 +105,18 @@ __all__ = [
     "check_symmetric",
     "check_weights",
     "compact",
+    "continuous_from_discrete",
+    "delay_augmented",
     "discretize",
+    "dlqr",
+    "dpolicy_value",
     "expm_stack",
     "finite_float",
     "finite_or_null",
     "first_non_increasing",
     "fixed",
     "format_eigenvalue",
+    "integrator_augmented",
     "is_positive_definite",
     "labels",
     "lqr",
@@ -113,7 +130,11 @@ __all__ = [
     "policy_value",
     "positive_finite",
     "positive_integer",
+    "regulator_equations",
+    "rotating_hold",
+    "sampled_data_weights",
     "scientific",
+    "solve_regulator",
     "state_names",
     "symmetric_tolerance",
     "theta_sizes",

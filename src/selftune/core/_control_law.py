@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike
 from ..errors import InputError
 from ._validation import Array, as_matrix, positive_finite, positive_integer
 
-__all__ = ["ControlLaw", "state_names"]
+__all__ = ["ControlLaw", "WithLaw", "state_names"]
 
 
 def state_names(n: int, m: int, history: int, r: int = 0) -> tuple[str, ...]:
@@ -219,3 +219,38 @@ class ControlLaw:
         if self.history:
             text += ", ubar_(k-j) = u_(k-j) - U w_k (the input computed j samples before)"
         return text
+
+
+class WithLaw:
+    """A result that carries a :class:`ControlLaw` as ``law``: its gains read off it.
+
+    Mixed into every result type with a law (learned, model-based, self-tuned), so that
+    ``result.K`` means the same everywhere: the law's.
+    """
+
+    law: ControlLaw
+
+    @property
+    def K(self) -> Array:
+        """Feedback gain over ``[xbar_k; ubar_(k-d); ...; ubar_(k-1)]``, shape (m, n + d m)."""
+        return self.law.K
+
+    @property
+    def X(self) -> Array:
+        """Steady-state map of the state, ``x_e = X w``, shape (n, q)."""
+        return self.law.X
+
+    @property
+    def U(self) -> Array:
+        """Feedforward map of the input, ``u_e = U w``, shape (m, q)."""
+        return self.law.U
+
+    @property
+    def K_i(self) -> Array | None:
+        """Integral gain on the integrator z, shape (m, r); None without integral action."""
+        return self.law.K_i
+
+    @property
+    def state(self) -> tuple[str, ...]:
+        """The names of the columns of ``[K, K_i]`` in order."""
+        return self.law.state

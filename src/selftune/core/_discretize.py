@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike
 from ..errors import InputError
 from ._validation import Array, as_matrix, positive_finite
 
-__all__ = ["Discretization", "augmented", "discretize", "expm_stack"]
+__all__ = ["Discretization", "augmented", "discretize", "expm_stack", "rotating_hold"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,3 +187,42 @@ def discretize(
         Ew=exp[n + m :, n + m :].copy(),
         h=period,
     )
+
+
+def rotating_hold(
+    A: ArrayLike, B: ArrayLike, h: float, electrical_speed: float, advance: float = 0.0
+) -> Array:
+    """The input matrix of a stationary-frame vector held over a sample, in the rotor frame.
+
+    A PWM inverter holds the voltage vector in the stationary frame while the rotor (dq)
+    frame turns at ``w_e``: over ``[t_k, t_k + h)`` the dq input is ``Rot(advance - w_e s)
+    a_k``, with ``advance`` the angle by which the drive turned its command ahead (the
+    usual compensation centres it: ``w_e h / 2``; an inverter's dead-time voltage, set at
+    the sample's start, has 0). Then ``x_(k+1) = Ad x_k + Bd' a_k + ...`` exactly with
+    ``Bd' = int_0^h expm(A (h - s)) B Rot(advance - w_e s) ds``, computed as the exogenous
+    matrix of a held vector turning by ``v' = [[0, w_e], [-w_e, 0]] v`` (:func:`discretize`).
+    For ``w_e = 0`` and no advance it is the zero-order hold's Bd. n = m = 2 (dq).
+
+    Parameters
+    ----------
+    A : array_like, shape (2, 2)
+        State matrix in the rotor frame, 1/s.
+    B : array_like, shape (2, 2)
+        Input matrix.
+    h : float
+        Sampling period, s.
+    electrical_speed : float
+        ``w_e``, rad/s.
+    advance : float
+        Angle the held vector starts ahead of the rotor frame's, rad.
+
+    Returns
+    -------
+    ndarray, shape (2, 2)
+        ``Bd'``.
+    """
+    w = float(electrical_speed)
+    B_ = np.asarray(B, dtype=float)
+    turning = discretize(A, B_, h, D=B_, E=[[0.0, w], [-w, 0.0]]).Ed
+    c, s = np.cos(advance), np.sin(advance)
+    return np.asarray(turning @ np.array([[c, -s], [s, c]]), dtype=np.float64)

@@ -22,6 +22,7 @@ from ._validation import (
     check_weights,
     numerical_rank,
 )
+from ._vectorize import unvec, vec
 
 __all__ = [
     "check_detectable",
@@ -31,6 +32,8 @@ __all__ = [
     "lqr",
     "minimize_weighted_norm",
     "policy_value",
+    "regulator_equations",
+    "solve_regulator",
     "unique_eigenvalues",
 ]
 
@@ -305,3 +308,79 @@ def minimize_weighted_norm(
     gradient = directions.T @ W @ (z0 + G @ y_particular)
     step = np.linalg.lstsq(hessian, -gradient, rcond=None)[0]
     return y_particular + null_basis @ step
+
+
+def regulator_equations(
+    A: Array, B: Array, C: Array, D: Array, E: Array, F: Array
+) -> tuple[Array, Array]:
+    """The regulator equations ``A X + B U + D = X E``, ``C X + F = 0`` as ``N z = c``.
+
+    ``z = [vec(X); vec(U)]`` and the rows are ``[vec(AX + BU - XE); vec(CX)]``, so
+    ``c = [-vec(D); -vec(F)]``. For a digital loop with ``w`` held (E = 0) the sampled
+    equations ``(Ad - I) X + Bd U + Ed = 0`` are these with ``A = Ad - I``, ``B = Bd``,
+    ``D = Ed``.
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+        State matrix.
+    B : ndarray, shape (n, m)
+        Input matrix.
+    C : ndarray, shape (r, n)
+        Regulated output.
+    D : ndarray, shape (n, q)
+        Exogenous input matrix.
+    E : ndarray, shape (q, q)
+        Exosystem.
+    F : ndarray, shape (r, q)
+        Reference part of the regulated output.
+
+    Returns
+    -------
+    N : ndarray, shape (n q + r q, n q + m q)
+    c : ndarray, shape (n q + r q,)
+    """
+    n, m, q, r = A.shape[0], B.shape[1], D.shape[1], C.shape[0]
+    identity_q = np.eye(q)
+    sylvester = np.kron(identity_q, A) - np.kron(E.T, np.eye(n))
+    N = np.block(
+        [
+            [sylvester, np.kron(identity_q, B)],
+            [np.kron(identity_q, C), np.zeros((r * q, m * q))],
+        ]
+    )
+    c = -np.concatenate([vec(D), vec(F)])
+    return N, c
+
+
+def solve_regulator(
+    system: tuple[Array, Array, Array, Array, Array, Array], weight_X: Array, weight_U: Array
+) -> tuple[Array, Array]:
+    """``(X, U)`` solving the regulator equations; when not unique, the pair of least
+    ``Tr(X' W_X X + U' W_U U)`` (Remark 2 of the paper).
+
+    Parameters
+    ----------
+    system : (A, B, C, D, E, F)
+        The matrices of :func:`regulator_equations`.
+    weight_X : ndarray, shape (n, n)
+        Symmetric positive definite weight on X.
+    weight_U : ndarray, shape (m, m)
+        Symmetric positive definite weight on U.
+
+    Returns
+    -------
+    X : ndarray, shape (n, q)
+    U : ndarray, shape (m, q)
+
+    Raises
+    ------
+    UnsolvableError
+        If the equations have no solution.
+    """
+    A, B, _, D, _, _ = system
+    n, m, q = A.shape[0], B.shape[1], D.shape[1]
+    N, c = regulator_equations(*system)
+    W = scipy.linalg.block_diag(np.kron(np.eye(q), weight_X), np.kron(np.eye(q), weight_U))
+    z = minimize_weighted_norm(N, c, W)
+    return unvec(z[: n * q], n, q), unvec(z[n * q :], m, q)

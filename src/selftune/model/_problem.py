@@ -22,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import ArrayLike
 
 from ..core import (
@@ -31,11 +30,10 @@ from ..core import (
     check_positive_definite,
     check_stabilizable,
     format_eigenvalue,
-    minimize_weighted_norm,
     numerical_rank,
+    regulator_equations,
+    solve_regulator,
     unique_eigenvalues,
-    unvec,
-    vec,
 )
 from ..errors import UnsolvableError
 
@@ -142,17 +140,7 @@ class RegulationProblem:
         ``z = [vec(X); vec(U)]`` and the rows are ``[vec(AX + BU - XE); vec(CX)]``, so
         ``c = [-vec(D); -vec(F)]``.
         """
-        n, m, q, r = self.n, self.m, self.q, self.r
-        identity_q = np.eye(q)
-        sylvester = np.kron(identity_q, self.A) - np.kron(self.E.T, np.eye(n))
-        N = np.block(
-            [
-                [sylvester, np.kron(identity_q, self.B)],
-                [np.kron(identity_q, self.C), np.zeros((r * q, m * q))],
-            ]
-        )
-        c = -np.concatenate([vec(self.D), vec(self.F)])
-        return N, c
+        return regulator_equations(self.A, self.B, self.C, self.D, self.E, self.F)
 
     def regulator_residuals(self, X: ArrayLike, U: ArrayLike) -> tuple[float, float]:
         """Frobenius norms of ``AX + BU + D - XE`` and ``CX + F``.
@@ -193,11 +181,8 @@ class RegulationProblem:
         UnsolvableError
             If the rank condition of Remark 1 fails (names the eigenvalue of E).
         """
-        n, m, q = self.n, self.m, self.q
+        n, m = self.n, self.m
         Q = np.eye(n) if Q is None else check_positive_definite(as_matrix(Q, "Q", (n, n)), "Q")
         R = np.eye(m) if R is None else check_positive_definite(as_matrix(R, "R", (m, m)), "R")
         self.check_solvable()
-        N, c = self.regulator_system()
-        W = scipy.linalg.block_diag(np.kron(np.eye(q), Q), np.kron(np.eye(q), R))
-        z = minimize_weighted_norm(N, c, W)
-        return unvec(z[: n * q], n, q), unvec(z[n * q :], m, q)
+        return solve_regulator((self.A, self.B, self.C, self.D, self.E, self.F), Q, R)

@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core import Array
+from ._validation import Array
 
 __all__ = ["plant_last", "propagate_steps", "propagate_uniform", "to_plant_last", "to_plant_major"]
 

@@ -1,0 +1,518 @@
+"""Discrete-time linear-quadratic design: the generic tools a digital controller needs.
+
+- :func:`dlqr`: the stabilizing solution of the discrete algebraic Riccati equation (DARE)
+  with a cross weight, refined by one Hewer (discrete Kleinman) step;
+- :func:`dpolicy_value`: the value of a given policy (a discrete Lyapunov equation);
+- :func:`sampled_data_weights`: the continuous cost integrated exactly over one sample
+  with the input held (Van Loan 1978);
+- :func:`delay_augmented`: the plant seen by a controller with a computation delay of d
+  samples, state ``[x_k; u_(k-d); ...; u_(k-1)]``;
+- :func:`integrator_augmented`: the plant with the integral of its regulated output
+  (integral action), in continuous time or as the digital integrator a drive runs;
+- :func:`continuous_from_discrete`: the inverse of the exact zero-order-hold
+  discretization (the principal matrix logarithm).
+
+They are generic numerical tools, like :mod:`._linalg` in continuous time: the
+model-based digital optimum (:mod:`selftune.model`) applies them to the true plant.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import ArrayLike
+
+from ..errors import InputError, UnsolvableError
+from ._discretize import augmented
+from ._linalg import check_plant, format_eigenvalue, unique_eigenvalues
+from ._validation import (
+    Array,
+    as_matrix,
+    check_positive_semidefinite,
+    check_weights,
+    numerical_rank,
+    positive_finite,
+    positive_integer,
+)
+
+__all__ = [
+    "continuous_from_discrete",
+    "delay_augmented",
+    "dlqr",
+    "dpolicy_value",
+    "integrator_augmented",
+    "sampled_data_weights",
+]
+
+#: An eigenvalue counts as on or outside the unit circle when ``|lambda| >= 1 - this``.
+_UNIT_CIRCLE_MARGIN = 1e-9
+
+
+def _check_cost(
+    A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike, N: ArrayLike | None
+) -> tuple[Array, Array, Array, Array, Array]:
+    """Validated ``A, B, Q, R, N``: shapes, finite values, Q psd, R pd, the joint weight
+    ``[[Q, N], [N', R]]`` psd (N defaults to zero)."""
+    A_, B_ = check_plant(A, B)
+    n, m = B_.shape
+    Q_, R_ = check_weights(Q, R, n, m)
+    N_ = np.zeros((n, m)) if N is None else as_matrix(N, "N", (n, m))
+    if N is not None:
+        check_positive_semidefinite(np.block([[Q_, N_], [N_.T, R_]]), "[[Q, N], [N', R]]")
+    return A_, B_, Q_, R_, N_
+
+
+def _outside_unit_disc(A: Array) -> list[complex]:
+    """The eigenvalues of A (without repeats) with ``|lambda| >= 1`` (to rounding)."""
+    return [value for value in unique_eigenvalues(A) if abs(value) >= 1.0 - _UNIT_CIRCLE_MARGIN]
+
+
+def _check_stabilizable(A: Array, B: Array) -> None:
+    """Raise unless every mode of A with ``|lambda| >= 1`` is controllable (PBH)."""
+    n = A.shape[0]
+    for value in _outside_unit_disc(A):
+        rank = numerical_rank(np.hstack([A - value * np.eye(n), B]))
+        if rank < n:
+            raise UnsolvableError(
+                f"(A, B) is not stabilizable in discrete time: the mode at eigenvalue"
+                f" {format_eigenvalue(value)} of A (|lambda| = {abs(value):.6g} >= 1) is not"
+                f" controllable (rank [A - lambda I, B] = {rank} < n = {n})"
+            )
+
+
+def _check_detectable(A: Array, B: Array, Q: Array, R: Array, N: Array) -> None:
+    """Raise unless every mode of ``A - B R^-1 N'`` with ``|lambda| >= 1`` is seen by
+    ``Q - N R^-1 N'`` (PBH); with N = 0, the detectability of ``(A, Q)``."""
+    n = A.shape[0]
+    cross = np.linalg.solve(R, N.T)
+    A_free, Q_free = A - B @ cross, Q - N @ cross
+    pair = "(A, Q)" if not np.any(N) else "(A - B R^-1 N', Q - N R^-1 N')"
+    for value in _outside_unit_disc(A_free):
+        rank = numerical_rank(np.vstack([A_free - value * np.eye(n), 0.5 * (Q_free + Q_free.T)]))
+        if rank < n:
+            raise UnsolvableError(
+                f"{pair} is not detectable in discrete time: the mode at eigenvalue"
+                f" {format_eigenvalue(value)} (|lambda| = {abs(value):.6g} >= 1) is not seen by"
+                f" the cost (rank [A - lambda I; Q] = {rank} < n = {n}); make Q larger"
+            )
+
+
+def _gain(A: Array, B: Array, R: Array, N: Array, P: Array) -> Array:
+    """``K = (R + B'PB)^-1 (B'PA + N')``."""
+    return np.asarray(np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A + N.T), dtype=np.float64)
+
+
+def _riccati_residual(A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array) -> float:
+    """Relative residual of the DARE ``A'PA - P - (A'PB + N)(R + B'PB)^-1(B'PA + N') + Q``."""
+    coupling = A.T @ P @ B + N
+    gain_term = coupling @ np.linalg.solve(R + B.T @ P @ B, coupling.T)
+    propagated = A.T @ P @ A
+    residual = propagated - P - gain_term + Q
+    scale = sum(float(np.linalg.norm(M)) for M in (propagated, P, gain_term, Q))
+    return float(np.linalg.norm(residual) / max(scale, 1e-300))
+
+
+def _stage_weight(K: Array, Q: Array, R: Array, N: Array) -> Array:
+    """``Q - N K - K'N' + K'RK``: the stage cost of ``u = -K x`` as a quadratic form in x."""
+    weight = Q - N @ K - K.T @ N.T + K.T @ R @ K
+    return np.asarray(0.5 * (weight + weight.T), dtype=np.float64)
+
+
+def _spectral_radius(M: Array) -> float:
+    return float(np.max(np.abs(np.linalg.eigvals(M)))) if M.size else 0.0
+
+
+def _stein(closed_loop: Array, weight: Array) -> Array:
+    """The solution of ``P = closed_loop' P closed_loop + weight``, symmetrized.
+
+    The direct (Kronecker) solve is the most accurate, but scipy warns about its
+    conditioning whenever P's entries span many decades (an integrator beside fast
+    currents); its residual is what counts, so it is checked, and the bilinear solve is
+    used when it is the better one.
+    """
+
+    def residual(P: Array) -> float:
+        return float(np.linalg.norm(closed_loop.T @ P @ closed_loop - P + weight))
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", scipy.linalg.LinAlgWarning)
+        P = scipy.linalg.solve_discrete_lyapunov(closed_loop.T, weight)
+    if caught:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+            other = scipy.linalg.solve_discrete_lyapunov(closed_loop.T, weight, method="bilinear")
+        if residual(other) < residual(P):
+            P = other
+    return np.asarray(0.5 * (P + P.T), dtype=np.float64)
+
+
+def _hewer_refined(A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array) -> Array:
+    """One Hewer step from P (a discrete Lyapunov solve), kept if it lowers the residual.
+
+    Like the Kleinman-Newton step of the continuous LQR: scipy's generalized-Schur solution
+    is accurate to about cond * eps, and one Newton step from there brings the relative
+    residual near eps.
+    """
+    K = _gain(A, B, R, N, P)
+    closed_loop = A - B @ K
+    if _spectral_radius(closed_loop) >= 1.0:
+        return P
+    with warnings.catch_warnings():
+        # a closed loop mixing scales (a delay and an integrator: V, A and A s) gives the
+        # Kronecker system a tiny rcond even where the solve is accurate; the step is
+        # kept only if it lowers the Riccati residual
+        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+        refined = _stein(closed_loop, _stage_weight(K, Q, R, N))
+    if not np.all(np.isfinite(refined)):
+        return P
+    if _riccati_residual(A, B, Q, R, N, refined) < _riccati_residual(A, B, Q, R, N, P):
+        return refined
+    return P
+
+
+def dlqr(
+    A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike, N: ArrayLike | None = None
+) -> tuple[Array, Array]:
+    """Discrete-time LQR: the stabilizing solution of the discrete algebraic Riccati equation.
+
+    Minimizes ``sum_k [x_k; u_k]' [[Q, N], [N', R]] [x_k; u_k]`` subject to
+    ``x_(k+1) = A x_k + B u_k``; the optimum is ``u_k = -K x_k``.
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+        State matrix of the discrete plant (dimensionless).
+    B : array_like, shape (n, m)
+        Input matrix of the discrete plant (for the motor, A/V).
+    Q : array_like, shape (n, n)
+        State weight, symmetric positive semidefinite.
+    R : array_like, shape (m, m)
+        Input weight, symmetric positive definite.
+    N : array_like, shape (n, m), optional
+        Cross weight between state and input (default zero); the joint weight
+        ``[[Q, N], [N', R]]`` must be positive semidefinite.
+
+    Returns
+    -------
+    K : ndarray, shape (m, n)
+        Optimal gain, ``u_k = -K x_k``, ``K = (R + B'PB)^-1 (B'PA + N')``.
+    P : ndarray, shape (n, n)
+        Stabilizing solution of ``A'PA - P - (A'PB + N)(R + B'PB)^-1 (B'PA + N') + Q = 0``;
+        the optimal cost from ``x_0`` is ``x_0' P x_0``.
+
+    Raises
+    ------
+    UnsolvableError
+        If ``(A, B)`` is not stabilizable or the cost does not detect a mode with
+        ``|lambda| >= 1`` (names the eigenvalue), or the DARE has no stabilizing solution.
+    InputError
+        If a shape is wrong, a value is not finite, or the weights are not as required.
+    """
+    A_, B_, Q_, R_, N_ = _check_cost(A, B, Q, R, N)
+    _check_stabilizable(A_, B_)
+    _check_detectable(A_, B_, Q_, R_, N_)
+    try:
+        P = scipy.linalg.solve_discrete_are(A_, B_, Q_, R_, s=N_)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise UnsolvableError(
+            f"the discrete Riccati equation has no stabilizing solution ({exc})"
+        ) from None
+    P = _hewer_refined(A_, B_, Q_, R_, N_, 0.5 * (P + P.T))
+    return _gain(A_, B_, R_, N_, P), P
+
+
+def dpolicy_value(
+    A: ArrayLike,
+    B: ArrayLike,
+    K: ArrayLike,
+    Q: ArrayLike,
+    R: ArrayLike,
+    N: ArrayLike | None = None,
+) -> Array:
+    """The value matrix of the policy ``u_k = -K x_k``: the cost from ``x_0`` is ``x_0' P x_0``.
+
+    Solves the discrete Lyapunov (Stein) equation
+    ``P = (A - BK)' P (A - BK) + Q - N K - K'N' + K'RK``.
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+        State matrix of the discrete plant.
+    B : array_like, shape (n, m)
+        Input matrix of the discrete plant.
+    K : array_like, shape (m, n)
+        Feedback gain of the policy ``u_k = -K x_k``.
+    Q : array_like, shape (n, n)
+        State weight, symmetric positive semidefinite.
+    R : array_like, shape (m, m)
+        Input weight, symmetric positive definite.
+    N : array_like, shape (n, m), optional
+        Cross weight (default zero); ``[[Q, N], [N', R]]`` positive semidefinite.
+
+    Returns
+    -------
+    P : ndarray, shape (n, n)
+        Value matrix of the policy, symmetric.
+
+    Raises
+    ------
+    UnsolvableError
+        If ``A - BK`` is not Schur stable (spectral radius >= 1: the cost is infinite).
+    InputError
+        If a shape is wrong, a value is not finite, or the weights are not as required.
+    """
+    A_, B_, Q_, R_, N_ = _check_cost(A, B, Q, R, N)
+    K_ = as_matrix(K, "K", (B_.shape[1], A_.shape[0]))
+    closed_loop = A_ - B_ @ K_
+    radius = _spectral_radius(closed_loop)
+    if radius >= 1.0:
+        raise UnsolvableError(
+            f"the policy does not stabilize the plant (spectral radius of A - BK is"
+            f" {radius:.6g} >= 1); its cost is infinite"
+        )
+    return _stein(closed_loop, _stage_weight(K_, Q_, R_, N_))
+
+
+def sampled_data_weights(
+    A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike, h: float
+) -> tuple[Array, Array, Array]:
+    """The continuous cost over one sample with the input held, as a quadratic form.
+
+    For ``x' = A x + B u`` with ``u = u_k`` held on ``[0, h)`` from ``x(0) = x_k``::
+
+        int_0^h (x'Qx + u'Ru) dt = [x_k; u_k]' [[Qd, N], [N', Rd]] [x_k; u_k]
+
+    computed with one matrix exponential (Van Loan 1978): with ``F = [[A, B], [0, 0]]``
+    and ``W = blockdiag(Q, R)``, ``expm([[-F', W], [0, F]] h) = [[*, G], [0, Phi]]`` and
+    the integral ``int_0^h expm(F't) W expm(Ft) dt = Phi' G``.
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+        Continuous state matrix, 1/s.
+    B : array_like, shape (n, m)
+        Continuous input matrix (for the motor, 1/H).
+    Q : array_like, shape (n, n)
+        Continuous state weight, symmetric positive semidefinite (for the motor, 1/(A^2 s)
+        per unit of cost).
+    R : array_like, shape (m, m)
+        Continuous input weight, symmetric positive definite.
+    h : float
+        Sampling period, s.
+
+    Returns
+    -------
+    Qd : ndarray, shape (n, n)
+        Weight of ``x_k`` (``h Q + O(h^2)``), symmetric positive semidefinite.
+    Rd : ndarray, shape (m, m)
+        Weight of ``u_k`` (``h R + O(h^3)``), symmetric positive definite.
+    N : ndarray, shape (n, m)
+        Cross weight (``h^2 Q B / 2 + O(h^3)``).
+
+    Raises
+    ------
+    InputError
+        If a shape is wrong, a value is not finite, the weights are not as required,
+        ``h`` is not positive, or the exponential overflows (``A h`` far too large).
+    """
+    A_, B_ = check_plant(A, B)
+    n, m = B_.shape
+    Q_, R_ = check_weights(Q, R, n, m)
+    period = positive_finite(h, "h")
+    size = n + m
+    F = augmented(A_[np.newaxis], B_[np.newaxis], np.zeros((1, n, 0)), None)[0]
+    W = scipy.linalg.block_diag(Q_, R_)
+    scale = max(float(np.linalg.norm(W)), 1e-300)  # the integral is linear in W
+    block = np.block([[-F.T, W / scale], [np.zeros((size, size)), F]])
+    with np.errstate(over="ignore", invalid="ignore"):
+        exp = scipy.linalg.expm(block * period)
+    if not np.all(np.isfinite(exp)):
+        raise InputError(
+            f"h: the exponential of A h overflows (h = {period:g} s); the sampling period is"
+            " far too long for A"
+        )
+    integral = exp[size:, size:].T @ exp[:size, size:] * scale
+    integral = 0.5 * (integral + integral.T)
+    return integral[:n, :n].copy(), integral[n:, n:].copy(), integral[:n, n:].copy()
+
+
+def delay_augmented(Ad: ArrayLike, Bd: ArrayLike, d: int) -> tuple[Array, Array]:
+    """The plant seen by a digital controller with a computation delay of d samples.
+
+    The voltage computed at sample k acts over ``[t_(k+d), t_(k+d+1))``. With the state
+    ``z_k = [x_k; u_(k-d); ...; u_(k-1)]`` (the oldest delayed input first: the column
+    order of :class:`ControlLaw` and :func:`state_names`) and the input ``u_k`` (the
+    voltage computed at k)::
+
+        z_(k+1) = Az z_k + Bz u_k,   x_(k+1) = Ad x_k + Bd u_(k-d)
+
+    ``Az`` shifts the delayed inputs up by one block and ``Bz`` puts ``u_k`` last.
+
+    Parameters
+    ----------
+    Ad : array_like, shape (n, n)
+        Discrete state matrix (exact ZOH, :func:`discretize`).
+    Bd : array_like, shape (n, m)
+        Discrete input matrix (for the motor, A/V).
+    d : int
+        Delay in samples, ``d >= 0``; ``d = 0`` returns ``(Ad, Bd)``.
+
+    Returns
+    -------
+    Az : ndarray, shape (n + d m, n + d m)
+        State matrix of the augmented plant.
+    Bz : ndarray, shape (n + d m, m)
+        Input matrix of the augmented plant.
+
+    Raises
+    ------
+    InputError
+        If a shape is wrong, a value is not finite, or d is not a whole number >= 0.
+    """
+    Ad_, Bd_ = check_plant(Ad, Bd)
+    delay = positive_integer(d, "d", minimum=0)
+    if delay == 0:
+        return Ad_, Bd_
+    n, m = Bd_.shape
+    size = n + delay * m
+    Az = np.zeros((size, size))
+    Az[:n, :n] = Ad_
+    Az[:n, n : n + m] = Bd_
+    Az[n : size - m, n + m :] = np.eye((delay - 1) * m)
+    Bz = np.zeros((size, m))
+    Bz[size - m :] = np.eye(m)
+    return Az, Bz
+
+
+def integrator_augmented(
+    A: ArrayLike, B: ArrayLike, C: ArrayLike, h: float | None = None
+) -> tuple[Array, Array]:
+    """The plant augmented with ``z``, the integral of its regulated output ``C x``.
+
+    Continuous time (``h`` None), ``z' = C x``::
+
+        A_aug = [[A, 0], [C, 0]],   B_aug = [B; 0]
+
+    Digital (``h`` given), the forward-Euler integrator a drive runs (the integrator of
+    :class:`ControlLaw`), ``z_(k+1) = z_k + h C x_k``::
+
+        A_aug = [[A, 0], [h C, I]],   B_aug = [B; 0]
+
+    With ``x`` the deviation ``xbar = x - X w`` and ``C X + F = 0``, ``C xbar`` is the
+    regulated error ``e = C x + F w``. The augmented state is ``[x; z]``: K's last r
+    columns are the integral gain ``K_i``. For a digital plant with a computation delay,
+    pass the delay-augmented ``(Az, Bz)`` (:func:`delay_augmented`) and C padded with
+    zeros on the delayed inputs.
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+        State matrix: continuous (1/s) without ``h``, discrete (dimensionless) with it.
+    B : array_like, shape (n, m)
+        Input matrix of the same plant (for the motor, 1/H continuous, A/V discrete).
+    C : array_like, shape (r, n)
+        Regulated output, ``e = C x`` (dimensionless for the motor's currents).
+    h : float, optional
+        Sampling period of the digital integrator, s; None (default) for continuous time.
+
+    Returns
+    -------
+    A_aug : ndarray, shape (n + r, n + r)
+        State matrix of ``[x; z]``.
+    B_aug : ndarray, shape (n + r, m)
+        Input matrix of ``[x; z]``.
+
+    Raises
+    ------
+    InputError
+        If a shape is wrong, a value is not finite, or h is not positive.
+    """
+    A_, B_ = check_plant(A, B)
+    n, m = B_.shape
+    C_ = as_matrix(C, "C", (None, n))
+    r = C_.shape[0]
+    A_aug = np.zeros((n + r, n + r))
+    A_aug[:n, :n] = A_
+    if h is None:
+        A_aug[n:, :n] = C_
+    else:
+        A_aug[n:, :n] = positive_finite(h, "h") * C_
+        A_aug[n:, n:] = np.eye(r)
+    return A_aug, np.vstack([B_, np.zeros((r, m))])
+
+
+def _check_real_logarithm(Ad: Array, h: float) -> None:
+    """Raise unless every eigenvalue of Ad is off the closed negative real axis."""
+    for value in unique_eigenvalues(Ad):
+        on_axis = value.real <= 0.0 and abs(value.imag) <= 1e-8 * abs(value)
+        if abs(value) <= 1e-300 or on_axis:
+            raise UnsolvableError(
+                f"no real principal logarithm: Ad has the eigenvalue {format_eigenvalue(value)}"
+                " on the closed negative real axis; the sampling is too slow for the plant (a"
+                f" mode with |Im lambda(A)| h >= pi at h = {h:g} s) or Ad is not the"
+                " exponential of a real matrix"
+            )
+
+
+def continuous_from_discrete(
+    Ad: ArrayLike, Bd: ArrayLike, h: float, Ed: ArrayLike | None = None
+) -> tuple[Array, Array, Array]:
+    """The continuous plant whose exact zero-order-hold discretization is ``(Ad, Bd, Ed)``.
+
+    The principal matrix logarithm of ``[[Ad, Bd, Ed], [0, I, 0], [0, 0, I]]`` divided by
+    h is ``[[A, B, D], [0, 0, 0], [0, 0, 0]]`` (the inverse of :func:`discretize` with a
+    held ``w``). It is the true plant when every eigenvalue of A satisfies
+    ``|Im lambda| h < pi``; a faster mode is aliased (the logarithm is then real but
+    another plant, which no sampled data can tell apart).
+
+    Parameters
+    ----------
+    Ad : array_like, shape (n, n)
+        Discrete state matrix.
+    Bd : array_like, shape (n, m)
+        Discrete input matrix.
+    h : float
+        Sampling period, s.
+    Ed : array_like, shape (n, q), optional
+        Discrete effect of a held exogenous input (default none, q = 0).
+
+    Returns
+    -------
+    A : ndarray, shape (n, n)
+        Continuous state matrix, 1/s.
+    B : ndarray, shape (n, m)
+        Continuous input matrix (Bd's unit per second).
+    D : ndarray, shape (n, q)
+        Continuous exogenous input matrix (Ed's unit per second).
+
+    Raises
+    ------
+    UnsolvableError
+        If the principal logarithm is not real to rounding: Ad has an eigenvalue on the
+        closed negative real axis (sampling too slow, ``|Im lambda(A)| h >= pi``, or Ad
+        singular or not the exponential of a real matrix).
+    InputError
+        If a shape is wrong, a value is not finite or h is not positive.
+    """
+    Ad_, Bd_ = check_plant(Ad, Bd)
+    n, m = Bd_.shape
+    Ed_ = np.zeros((n, 0)) if Ed is None else as_matrix(Ed, "Ed", (n, None))
+    period = positive_finite(h, "h")
+    _check_real_logarithm(Ad_, period)
+    size = n + m + Ed_.shape[1]
+    M = np.eye(size)
+    M[:n] = np.hstack([Ad_, Bd_, Ed_])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        logarithm = np.asarray(scipy.linalg.logm(M)) / period
+    imaginary = float(np.max(np.abs(logarithm.imag), initial=0.0))
+    if imaginary > 1e-8 * max(float(np.max(np.abs(logarithm.real))), 1.0 / period):
+        raise UnsolvableError(
+            f"no real principal logarithm of the discrete plant (imaginary part {imaginary:.3g}"
+            f" 1/s at h = {period:g} s); the sampling is too slow for the plant"
+            " (|Im lambda(A)| h >= pi)"
+        )
+    L = np.real(logarithm)
+    return L[:n, :n].copy(), L[:n, n : n + m].copy(), L[:n, n + m :].copy()
