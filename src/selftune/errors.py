@@ -8,6 +8,7 @@ derive from :class:`ValueError`, as numpy and scipy users expect.
 from __future__ import annotations
 
 __all__ = [
+    "ConsistencyError",
     "ConvergenceError",
     "DataFileError",
     "ExcitationError",
@@ -54,3 +55,12 @@ class ExcitationError(SelftuneError):
 class ConvergenceError(SelftuneError):
     """Learning failed: policy iteration diverged, did not converge, or produced a value
     matrix P that is not positive definite."""
+
+
+class ConsistencyError(SelftuneError):
+    """The data contradict what was stated about them, or what any result would rest on.
+
+    For example a log whose voltages act a sample later than stated (a commanded voltage
+    logged as applied), or a fit whose residual the measurement noise cannot explain. The
+    message gives the statistic, the likely cause and the remedy.
+    """

@@ -14,6 +14,16 @@ data equation, :mod:`._moments`) -> :func:`regression` and :func:`solve_regressi
 
 from __future__ import annotations
 
+from ._alignment import (
+    CANDIDATE_SHIFTS,
+    Alignment,
+    LoggedInput,
+    aligned_transitions,
+    applied_inputs,
+    check_alignment,
+    sampling_period,
+    stated_shift,
+)
 from ._continuous import (
     LearnedSolution,
     LQRLearningResult,
@@ -21,8 +31,15 @@ from ._continuous import (
     learn_output_regulation,
     solutions_of_output_equation,
 )
+from ._dead_time import direction_signs, phase_signs
+from ._digital import DigitalTransitions, digital_transitions, learn_digital_adp
+from ._discrete_model import DiscreteModel, Transitions, fit_discrete_model
+from ._evidence import ConsistencyTest, Evidence, gather_evidence
+from ._identify import Design, design_continuous, design_digital
 from ._io import load_csv, load_npz, load_trajectory, save_csv, save_npz, save_trajectory
+from ._learner import LearnedController, aligned_trajectory, assess, learn_controller
 from ._moments import IntervalMoments, WKind, interval_moments
+from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error, simulated_trajectories
 from ._policy_iteration import (
     MAX_TOLERANCE,
     IterationRecord,
@@ -34,6 +51,8 @@ from ._policy_iteration import (
     policy_iteration,
     policy_step,
 )
+from ._problem import LearningOptions, LearningProblem, Method, Target
+from ._quality import Quality, closed_loop_radius
 from ._regression import (
     BLOCK_ADVICE,
     Regression,
@@ -42,36 +61,74 @@ from ._regression import (
     solve_regression,
 )
 from ._trajectory import Trajectory, as_trajectories
+from ._verdict import dead_time_voltage
 
 __all__ = [
     "BLOCK_ADVICE",
+    "CANDIDATE_SHIFTS",
     "MAX_TOLERANCE",
+    "Alignment",
+    "ConsistencyTest",
+    "Design",
+    "DigitalTransitions",
+    "DiscreteModel",
+    "Evidence",
     "IntervalMoments",
     "IterationRecord",
     "LQRLearningResult",
+    "LearnedController",
     "LearnedSolution",
+    "LearningOptions",
+    "LearningProblem",
+    "LoggedInput",
+    "Method",
+    "OutputErrorFit",
     "PolicyIterationFacts",
+    "Quality",
     "Regression",
     "RegressionSolution",
+    "SpmsmStructure",
+    "Target",
     "Trajectory",
+    "Transitions",
     "WKind",
+    "aligned_trajectory",
+    "aligned_transitions",
+    "applied_inputs",
     "as_trajectories",
+    "assess",
+    "check_alignment",
     "check_iteration_settings",
+    "closed_loop_radius",
+    "dead_time_voltage",
+    "design_continuous",
+    "design_digital",
+    "digital_transitions",
+    "direction_signs",
     "estimated_B",
     "feedforward",
+    "fit_discrete_model",
+    "fit_output_error",
+    "gather_evidence",
     "interval_moments",
+    "learn_controller",
+    "learn_digital_adp",
     "learn_lqr",
     "learn_output_regulation",
     "load_csv",
     "load_npz",
     "load_trajectory",
     "not_converged",
+    "phase_signs",
     "policy_iteration",
     "policy_step",
     "regression",
+    "sampling_period",
     "save_csv",
     "save_npz",
     "save_trajectory",
+    "simulated_trajectories",
     "solutions_of_output_equation",
     "solve_regression",
+    "stated_shift",
 ]

@@ -60,6 +60,8 @@ __all__ = [
     "LearnedSolution",
     "learn_lqr",
     "learn_output_regulation",
+    "lqr_from_moments",
+    "regulator_from_moments",
     "solutions_of_output_equation",
 ]
 
@@ -144,6 +146,29 @@ def learn_lqr(
         )
     stripped = [Trajectory(t=e.t, x=e.x, u=e.u) for e in episodes]
     moments = interval_moments(stripped, interval)
+    return lqr_from_moments(moments, (Q, R, K0), (max_iterations, tolerance))
+
+
+def lqr_from_moments(
+    moments: IntervalMoments, cost: tuple[Array, Array, Array], settings: tuple[int, float]
+) -> LQRLearningResult:
+    """:func:`learn_lqr` on precomputed (validated) moments, which may carry instruments.
+
+    Parameters
+    ----------
+    moments : IntervalMoments
+        The data (without an exogenous signal).
+    cost : (Q, R, K0)
+        Weights and the stabilizing initial policy.
+    settings : (int, float)
+        ``(max_iterations, tolerance)``.
+
+    Returns
+    -------
+    LQRLearningResult
+    """
+    Q, R, K0 = cost
+    max_iterations, tolerance = settings
     history, converged = policy_iteration(
         moments, K0, Q, R, max_iterations=max_iterations, tolerance=tolerance
     )
@@ -304,6 +329,42 @@ def learn_output_regulation(
     if method not in ("auto", "customized", "general"):
         raise InputError(f"method: must be 'auto', 'customized' or 'general', got {method!r}")
     moments = interval_moments(episodes, interval, w_kind="exosystem" if np.any(E) else "held")
+    return regulator_from_moments(
+        moments, (C, E, F), (Q, R, K0), method, (max_iterations, tolerance)
+    )
+
+
+def regulator_from_moments(
+    moments: IntervalMoments,
+    output: tuple[Array, Array, Array],
+    cost: tuple[Array, Array, Array],
+    method: Method,
+    settings: tuple[int, float],
+) -> LearnedSolution:
+    """:func:`learn_output_regulation` on precomputed (validated) moments, which may carry
+    instruments.
+
+    Parameters
+    ----------
+    moments : IntervalMoments
+        The data.
+    output : (C, E, F)
+        Regulated output and exosystem.
+    cost : (Q, R, K0)
+        Weights and the stabilizing initial policy.
+    method : {"auto", "customized", "general"}
+        As :func:`learn_output_regulation`.
+    settings : (int, float)
+        ``(max_iterations, tolerance)``.
+
+    Returns
+    -------
+    LearnedSolution
+    """
+    C, _, F = output
+    Q, R, K0 = cost
+    max_iterations, tolerance = settings
+    n = moments.n
     X_particular, null_basis = solutions_of_output_equation(C, F)
     if method == "auto":
         method = "general" if null_basis else "customized"

@@ -20,6 +20,12 @@ NPZ
     archive. Pickled (object) arrays are never loaded. Saved ``u`` has N rows and ``w``
     keeps its row count, so a round trip is exact.
 
+Both
+    Only regular files are read. Sizes are bounded before anything is allocated (256 MiB
+    of CSV or of NPZ arrays uncompressed, by the archive's directory and the arrays'
+    headers; 1,000,000 sample times; 12 channels n + m + q: ``LIMITS`` of
+    :mod:`selftune.core`); values are at most 1e50 in magnitude.
+
 Every problem with a file's content raises :class:`~selftune.errors.DataFileError` with
 a one-line message naming the file and the line and column (CSV) or the array (NPZ).
 Writes are atomic: a failed save leaves no partial file and keeps any existing file.
@@ -31,13 +37,24 @@ import math
 import os
 import re
 import zipfile
-from io import BytesIO, StringIO
+from collections.abc import Iterator
+from contextlib import contextmanager
+from io import StringIO
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..core import Array, atomic_path, first_non_increasing
+from ..core._atomic import (
+    open_regular_file,
+    open_zip,
+    read_npy_data,
+    read_npy_header,
+    read_regular_file,
+)
+from ..core._validation import DATA_VALUE_LIMIT, LIMITS, check_time_resolution
 from ..errors import DataFileError, InputError
 from ._trajectory import Trajectory
 
@@ -48,6 +65,7 @@ __all__ = [
     "save_csv",
     "save_npz",
     "save_trajectory",
+    "trajectory_dimensions",
 ]
 
 PathLike = str | os.PathLike[str]
@@ -63,6 +81,9 @@ _BAD_FIELD_CHARACTER = re.compile(r"[^0-9eE.+\- \t]")
 _FIELD_WHITESPACE = " \t"
 _ARRAY_NAMES = ("t", "x", "u", "w")
 _REQUIRED_ARRAYS = ("t", "x", "u")
+# An NPZ archive holds at most four arrays: a longer zip directory is refused unread.
+_ZIP_MAX_MEMBERS = 16
+_ZIP_MAX_DIRECTORY = 1 << 16
 
 
 # --------------------------------------------------------------------------- helpers
@@ -76,22 +97,25 @@ def _error(path: Path, message: str) -> DataFileError:
 
 def _quote(text: str, limit: int = 40) -> str:
     """``repr`` of a (possibly long) piece of file content, shortened for a message."""
-    if len(text) > limit:
-        return repr(text[:limit]) + "..."
-    return repr(text)
+    return repr(text[:limit]) + "..." if len(text) > limit else repr(text)
 
 
 def _build(path: Path, t: Array, x: Array, u: Array, w: Array | None) -> Trajectory:
     try:
         return Trajectory(t=t, x=x, u=u, w=w)
-    except InputError as exc:
+    except InputError as exc:  # the message names the field (and the time rule)
         raise _error(path, str(exc)) from None
+
+
+def _check_channels(path: Path, where: str, n: int, m: int, q: int) -> None:
+    if n + m + q > LIMITS["channels"]:
+        channels = f"{n + m + q} channels (n = {n}, m = {m}, q = {q})"
+        raise _error(path, f"{where}: {channels}; at most {LIMITS['channels']} are read")
 
 
 def _check_trajectory(trajectory: object, caller: str) -> None:
     if not isinstance(trajectory, Trajectory):
-        kind = type(trajectory).__name__
-        raise InputError(f"{caller}: expected a Trajectory, got {kind}")
+        raise InputError(f"{caller}: expected a Trajectory, got {type(trajectory).__name__}")
 
 
 def _format_for(path: Path) -> str:
@@ -104,8 +128,6 @@ def _format_for(path: Path) -> str:
 
 
 # --------------------------------------------------------------------------- dispatch
-
-
 def load_trajectory(path: PathLike) -> Trajectory:
     """Read a trajectory from a ``.csv`` or ``.npz`` file (chosen by the suffix).
 
@@ -136,6 +158,37 @@ def load_trajectory(path: PathLike) -> Trajectory:
     if _format_for(target) == ".csv":
         return load_csv(target)
     return load_npz(target)
+
+
+def trajectory_dimensions(path: PathLike) -> tuple[int, int, int]:
+    """``(n, m, q)`` of a ``.csv`` or ``.npz`` file from its header only: the CSV header
+    line, or the archive's directory and the arrays' ``.npy`` headers (no rows are read).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file; the suffix (case-insensitive) selects the format.
+
+    Returns
+    -------
+    tuple of int
+        ``(n, m, q)``: states, inputs, exogenous signals (0 without ``w``).
+
+    Raises
+    ------
+    DataFileError
+        As :func:`load_trajectory`, for what the header shows.
+    """
+    target = Path(path)
+    if _format_for(target) == ".csv":
+        return _csv_dimensions(target)
+    with _npz_archive(target) as (archive, members):
+        shapes = {name: _member_shape(target, archive, info) for name, info in members.items()}
+    n, m, q = (shapes[k][-1] if len(shapes.get(k, ())) == 2 else int(k in shapes) for k in "xuw")
+    if not n or not m:
+        raise _error(target, f"array {'x' if not n else 'u'!r}: has no channels")
+    _check_channels(target, "arrays x, u, w", n, m, q)
+    return n, m, q
 
 
 def save_trajectory(trajectory: Trajectory, path: PathLike) -> None:
@@ -169,12 +222,8 @@ def save_trajectory(trajectory: Trajectory, path: PathLike) -> None:
 
 
 def _csv_columns(trajectory: Trajectory) -> list[str]:
-    return (
-        ["t"]
-        + [f"x{i}" for i in range(1, trajectory.n + 1)]
-        + [f"u{i}" for i in range(1, trajectory.m + 1)]
-        + [f"w{i}" for i in range(1, trajectory.q + 1)]
-    )
+    sizes = (("x", trajectory.n), ("u", trajectory.m), ("w", trajectory.q))
+    return ["t"] + [f"{letter}{i}" for letter, size in sizes for i in range(1, size + 1)]
 
 
 def _csv_table(trajectory: Trajectory) -> Array:
@@ -261,7 +310,28 @@ def _parse_header(path: Path, line: str) -> tuple[list[str], int, int, int]:
             path,
             f"line 1: no input columns after 'x{counts['x']}'; the header must be t,x1..xn,u1..um",
         )
+    _check_channels(path, "line 1", counts["x"], counts["u"], counts["w"])
     return names, counts["x"], counts["u"], counts["w"]
+
+
+def _split_header(path: Path, raw: bytes) -> tuple[str, bytes]:
+    """The header line (decoded) and the rest; an empty file is an error."""
+    header_raw, _, body_raw = raw.removeprefix(_UTF8_BOM).partition(b"\n")
+    header = _decode(path, header_raw, 1).removesuffix("\r")
+    if not header.strip(_FIELD_WHITESPACE) and not body_raw.strip():
+        raise _error(path, "empty file (expected a header t,x1..xn,u1..um,w1..wq and rows)")
+    return header, body_raw
+
+
+def _csv_dimensions(path: Path) -> tuple[int, int, int]:
+    limit = LIMITS["header_bytes"]
+    with open_regular_file(path) as stream:
+        head = stream.read(limit + len(_UTF8_BOM) + 1)
+    if b"\n" not in head and len(head) > limit + len(_UTF8_BOM):
+        raise _error(path, f"line 1: the header is longer than {limit} bytes")
+    header, _ = _split_header(path, head)
+    _, n, m, q = _parse_header(path, header)
+    return n, m, q
 
 
 def _locate_csv_error(path: Path, lines: list[str], names: list[str]) -> None:
@@ -282,13 +352,6 @@ def _locate_csv_error(path: Path, lines: list[str], names: list[str]) -> None:
                 raise _error(path, f"{place}: not a finite number: {_quote(field)}")
             if value is None or _BAD_FIELD_CHARACTER.search(field):
                 raise _error(path, f"{place}: not a number: {_quote(field)}")
-
-
-def _read_bytes(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
-    except OSError as exc:
-        raise _error(path, f"cannot read ({exc.strerror or exc})") from None
 
 
 def _decode(path: Path, raw: bytes, first_line: int) -> str:
@@ -322,32 +385,10 @@ def load_csv(path: PathLike) -> Trajectory:
         one-line message names the file, the line and the column.
     """
     target = Path(path)
-    raw = _read_bytes(target).removeprefix(_UTF8_BOM)
-    header_raw, _, body_raw = raw.partition(b"\n")
-    header = _decode(target, header_raw, 1).removesuffix("\r")
-    if not header.strip(_FIELD_WHITESPACE) and not body_raw.strip():
-        raise _error(target, "empty file (expected a header t,x1..xn,u1..um,w1..wq and rows)")
+    raw = read_regular_file(target, LIMITS["csv_bytes"], "a CSV data file")
+    header, body_raw = _split_header(target, raw)
     names, n, m, q = _parse_header(target, header)
-    # Fast check that the data are plain ASCII numbers, commas and line ends; a file that
-    # fails it is decoded in full so that the scan below can say what is wrong where.
-    plain = not body_raw.translate(None, _CSV_DATA_BYTES) and (
-        b"\r" not in body_raw or body_raw.count(b"\r") == body_raw.count(b"\r\n")
-    )
-    body = body_raw.decode("ascii") if plain else _decode(target, body_raw, 2)
-    if "\r" in body:
-        body = body.replace("\r\n", "\n")
-    # Blank lines at the end are ignored (numpy skips empty lines; spaces must go).
-    end = len(body)
-    while end and body[end - 1] in " \t\n":
-        end -= 1
-    if body[end:].strip("\n"):
-        body = body[:end]
-    rows = body.count("\n", 0, end) + 1 if end else 0
-    if rows < 2:
-        raise _error(
-            target,
-            f"need at least 2 data rows (sample times) after the header, got {rows}",
-        )
+    body, end, rows, plain = _csv_body(target, body_raw)
     table: Array | None = None
     if plain:
         try:
@@ -360,14 +401,10 @@ def load_csv(path: PathLike) -> Trajectory:
         # Slow path, only for a malformed file: find the first bad line and field.
         _locate_csv_error(target, body[:end].split("\n"), names)
         raise _error(target, "malformed data rows")  # not reached: the scan raises
-    bad = ~np.isfinite(table)
-    if np.any(bad):
-        row, column = (int(index) for index in np.argwhere(bad)[0])
-        raise _error(
-            target,
-            f"line {row + 2}, column {column + 1} ({names[column]}): "
-            "number out of range (not finite)",
-        )
+    beyond = _first_beyond(table)
+    if beyond is not None:
+        (row, column), what = beyond
+        raise _error(target, f"line {row + 2}, column {column + 1} ({names[column]}): {what}")
     t = table[:, 0]
     k = first_non_increasing(t)
     if k is not None:
@@ -380,6 +417,43 @@ def load_csv(path: PathLike) -> Trajectory:
     u = table[:, 1 + n : 1 + n + m]
     w = table[:, 1 + n + m :] if q else None
     return _build(target, t, x, u, w)
+
+
+def _csv_body(path: Path, body_raw: bytes) -> tuple[str, int, int, bool]:
+    """The data lines as text (plain ASCII if they are), where they end, and how many."""
+    # Fast check that the data are plain ASCII numbers, commas and line ends; a file that
+    # fails it is decoded in full so that the scan can say what is wrong where.
+    plain = not body_raw.translate(None, _CSV_DATA_BYTES) and (
+        b"\r" not in body_raw or body_raw.count(b"\r") == body_raw.count(b"\r\n")
+    )
+    body = body_raw.decode("ascii") if plain else _decode(path, body_raw, 2)
+    if "\r" in body:
+        body = body.replace("\r\n", "\n")
+    # Blank lines at the end are ignored (numpy skips empty lines; spaces must go).
+    end = len(body)
+    while end and body[end - 1] in " \t\n":
+        end -= 1
+    if body[end:].strip("\n"):
+        body = body[:end]
+    rows = body.count("\n", 0, end) + 1 if end else 0
+    if rows < 2:
+        raise _error(path, f"need at least 2 data rows (sample times) after the header, got {rows}")
+    if rows > LIMITS["samples"]:
+        raise _error(path, f"{rows} data rows; at most {LIMITS['samples']} are read")
+    return body, end, rows, plain
+
+
+def _first_beyond(values: Array) -> tuple[list[int], str] | None:
+    """Where the first value not finite or beyond DATA_VALUE_LIMIT is, and what is wrong."""
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(values) <= DATA_VALUE_LIMIT)
+    if not np.any(bad):
+        return None
+    where = [int(index) for index in np.argwhere(bad)[0]]
+    value = float(values[tuple(where)])
+    if not math.isfinite(value):
+        return where, "number out of range (not finite)"
+    return where, f"{value!r} is beyond {DATA_VALUE_LIMIT:g} in magnitude (not plausible)"
 
 
 # --------------------------------------------------------------------------- NPZ
@@ -414,76 +488,86 @@ def save_npz(trajectory: Trajectory, path: PathLike) -> None:
             np.savez(temporary, t=t, x=x, u=u, w=w)
 
 
-def _read_npz_arrays(path: Path) -> dict[str, NDArray[np.generic]]:
-    """The arrays of an NPZ archive, each verified against its CRC and exact length."""
-    # A corrupt archive can make zipfile, zlib or numpy raise nearly any exception type
-    # (BadZipFile, EOFError, struct.error, NotImplementedError, ...); each read below is
-    # therefore guarded broadly and reported as a DataFileError naming what was read.
+def _member_names(path: Path, archive: zipfile.ZipFile) -> dict[str, zipfile.ZipInfo]:
+    """The archive's arrays by name; unknown, duplicate, missing or too large ones refused."""
+    members: dict[str, zipfile.ZipInfo] = {}
+    for info in archive.infolist():
+        name = info.filename.removesuffix(".npy")
+        if name == info.filename:
+            raise _error(path, f"unexpected member {_quote(info.filename)}: not a .npy array")
+        if name in members:
+            raise _error(path, f"array {_quote(name)} appears twice")
+        members[name] = info
+    extra = [name for name in members if name not in _ARRAY_NAMES]
+    missing = [name for name in _REQUIRED_ARRAYS if name not in members]
+    for names, what in ((extra, "unexpected"), (missing, "missing")):
+        if names:
+            listed = ", ".join(_quote(name) if extra else repr(name) for name in names)
+            raise _error(
+                path,
+                f"{what} array{'s' if len(names) > 1 else ''} {listed} "
+                "(expected t, x, u and optionally w)",
+            )
+    total, limit = sum(info.file_size for info in members.values()), LIMITS["npz_bytes"]
+    if total > limit:
+        message = f"the arrays are {total} bytes uncompressed (by the archive's directory)"
+        raise _error(path, f"{message}; at most {limit} ({limit / 2**20:g} MiB) are read")
+    return members
+
+
+@contextmanager
+def _npz_archive(path: Path) -> Iterator[tuple[zipfile.ZipFile, dict[str, zipfile.ZipInfo]]]:
+    """The open archive and its checked members; nothing is decompressed yet."""
+    with open_zip(path, _ZIP_MAX_MEMBERS, _ZIP_MAX_DIRECTORY, "an NPZ archive") as archive:
+        yield archive, _member_names(path, archive)
+
+
+@contextmanager
+def _reading(path: Path, name: str) -> Iterator[None]:
+    """Any failure of the block (a corrupt archive can make zipfile, zlib or numpy raise
+    nearly any exception type) as one DataFileError naming the array."""
     try:
-        archive = zipfile.ZipFile(path)
-    except OSError as exc:
-        raise _error(path, f"cannot read ({exc.strerror or exc})") from None
+        yield
+    except InputError as exc:
+        raise _error(path, f"array {name!r}: {exc}") from None
     except Exception as exc:
-        raise _error(path, f"not an NPZ archive ({type(exc).__name__}: {exc})") from None
-    with archive:
-        try:
-            members = archive.namelist()
-        except Exception as exc:  # pragma: no cover - namelist only reads parsed data
-            raise _error(path, f"not an NPZ archive ({exc})") from None
-        names: list[str] = []
-        for member in members:
-            name = member.removesuffix(".npy")
-            if name == member:
-                raise _error(path, f"unexpected member {_quote(member)}: not a .npy array")
-            if name in names:
-                raise _error(path, f"array {_quote(name)} appears twice")
-            names.append(name)
-        extra = [name for name in names if name not in _ARRAY_NAMES]
-        if extra:
-            listed = ", ".join(_quote(name) for name in extra)
-            raise _error(
-                path,
-                f"unexpected array{'s' if len(extra) > 1 else ''} {listed} "
-                "(expected t, x, u and optionally w)",
-            )
-        missing = [name for name in _REQUIRED_ARRAYS if name not in names]
-        if missing:
-            listed = ", ".join(repr(name) for name in missing)
-            raise _error(
-                path,
-                f"missing array{'s' if len(missing) > 1 else ''} {listed} "
-                "(expected t, x, u and optionally w)",
-            )
-        arrays: dict[str, NDArray[np.generic]] = {}
-        for name in names:
-            try:
-                data = archive.read(name + ".npy")
-                stream = BytesIO(data)
-                array = np.lib.format.read_array(stream, allow_pickle=False)
-            except Exception as exc:
-                raise _error(
-                    path, f"array {name!r}: cannot read ({type(exc).__name__}: {exc})"
-                ) from None
-            left = len(data) - stream.tell()
-            if left:
-                raise _error(path, f"array {name!r}: {left} bytes after the data")
-            arrays[name] = array
-    return arrays
+        raise _error(path, f"array {name!r}: cannot read ({type(exc).__name__}: {exc})") from None
+
+
+def _member(path: Path, archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> NDArray[np.generic]:
+    """One array, its size checked from its header before its data are decompressed."""
+    with _reading(path, info.filename[:-4]), archive.open(info) as stream:
+        return read_npy_data(stream, read_npy_header(stream, LIMITS["samples"]))
+
+
+def _member_shape(path: Path, archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> tuple[int, ...]:
+    with _reading(path, info.filename[:-4]), archive.open(info) as stream:
+        shape, _, dtype = read_npy_header(stream, LIMITS["samples"])
+    _check_kind(path, info.filename[:-4], dtype, shape)
+    return shape
+
+
+def _check_kind(path: Path, name: str, dtype: np.dtype[Any], shape: tuple[int, ...]) -> None:
+    """Real numbers (integer or floating point), of the expected dimension."""
+    if dtype.kind not in "iuf":
+        message = f"expected integer or floating-point numbers, got dtype {dtype.str!r}"
+        raise _error(path, f"array {name!r}: {message}")
+    if len(shape) not in ((1,) if name == "t" else (1, 2)):
+        expected = "1-D (one time per sample)" if name == "t" else "2-D (samples x channels)"
+        raise _error(path, f"array {name!r}: expected {expected}, got shape {shape}")
 
 
 def _as_float(path: Path, name: str, array: NDArray[np.generic]) -> Array:
     """A float copy of a real numeric array of the expected dimension."""
-    if array.dtype.kind not in "iuf":
-        raise _error(
-            path,
-            f"array {name!r}: expected integer or floating-point numbers, "
-            f"got dtype {array.dtype.str!r}",
-        )
-    allowed = (1,) if name == "t" else (1, 2)
-    if array.ndim not in allowed:
-        expected = "1-D (one time per sample)" if name == "t" else "2-D (samples x channels)"
-        raise _error(path, f"array {name!r}: expected {expected}, got shape {array.shape}")
-    return np.asarray(array, dtype=np.float64)
+    _check_kind(path, name, array.dtype, array.shape)
+    values = np.asarray(array, dtype=np.float64)
+    beyond = _first_beyond(np.where(np.isfinite(values), values, 0.0))  # NaN: Trajectory
+    if beyond is not None:
+        raise _error(path, f"array {name!r}: at {tuple(beyond[0])}: {beyond[1]}")
+    if name == "t" and array.dtype.kind == "f":
+        with _reading(path, name):
+            check_time_resolution(array, "the time column")  # in the stored precision
+    return values
 
 
 def load_npz(path: PathLike) -> Trajectory:
@@ -509,6 +593,7 @@ def load_npz(path: PathLike) -> Trajectory:
         names the file and the array.
     """
     target = Path(path)
-    arrays = _read_npz_arrays(target)
+    with _npz_archive(target) as (archive, members):
+        arrays = {name: _member(target, archive, info) for name, info in members.items()}
     floats = {name: _as_float(target, name, array) for name, array in arrays.items()}
     return _build(target, floats["t"], floats["x"], floats["u"], floats.get("w"))

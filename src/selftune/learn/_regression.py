@@ -11,7 +11,7 @@ change in the experiment, never a silently wrong Theta.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg
@@ -52,11 +52,16 @@ class Regression:
         Right-hand side.
     block_sizes : mapping of str to int
         The blocks in column order and the number of columns of each.
+    instruments : ndarray, shape (rows, unknowns), optional
+        The same rows built from noise-free simulated states: with them
+        :func:`solve_regression` is the instrumental-variable (two-stage least-squares)
+        estimate, consistent under white measurement noise in ``Psi`` and ``b``.
     """
 
     Psi: Array
     b: Array
     block_sizes: Mapping[str, int] = field(default_factory=dict)
+    instruments: Array | None = None
 
     @property
     def blocks(self) -> dict[str, slice]:
@@ -102,6 +107,13 @@ def regression(
     Regression
         Blocks ``"P"``, ``"K"`` and (q > 0) ``"M"``.
     """
+    rows = _rows(moments, K, Q, R, X)
+    if moments.instruments is None:
+        return rows
+    return replace(rows, instruments=_rows(moments.instruments, K, Q, R, X).Psi)
+
+
+def _rows(moments: IntervalMoments, K: Array, Q: Array, R: Array, X: Array | None) -> Regression:
     n, m, q = moments.n, moments.m, moments.q
     X = np.zeros((n, q)) if X is None else X
     T = np.hstack([np.eye(n), -X])  # xbar = T z
@@ -208,6 +220,53 @@ def _block_ranks(triangular: Array, blocks: dict[str, slice]) -> dict[str, int]:
     return ranks
 
 
+_ABSURD = "the data hold non-finite or absurdly large values, or the policy is unstable"
+
+
+def _factor(
+    Psi: Array, b: Array, blocks: dict[str, slice]
+) -> tuple[Array, Array, Array, dict[str, int]]:
+    """Column scales, the triangular factor and projected right-hand side, and block ranks.
+
+    Rows that are not finite (the data overflowed the data equation), or a factorization
+    that fails, are an :class:`InputError`: absurd data, never a result.
+    """
+    if not (np.all(np.isfinite(Psi)) and np.all(np.isfinite(b))):
+        raise InputError(f"the data equation overflowed (not finite): {_ABSURD}")
+    rows, unknowns = Psi.shape
+    try:
+        with np.errstate(over="raise", invalid="raise"):
+            scale = np.linalg.norm(Psi, axis=0)
+        scale[scale == 0.0] = 1.0
+        # One triangular factor makes everything small. With [Psi / scale, b] = Q [R, c],
+        # the first k columns have the singular values of R[:k, :k] (each block's rank
+        # from one factorization), and the least-squares solution is that of
+        # R theta = c. Q is never formed (LAPACK's R-only QR of the tall matrix is the
+        # one pass over the rows).
+        stacked = np.column_stack([Psi / scale, b])
+        factor = scipy.linalg.qr(stacked, mode="r", check_finite=False)[0]
+        size = min(rows, unknowns)
+        triangular, projected = factor[:size, :unknowns], factor[:size, unknowns]
+        return scale, triangular, projected, _block_ranks(triangular, blocks)
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+        raise InputError(f"the regression could not be solved ({exc}): {_ABSURD}") from None
+
+
+def _projected(
+    problem: Regression, Psi: Array, b: Array, free_columns: Array
+) -> tuple[Array, Array]:
+    """Without instruments, the rows as they are; with instruments Z, the rows projected on
+    Z's column space, ``Q_Z' Psi`` and ``Q_Z' b`` (``Z = Q_Z R_Z``): their least-squares
+    solution is the two-stage least-squares (instrumental-variable) estimate."""
+    if problem.instruments is None:
+        return Psi, b
+    Z = problem.instruments[:, free_columns]
+    scale = np.linalg.norm(Z, axis=0)
+    scale[scale == 0.0] = 1.0
+    Q_Z = scipy.linalg.qr(Z / scale, mode="economic", check_finite=False)[0]
+    return Q_Z.T @ Psi, Q_Z.T @ b
+
+
 def solve_regression(
     problem: Regression,
     *,
@@ -236,6 +295,8 @@ def solve_regression(
     Returns
     -------
     RegressionSolution
+        With instruments (:attr:`Regression.instruments`), the instrumental-variable
+        estimate; its residual is that of the measured rows.
 
     Raises
     ------
@@ -243,26 +304,25 @@ def solve_regression(
         If there are fewer rows than unknowns, or a block not in ``allow_deficient`` lacks
         rank: the message gives the rank found, the rank needed, the block, and what to
         change in the experiment.
+    InputError
+        If the rows are not finite (the data overflowed the data equation) or the
+        factorization fails (an SVD that does not converge): non-finite or absurdly large
+        data, never a result.
     """
-    Psi, b, free_columns, blocks = _without_known(problem, dict(known or {}))
-    rows, unknowns = Psi.shape
+    Psi_full, b_full, free_columns, blocks = _without_known(problem, dict(known or {}))
+    Psi, b = _projected(problem, Psi_full, b_full, free_columns)
+    rows, unknowns = Psi_full.shape
     if rows < unknowns and not allow_deficient:
         raise ExcitationError(
             f"only {rows} regression intervals for {unknowns} unknowns: use longer data or a "
             f"shorter interval (at least {unknowns} intervals are needed)"
         )
-    scale = np.linalg.norm(Psi, axis=0)
-    scale[scale == 0.0] = 1.0
-    # One triangular factor makes everything small. With [Psi / scale, b] = Q [R, c], the
-    # first k columns have the singular values of R[:k, :k] (each block's rank from one
-    # factorization), and the least-squares solution is that of R theta = c. Q is never
-    # formed (LAPACK's R-only QR of the tall matrix is the one pass over the rows).
-    factor = scipy.linalg.qr(np.column_stack([Psi / scale, b]), mode="r", check_finite=False)[0]
-    size = min(rows, unknowns)
-    triangular, projected = factor[:size, :unknowns], factor[:size, unknowns]
-    block_ranks = _block_ranks(triangular, blocks)
+    scale, triangular, projected, block_ranks = _factor(Psi, b, blocks)
+    try:
+        left, singular_values, right = np.linalg.svd(triangular, full_matrices=False)
+    except np.linalg.LinAlgError as exc:
+        raise InputError(f"the regression could not be solved ({exc}): {_ABSURD}") from None
     block_sizes = {name: columns.stop - columns.start for name, columns in blocks.items()}
-    left, singular_values, right = np.linalg.svd(triangular, full_matrices=False)
     rank = _rank(singular_values)
     for name in blocks:
         if block_ranks[name] < block_sizes[name] and name not in allow_deficient:
@@ -273,8 +333,10 @@ def solve_regression(
             )
     kept = singular_values[:rank]
     solved = right[:rank].T @ ((left[:, :rank].T @ projected) / kept) / scale
-    norm_b = float(np.linalg.norm(b))
-    residual = float(np.linalg.norm(Psi @ solved - b)) / norm_b if norm_b > 0 else 0.0
+    if not np.all(np.isfinite(solved)):
+        raise InputError(f"the regression's solution is not finite: {_ABSURD}")
+    norm_b = float(np.linalg.norm(b_full))
+    residual = float(np.linalg.norm(Psi_full @ solved - b_full)) / norm_b if norm_b > 0 else 0.0
     theta = np.empty(problem.Psi.shape[1])
     theta[free_columns] = solved
     for name, values in (known or {}).items():

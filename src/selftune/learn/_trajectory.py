@@ -3,7 +3,8 @@
 A :class:`Trajectory` holds N samples (N + 1 sample times) of a plant
 ``x' = A x + B u + D w``:
 
-- ``t`` (N + 1,): strictly increasing sample times, s;
+- ``t`` (N + 1,): strictly increasing sample times, s, relative to the first sample
+  (``t[0] = 0``: the learners use only differences, and a clock's offset is dropped);
 - ``x`` (N + 1, n): the state at each sample time;
 - ``u`` (N, m): the input, ``u[k]`` held over ``[t[k], t[k+1])`` (zero-order hold);
 - ``w`` (N + 1, q) or (N, q), optional: the exogenous signal.
@@ -27,6 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..core import Array, first_non_increasing, positive_integer
+from ..core._validation import check_time_resolution
 from ..errors import InputError
 
 __all__ = ["Trajectory", "as_trajectories"]
@@ -60,7 +62,10 @@ class Trajectory:
     Parameters
     ----------
     t : array_like, shape (N + 1,)
-        Sample times, s, strictly increasing.
+        Sample times, s, strictly increasing; stored relative to the first
+        (``t - t[0]``). The numbers they are given in must resolve the sampling steps
+        (:func:`~selftune.core._validation.check_time_resolution`): a clock's offset of
+        1e9 s leaves float64 times only 1.2e-7 s apart.
     x : array_like, shape (N + 1, n)
         State at each sample time.
     u : array_like, shape (N, m) or (N + 1, m)
@@ -71,8 +76,9 @@ class Trajectory:
     Raises
     ------
     InputError
-        If times are not strictly increasing, shapes do not match, there is no sample,
-        or a value is not finite; the message names the field and the sample.
+        If times are not strictly increasing or too coarse for their steps, shapes do not
+        match, there is no sample, or a value is not finite; the message names the field
+        and the sample.
     """
 
     t: Array
@@ -107,6 +113,9 @@ class Trajectory:
                 f"Trajectory.t: times must be strictly increasing, but t[{k + 1}] = "
                 f"{t[k + 1]!r} <= t[{k}] = {t[k]!r}"
             )
+        given = self.t if isinstance(self.t, np.ndarray) else t  # in its own precision
+        check_time_resolution(given, "Trajectory.t")
+        t = t - t[0]
         count = t.shape[0]
         x = _as_2d(self.x, "x")
         if x.shape[0] != count:

@@ -1,0 +1,167 @@
+"""An inverter's dead time as the data see it: a voltage error the log does not show.
+
+Each leg of a two-level inverter switches ``t_d`` late on one edge, which moves its mean
+phase voltage by ``-v sign(i_x)``, ``v = t_d f_sw V_dc`` (V, per phase; x = a, b, c). In
+the stationary frame the error is ``-v (2/3) sum_x sign(i_x) exp(j 2 pi x / 3)``: a vector
+of length ``4 v / 3`` at the centre of the 60-degree sector the current points into. In
+the rotor (dq) frame it turns with the rotor and jumps by 60 degrees six times per
+electrical revolution; its average along the current is ``4 v / pi``. It enters the
+exact discrete model as one more held input, ``x_(k+1) = ... - v Bd s_k``, with ``s_k`` the
+dq vector of the phase signs: two extra exogenous channels whose gain ``-v Bd`` the
+model fits (:mod:`._evidence`), so that the dead time is neither refused as an
+unexplained error nor mistaken for back-EMF or feedforward.
+
+``s_k`` needs the rotor angle at each sample (``theta_e``, electrical):
+
+- the log's own angle column (:attr:`Trajectory.angle`) when it has one: ``s_k`` exact;
+- else, at a known constant electrical speed ``w_e``, ``theta_k = w_e (t_k - t_0) +
+  theta_0`` with the offset ``theta_0`` of each log estimated by least squares (the
+  one-step residual of the exact discrete model over a grid of offsets; ``s`` repeats
+  every 60 degrees of offset, so the grid covers 60 degrees);
+- else the current's direction, ``(4 / pi) x / |x|``: the error's average along the
+  current, without the six-step ripple. That ripple then stays in the residual: on the
+  library's realistic drive (2 V dead time, 10 kHz) it left the flux 0.3-0.9% off where
+  the phase signs gave 0.01-0.2%.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Literal
+
+import numpy as np
+
+from ..core import Array
+from ._alignment import aligned_transitions
+from ._discrete_model import fit_discrete_model
+from ._trajectory import Trajectory
+
+__all__ = [
+    "OFFSET_GRID",
+    "DeadTimeModel",
+    "angle_offset",
+    "direction_signs",
+    "phase_signs",
+    "with_dead_time",
+]
+
+#: Offsets tried per log when the angle comes from the speed: 1 degree apart over 60,
+#: then refined 0.05 degree apart around the best.
+OFFSET_GRID = np.deg2rad(np.arange(0.0, 60.0, 1.0))
+
+#: The directions of phases a, b, c in the stationary frame.
+_PHASES = np.exp(2j * np.pi * np.arange(3) / 3)
+
+#: How the phase signs were computed: from the log's angle, from the electrical speed
+#: with a fitted offset, or the current's direction (see the module docstring).
+DeadTimeModel = Literal["phase signs", "speed", "current direction"]
+
+
+def phase_signs(x: Array, angle: Array) -> Array:
+    """The dq vector ``(2/3) sum_x sign(i_x) exp(j 2 pi x / 3)`` of the phase currents' signs.
+
+    Parameters
+    ----------
+    x : ndarray, shape (T, 2)
+        ``[i_d, i_q]``, A.
+    angle : ndarray, shape (T,)
+        Electrical rotor angle ``theta_e`` at each sample, rad.
+
+    Returns
+    -------
+    ndarray, shape (T, 2)
+        Length 4/3 (or 0 where every phase current is 0), dimensionless.
+    """
+    rotor = np.exp(1j * angle)
+    stationary = (x[:, 0] + 1j * x[:, 1]) * rotor
+    phases = np.real(stationary[:, np.newaxis] * np.conj(_PHASES))
+    vector = (2.0 / 3.0) * (np.sign(phases) @ _PHASES) * np.conj(rotor)
+    return np.column_stack([vector.real, vector.imag])
+
+
+def direction_signs(x: Array, floor: float) -> Array:
+    """``(4 / pi) x / max(|x|, floor)``: the phase signs' average along the current.
+
+    Parameters
+    ----------
+    x : ndarray, shape (T, 2)
+        ``[i_d, i_q]``, A.
+    floor : float
+        Below this current, A, the vector fades to zero (noise decides the signs there).
+    """
+    size = np.linalg.norm(x, axis=1, keepdims=True)
+    return np.asarray((4.0 / np.pi) * x / np.maximum(size, floor))
+
+
+def _appended(episode: Trajectory, signs: Array) -> Trajectory:
+    w = signs if episode.w is None else np.hstack([episode.w, signs[: episode.w.shape[0]]])
+    return Trajectory(t=episode.t, x=episode.x, u=episode.u, w=w)
+
+
+def _residual(episode: Trajectory, signs: Array, shift: int) -> float:
+    model = fit_discrete_model(aligned_transitions(_appended(episode, signs), shift))
+    return float(np.sum(model.residual_rms**2))
+
+
+def angle_offset(episode: Trajectory, electrical_speed: float, shift: int) -> float:
+    """The offset ``theta_0`` of ``theta_k = w_e (t_k - t_0) + theta_0`` that explains the
+    log best (least one-step residual with the phase signs as inputs), rad in [0, pi/3).
+
+    Parameters
+    ----------
+    episode : Trajectory
+        The log (n = 2: ``[i_d, i_q]``).
+    electrical_speed : float
+        ``w_e``, rad/s (constant over the log).
+    shift : int
+        The alignment of the logged inputs.
+    """
+    elapsed = electrical_speed * (episode.t - episode.t[0])
+
+    def cost(offset: float) -> float:
+        return _residual(episode, phase_signs(episode.x, elapsed + offset), shift)
+
+    coarse = [cost(float(offset)) for offset in OFFSET_GRID]
+    best = float(OFFSET_GRID[int(np.argmin(coarse))])
+    fine = best + np.deg2rad(np.arange(-1.0, 1.0 + 1e-9, 0.05))
+    return float(fine[int(np.argmin([cost(float(offset)) for offset in fine]))] % (np.pi / 3))
+
+
+def with_dead_time(
+    episodes: Sequence[Trajectory], electrical_speed: float | None, shift: int
+) -> tuple[list[Trajectory], DeadTimeModel]:
+    """The logs with the dq vector of the phase signs appended to ``w`` (two channels).
+
+    Parameters
+    ----------
+    episodes : sequence of Trajectory
+        The logs (n = 2).
+    electrical_speed : float or None
+        ``w_e``, rad/s, to compute the angle of a log without an angle column.
+    shift : int
+        The alignment of the logged inputs (for the offset's fit).
+
+    Returns
+    -------
+    episodes : list of Trajectory
+        With the two channels appended.
+    model : str
+        How the signs were computed: ``"phase signs"``, ``"speed"`` or ``"current
+        direction"`` (see the module docstring).
+    """
+    angles: list[Array] = [
+        angle for angle in (getattr(e, "angle", None) for e in episodes) if angle is not None
+    ]
+    if len(angles) == len(episodes):
+        signs = [phase_signs(e.x, a) for e, a in zip(episodes, angles, strict=True)]
+        return [_appended(e, s) for e, s in zip(episodes, signs, strict=True)], "phase signs"
+    if electrical_speed is not None:
+        result = []
+        for episode in episodes:
+            offset = angle_offset(episode, electrical_speed, shift)
+            angle = electrical_speed * (episode.t - episode.t[0]) + offset
+            result.append(_appended(episode, phase_signs(episode.x, angle)))
+        return result, "speed"
+    scale = float(np.sqrt(np.mean(np.concatenate([e.x for e in episodes]) ** 2)))
+    floor = 0.02 * max(scale, 1e-300)
+    return [_appended(e, direction_signs(e.x, floor)) for e in episodes], "current direction"

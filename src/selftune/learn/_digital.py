@@ -1,0 +1,400 @@
+"""The discrete-time ADP learner: the optimal digital controller, exact from samples.
+
+The drive's loop as the controller sees it at sample k (delay d, optional integrator)::
+
+    zeta_k = [xbar_k; u_(k-d); ...; u_(k-1); z_k],    xbar_k = x_k - X w_k
+    zeta_(k+1)^- = Az zeta_k + Bz u_k + Gz w_k,        z_(k+1) = z_k + h C xbar_k
+
+with ``u_k`` the voltage computed at sample k, ``X`` the unique solution of
+``C X + F = 0`` and ``zeta_(k+1)^-`` built with ``w_k`` (the reference may step at the
+sample instant; what it does after is the next transition's). Az, Bz, Gz are unknown. For
+any policy ``u = -K_j zeta`` the value matrix ``P_j`` satisfies the discrete Lyapunov
+equation, and along ANY applied inputs (off-policy; Bradtke, Ydstie & Barto 1994, Lewis &
+Vrabie 2009, the discrete-time counterpart of Jiang & Jiang 2012), with
+``e_k = u_k + K_j zeta_k``::
+
+    gamma zeta^-' P zeta^- - zeta' P zeta = -zeta' (Qz + K_j' Rz K_j) zeta
+        + 2 e' S_K zeta + e' S_uu e - 2 (K_j zeta)' S_uu e
+        + 2 w' S_wz zeta + 2 u' S_wu w + w' S_ww w
+
+which is linear in the unknowns ``P``, ``S_K = gamma Bz'P Az``, ``S_uu = gamma Bz'P Bz``,
+``S_wz = gamma Gz'P Az``, ``S_wu = gamma Bz'P Gz`` and ``S_ww = gamma Gz'P Gz``: one row per
+sample, no quadrature, so it is exact on noise-free data at any sampling period. Policy
+improvement is ``K_(j+1) = (Rz + S_uu)^-1 S_K``. The digital cost is
+``sum_k h (xbar_k' Q xbar_k + u_k' R u_k + z_k' Q_i z_k)``: ``Qz = h diag(Q, 0, Q_i)``,
+``Rz = h R``.
+
+The feedforward follows from the regulator identity ``Gz = [-Bd U; 0]`` (``E = 0``): with
+``G = -Bd U`` the exogenous blocks give ``Bd' P_xx G = -(Bd' P_xx Bd) U`` for the positive
+definite ``P_xx``; ``Bd' P_xx Bd`` and ``G' P_xx Bd`` are read off ``S_uu, S_wu`` (d = 0)
+or off ``Az' P Az`` (from the Lyapunov identity) and ``S_wz`` (d >= 1, the oldest delayed
+input enters the plant through Bd).
+
+With integral action the initial policy ``[K0, 0, 0]`` leaves the integrator at the
+stability limit, so policy iteration starts on the discounted cost (``gamma < 1``, for
+which it is stabilizing) and raises ``gamma`` to 1 (Lamperski 2020).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core import RANK_TOLERANCE, Array, ControlLaw, unvec, unvecs, vecs_hat, vecs_hat_from_outer
+from ..errors import ConvergenceError, ExcitationError, InputError
+from ._alignment import applied_inputs
+from ._policy_iteration import IterationRecord, not_converged
+from ._regression import Regression, RegressionSolution, solve_regression
+from ._trajectory import Trajectory
+
+__all__ = ["DigitalTransitions", "digital_transitions", "learn_digital_adp"]
+
+#: The discounts of the schedule used when the initial policy does not stabilize the
+#: integrator: each is run to convergence before the next.
+DISCOUNTS = (0.9, 0.99, 0.999, 0.9999, 0.99999, 1.0)
+
+
+@dataclass(frozen=True)
+class DigitalTransitions:
+    """The transitions of the controller's state, built from logs.
+
+    Attributes
+    ----------
+    zeta : ndarray, shape (T, nz)
+        ``[xbar_k; u_(k-d); ...; u_(k-1); z_k]`` at each transition's start.
+    zeta_next : ndarray, shape (T, nz)
+        The same at its end, built with ``w_k`` (``zeta_(k+1)^-``).
+    command : ndarray, shape (T, m)
+        ``u_k``, the voltage computed at sample k.
+    w : ndarray, shape (T, q)
+        The reference held over the sample.
+    n, m, q, delay, r : int
+        Dimensions: state, input, reference, the delay d and the integrator's r.
+    h : float
+        Sampling period, s.
+    starts : ndarray of int
+        The first transition of each regression row: consecutive transitions of one log
+        are summed into one row (an interval), which keeps the identity exact and lets
+        the state's change over the interval, not over one sample, stand against the
+        measurement noise.
+    instruments : DigitalTransitions or None
+        The same transitions of noise-free states simulated from the same inputs (an
+        output-error model's): the rows built from them are the instruments of an
+        instrumental-variable solve, consistent under white measurement noise.
+    """
+
+    zeta: Array
+    zeta_next: Array
+    command: Array
+    w: Array
+    n: int
+    m: int
+    q: int
+    delay: int
+    r: int
+    h: float
+    starts: NDArray[np.intp]
+    instruments: DigitalTransitions | None = None
+
+    @property
+    def nz(self) -> int:
+        """Dimension of zeta, ``n + d m + r``."""
+        return self.n + self.delay * self.m + self.r
+
+
+def _episode_rows(
+    episode: Trajectory, shift: int, delay: int, X: Array, integrator: Array | None
+) -> tuple[Array, Array, Array, Array] | None:
+    """The rows ``(zeta, zeta_next, command, w)`` of one log (None if too short)."""
+    a, first = applied_inputs(episode, shift)
+    count = a.shape[0] - delay  # transitions k = first .. first + count - 1
+    count = min(count, episode.num_samples - first)
+    if count < 1:
+        return None
+    q = X.shape[1]
+    w_all = np.zeros((episode.num_samples, 0)) if episode.w is None else episode.w
+    k = first + np.arange(count)
+    w = w_all[k] if q else np.zeros((count, 0))
+    xbar = episode.x[k] - w @ X.T
+    xbar_next = episode.x[k + 1] - w @ X.T
+    registers = [a[j : j + count] for j in range(delay)]
+    registers_next = [a[j + 1 : j + 1 + count] for j in range(delay)]
+    command = a[delay : delay + count]
+    parts, parts_next = [xbar, *registers], [xbar_next, *registers_next]
+    if integrator is not None:
+        steps = episode.t[1:] - episode.t[:-1]
+        error = xbar @ integrator.T * steps[k][:, None]  # h C xbar_k (C X + F = 0)
+        z = np.cumsum(np.vstack([np.zeros((1, error.shape[1])), error]), axis=0)
+        parts.append(z[:-1])
+        parts_next.append(z[1:])
+    return np.hstack(parts), np.hstack(parts_next), command, w
+
+
+def digital_transitions(
+    episodes: Sequence[Trajectory],
+    X: Array,
+    *,
+    shift: int,
+    delay: int,
+    h: float,
+    C: Array | None = None,
+    interval: int = 1,
+) -> DigitalTransitions:
+    """The controller-state transitions of logs aligned with ``shift``.
+
+    Parameters
+    ----------
+    episodes : sequence of Trajectory
+        The logs (uniform sampling, ``w`` held).
+    X : ndarray, shape (n, q)
+        ``xbar = x - X w``.
+    shift : int
+        The voltage applied during sample k is in row ``k - shift`` of the log.
+    delay : int
+        d: the voltage computed at k is applied at ``k + d``.
+    h : float
+        Sampling period, s.
+    C : ndarray, shape (r, n), optional
+        With integral action: the integrator ``z_(k+1) = z_k + h C xbar_k`` is part of the
+        state (it starts at 0 in each log).
+    interval : int
+        Transitions summed into each regression row (within a log).
+
+    Returns
+    -------
+    DigitalTransitions
+    """
+    rows = [_episode_rows(episode, shift, delay, X, C) for episode in episodes]
+    kept = [row for row in rows if row is not None]
+    if not kept:
+        raise ExcitationError("the logs are too short for the input delay and alignment")
+    zeta, zeta_next, command, w = (np.concatenate([row[i] for row in kept]) for i in range(4))
+    offsets = np.cumsum([0] + [row[0].shape[0] for row in kept])
+    starts = np.concatenate(
+        [np.arange(offsets[i], offsets[i + 1], interval) for i in range(len(kept))]
+    )
+    first = episodes[0]
+    return DigitalTransitions(
+        zeta=zeta,
+        zeta_next=zeta_next,
+        command=command,
+        w=w,
+        n=first.n,
+        m=first.m,
+        q=X.shape[1],
+        delay=delay,
+        r=0 if C is None else C.shape[0],
+        h=h,
+        starts=starts,
+    )
+
+
+@dataclass(frozen=True)
+class _Weights:
+    Qz: Array
+    Rz: Array
+
+
+def _regression(data: DigitalTransitions, K: Array, weights: _Weights, gamma: float) -> Regression:
+    """Rows of the discrete Bellman identity for the policy ``K`` (see the module), with
+    the instruments' rows when the data carry them."""
+    rows = _rows(data, K, weights, gamma)
+    if data.instruments is None:
+        return rows
+    return replace(rows, instruments=_rows(data.instruments, K, weights, gamma).Psi)
+
+
+def _rows(data: DigitalTransitions, K: Array, weights: _Weights, gamma: float) -> Regression:
+    zeta, zeta_next, u, w = data.zeta, data.zeta_next, data.command, data.w
+    a = zeta @ K.T
+    e = u + a
+    weight = weights.Qz + K.T @ weights.Rz @ K
+    outer_e = e[:, :, None] * e[:, None, :] - a[:, :, None] * e[:, None, :]
+    outer_e = outer_e - e[:, :, None] * a[:, None, :]
+    columns = [
+        gamma * vecs_hat(zeta_next) - vecs_hat(zeta),
+        -2.0 * _vec_rows(e, zeta),
+        -vecs_hat_from_outer(outer_e),
+    ]
+    nz, m, q = data.nz, data.m, data.q
+    sizes = {"P": nz * (nz + 1) // 2, "K": m * nz, "Huu": m * (m + 1) // 2}
+    if q:
+        columns += [-2.0 * _vec_rows(w, zeta), -2.0 * _vec_rows(u, w), -vecs_hat(w)]
+        sizes.update({"M": q * nz, "Mu": m * q, "Mw": q * (q + 1) // 2})
+    b = -np.einsum("ka,ab,kb->k", zeta, weight, zeta)
+    Psi = np.add.reduceat(np.hstack(columns), data.starts, axis=0)
+    return Regression(Psi=Psi, b=np.add.reduceat(b, data.starts), block_sizes=sizes)
+
+
+def _vec_rows(left: Array, right: Array) -> Array:
+    """``vec(left_k right_k')`` for each row k (column-major), shape (T, a * b)."""
+    outer = left[:, :, None] * right[:, None, :]
+    return outer.transpose(0, 2, 1).reshape(left.shape[0], -1)
+
+
+@dataclass(frozen=True)
+class _Blocks:
+    P: Array
+    S_K: Array
+    S_uu: Array
+    S_wz: Array
+    S_wu: Array
+
+
+def _blocks(solution: RegressionSolution, data: DigitalTransitions) -> _Blocks:
+    nz, m, q = data.nz, data.m, data.q
+    theta = solution.theta
+    sizes = [nz * (nz + 1) // 2, m * nz, m * (m + 1) // 2, q * nz, m * q]
+    edges = np.cumsum([0, *sizes])
+    part = [theta[edges[i] : edges[i + 1]] for i in range(len(sizes))]
+    return _Blocks(
+        P=unvecs(part[0], nz),
+        S_K=unvec(part[1], m, nz),
+        S_uu=unvecs(part[2], m),
+        S_wz=unvec(part[3], q, nz) if q else np.zeros((0, nz)),
+        S_wu=unvec(part[4], m, q) if q else np.zeros((m, 0)),
+    )
+
+
+def _step(
+    data: DigitalTransitions, K: Array, weights: _Weights, gamma: float, iteration: int
+) -> tuple[IterationRecord, _Blocks]:
+    """Evaluate ``K`` (= K_j) on the data and improve it."""
+    # S_ww, the value's part quadratic in w, is a nuisance no policy or feedforward uses:
+    # its columns may be collinear (a constant w_1 beside the dead-time channels, whose
+    # squares add up to a constant), and its minimum-norm part is then as good as any
+    solution = solve_regression(_regression(data, K, weights, gamma), allow_deficient=("Mw",))
+    blocks = _blocks(solution, data)
+    eigenvalues = np.linalg.eigvalsh(blocks.P)
+    # P is positive semidefinite: delayed inputs the plant does not feel cost nothing
+    if eigenvalues[-1] <= 0.0 or eigenvalues[0] < -RANK_TOLERANCE * eigenvalues[-1]:
+        raise ConvergenceError(
+            f"digital policy iteration step {iteration}: the learned P is not positive "
+            f"semidefinite (eigenvalues from {eigenvalues[0]:.3g} to {eigenvalues[-1]:.3g}); "
+            "K0 may not stabilize the sampled loop with its delay, or the data are too "
+            "noisy or too short"
+        )
+    K_next = np.asarray(np.linalg.solve(weights.Rz + blocks.S_uu, blocks.S_K), dtype=np.float64)
+    record = IterationRecord(
+        iteration=iteration,
+        P=blocks.P,
+        K=K_next,
+        theta=solution.theta,
+        change=float("inf"),
+        regression=solution,
+    )
+    return record, blocks
+
+
+def _initial_policy(K0: Array, data: DigitalTransitions) -> Array:
+    """``[K0, 0, 0]`` over zeta, or K0 itself if it is already that wide."""
+    m, nz = data.m, data.nz
+    if K0.shape == (m, nz):
+        return K0
+    if K0.shape != (m, data.n):
+        raise InputError(f"K0: expected shape ({m}, {data.n}) or ({m}, {nz}), got {K0.shape}")
+    return np.hstack([K0, np.zeros((m, nz - data.n))])
+
+
+def _iterate(
+    data: DigitalTransitions,
+    K: Array,
+    weights: _Weights,
+    gamma: float,
+    settings: tuple[int, float],
+) -> tuple[list[IterationRecord], _Blocks, Array]:
+    """Policy iteration at one discount until P settles; also returns the last policy
+    evaluated (whose value the returned blocks hold)."""
+    max_iterations, tolerance = settings
+    history: list[IterationRecord] = []
+    for iteration in range(max_iterations):
+        record, blocks = _step(data, K, weights, gamma, iteration)
+        if history:
+            change = float(np.linalg.norm(record.P - history[-1].P) / np.linalg.norm(record.P))
+            record = replace(record, change=change)
+        history.append(record)
+        floor = 100.0 * float(np.finfo(float).eps) * record.regression.condition
+        if record.change <= max(tolerance, floor):
+            return history, blocks, K
+        K = record.K
+    raise not_converged(history, tolerance)
+
+
+def _feedforward(data: DigitalTransitions, K: Array, blocks: _Blocks, weights: _Weights) -> Array:
+    """U from the exogenous blocks (see the module docstring)."""
+    n, m = data.n, data.m
+    if data.delay == 0:
+        B_P_B, G_P_B = blocks.S_uu, blocks.S_wu.T
+    else:
+        W = weights.Qz + K.T @ weights.Rz @ K
+        A_P_A = blocks.P - W + K.T @ blocks.S_K + blocks.S_K.T @ K - K.T @ blocks.S_uu @ K
+        oldest = slice(n, n + m)
+        B_P_B, G_P_B = A_P_A[oldest, oldest], blocks.S_wz[:, oldest]
+    B_P_B = 0.5 * (B_P_B + B_P_B.T)
+    if np.min(np.linalg.eigvalsh(B_P_B)) <= 0.0:
+        raise ConvergenceError(
+            "the learned Bd' P Bd is not positive definite: the inputs do not act "
+            "independently on the state, so the feedforward U is not determined"
+        )
+    return np.asarray(-np.linalg.solve(B_P_B, G_P_B.T), dtype=np.float64)
+
+
+def learn_digital_adp(
+    data: DigitalTransitions,
+    K0: Array,
+    weights: tuple[Array, Array, Array | None],
+    regulation: tuple[Array, Array | None, Array | None],
+    settings: tuple[int, float],
+) -> tuple[ControlLaw, Array, tuple[IterationRecord, ...]]:
+    """Off-policy policy iteration on the discrete Bellman identity, and the feedforward.
+
+    Parameters
+    ----------
+    data : DigitalTransitions
+        The controller-state transitions (:func:`digital_transitions`).
+    K0 : ndarray, shape (m, n) or (m, nz)
+        The stabilizing policy the data start from.
+    weights : (Q, R, Q_i)
+        The continuous weights of the digital cost (``Q_i`` None without integral action).
+    regulation : (X, C, F)
+        ``X`` (n x q), the steady-state map used to build ``xbar``; ``C``, ``F`` the
+        regulated output, for the law's integrator (None without integral action).
+    settings : (int, float)
+        ``(max_iterations, tolerance)`` of each policy iteration.
+
+    Returns
+    -------
+    law : ControlLaw
+        ``u_k = U w_k - K [xbar_k; ubar_(k-d); ...; ubar_(k-1)] - K_i z_k`` (history d).
+    P : ndarray, shape (nz, nz)
+        The value matrix of the last policy evaluated.
+    history : tuple of IterationRecord
+        Every policy-iteration step (all discounts).
+
+    Raises
+    ------
+    ExcitationError, ConvergenceError
+    """
+    Q, R, Q_i = weights
+    h, n, m, d, r = data.h, data.n, data.m, data.delay, data.r
+    Qz = np.zeros((data.nz, data.nz))
+    Qz[:n, :n] = h * Q
+    if Q_i is not None:
+        Qz[data.nz - r :, data.nz - r :] = h * Q_i
+    scaled = _Weights(Qz=Qz, Rz=h * R)
+    X, C, F = regulation
+    K = _initial_policy(K0, data)
+    schedule = DISCOUNTS if r else (1.0,)
+    history: list[IterationRecord] = []
+    for gamma in schedule:
+        steps, blocks, evaluated = _iterate(data, K, scaled, gamma, settings)
+        history.extend(steps)
+        K = steps[-1].K
+    U = _feedforward(data, evaluated, blocks, scaled) if data.q else np.zeros((m, 0))
+    K_state, K_i = K[:, : data.nz - r], (K[:, data.nz - r :] if r else None)
+    integrator = {"K_i": K_i, "C": C, "F": F, "h": h} if r else {}
+    law = ControlLaw(K_state, X, U, history=d, **integrator)  # type: ignore[arg-type]
+    return law, history[-1].P, tuple(history)

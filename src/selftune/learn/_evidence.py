@@ -1,0 +1,271 @@
+"""What the data say before any controller is learned: alignment, noise, consistency.
+
+Every learner starts here (:func:`gather_evidence`):
+
+1. the alignment of the logged inputs, checked against the data (:mod:`._alignment`);
+2. the exact discrete model refined by output error (:mod:`._output_error`), which
+   estimates the measurement noise and gives noise-free states for the ADP learners;
+3. a consistency test: at the true model the output errors are the measurement noise,
+   white and independent of the inputs before them. Their correlation with the past
+   inputs (lags 1 to :data:`TEST_LAGS`) is a chi-square statistic with ``n m L`` degrees
+   of freedom; far in its tail (p below :data:`TEST_LEVEL`) the model does not explain
+   the data and no controller is returned: a misaligned log, an input error the log does
+   not show (inverter dead time), a nonlinearity (saturation), or too coarse a resolution.
+
+An inverter's dead time is such an unlogged input error: ``-v sign(i_x)`` on each phase.
+With ``dead_time = True`` the model carries it (the dq vector of the phase currents'
+signs becomes an extra exogenous input whose gain ``-v Bd`` is fitted, :mod:`._dead_time`),
+so it is neither refused nor mistaken for back-EMF or feedforward; ``v`` is reported.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.special
+
+from ..core import Array
+from ..errors import ConsistencyError, InputError
+from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
+from ._dead_time import DeadTimeModel, with_dead_time
+from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error
+from ._problem import LearningOptions, LearningProblem
+from ._trajectory import Trajectory
+
+__all__ = [
+    "TEST_LAGS",
+    "TEST_LEVEL",
+    "ConsistencyTest",
+    "Evidence",
+    "gather_evidence",
+    "log_precision",
+    "reduced_problem",
+]
+
+#: Lags of the input-residual cross-correlation test, samples.
+TEST_LAGS = 10
+
+#: Significance level of the consistency test: the data are refused only far in the tail.
+TEST_LEVEL = 1e-6
+
+
+@dataclass(frozen=True)
+class ConsistencyTest:
+    """The cross-correlation test of the output errors against the past inputs.
+
+    Attributes
+    ----------
+    statistic : float
+        ``T sum r^2`` over lags, inputs and states (r the normalized cross-correlations).
+    threshold : float
+        The chi-square quantile at ``1 - TEST_LEVEL``.
+    degrees_of_freedom : int
+        ``n m L``.
+    exact : bool
+        True when the model explains the data to rounding (noise-free data): the test is
+        then not meaningful and passes.
+    """
+
+    statistic: float
+    threshold: float
+    degrees_of_freedom: int
+    exact: bool
+
+    @property
+    def passed(self) -> bool:
+        """Whether the data are consistent with the model."""
+        return self.exact or self.statistic <= self.threshold
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """Alignment, model, noise and consistency of the logs.
+
+    Attributes
+    ----------
+    episodes : list of Trajectory
+        The logs as fitted: with ``dead_time``, ``w`` carries the dq vector of the phase
+        currents' signs as extra channels after the reference's.
+    alignment : Alignment
+        The alignment of the logged inputs (and its least-squares model).
+    fit : OutputErrorFit or None
+        The output-error model (None for an unstable plant).
+    consistency : ConsistencyTest
+        The cross-correlation test of the output errors.
+    extra : int
+        Number of extra exogenous channels (n with ``dead_time``, else 0).
+    precision : str
+        The precision the states were logged with (:func:`log_precision`).
+    dead_time_model : str or None
+        How the phase signs were computed (:func:`~._dead_time.with_dead_time`); None
+        without ``dead_time``.
+    """
+
+    episodes: list[Trajectory] = field(repr=False)
+    alignment: Alignment = field(repr=False)
+    fit: OutputErrorFit | None = field(repr=False)
+    consistency: ConsistencyTest
+    extra: int
+    precision: str = "float64"
+    dead_time_model: DeadTimeModel | None = None
+
+    @property
+    def model_noise(self) -> Array | None:
+        """Estimated measurement-noise standard deviation of each state (None without an
+        output-error fit)."""
+        if self.fit is None:
+            return None
+        return np.asarray(np.sqrt(np.diag(self.fit.noise_covariance)))
+
+
+def log_precision(episodes: Sequence[Trajectory]) -> tuple[str, float]:
+    """The precision the states were logged with: float32, a number of significant
+    digits, or full float64 precision; and its relative rounding.
+
+    Parameters
+    ----------
+    episodes : sequence of Trajectory
+        The logs.
+
+    Returns
+    -------
+    text : str
+        ``"float32"``, ``"7 significant digits"`` or ``"float64"``.
+    relative : float
+        Half a unit in the last place, relative.
+    """
+    x = np.concatenate([episode.x for episode in episodes])
+    if np.array_equal(x.astype(np.float32).astype(np.float64), x):
+        return "float32", float(np.finfo(np.float32).eps) / 2
+    finite = x[x != 0.0]
+    for digits in range(3, 16):
+        exponent = np.floor(np.log10(np.abs(finite)))
+        scale = 10.0 ** (digits - 1 - exponent)
+        if np.allclose(np.round(finite * scale) / scale, finite, rtol=1e-15, atol=0.0):
+            return f"{digits} significant digits", 0.5 * 10.0 ** (1 - digits)
+    return "float64", float(np.finfo(np.float64).eps) / 2
+
+
+def _consistency(
+    episodes: Sequence[Trajectory], shift: int, fit: OutputErrorFit
+) -> ConsistencyTest:
+    """Correlation of the output errors with the applied inputs 1 to TEST_LAGS samples
+    before them (see the module docstring)."""
+    n, m = fit.model.n, fit.model.Bd.shape[1]
+    statistic, exact = 0.0, True
+    for episode, residual in zip(episodes, fit.residuals, strict=True):
+        a, _ = applied_inputs(episode, shift)
+        count = min(a.shape[0], residual.shape[0] - 1)
+        scale = float(np.sqrt(np.mean(episode.x**2)))
+        if float(np.sqrt(np.mean(residual**2))) > 1e-9 * max(scale, 1e-300):
+            exact = False
+        # residual[j + 1] is the error at the sample after a[j] was applied
+        e = residual[1 : count + 1] - residual[1 : count + 1].mean(axis=0)
+        u = a[:count] - a[:count].mean(axis=0)
+        for lag in range(1, min(TEST_LAGS, count - 1) + 1):
+            later, earlier = e[lag - 1 :], u[: count - lag + 1]  # e_k against a_(k - lag)
+            norms = np.outer(np.linalg.norm(later, axis=0), np.linalg.norm(earlier, axis=0))
+            r = (later.T @ earlier) / np.maximum(norms, 1e-300)
+            statistic += later.shape[0] * float(np.sum(r**2))
+    freedom = n * m * TEST_LAGS * len(episodes)
+    threshold = float(scipy.special.chdtri(freedom, TEST_LEVEL))  # chi-square quantile
+    return ConsistencyTest(statistic, threshold, freedom, exact)
+
+
+def gather_evidence(
+    episodes: Sequence[Trajectory], problem: LearningProblem, options: LearningOptions
+) -> Evidence:
+    """Alignment, output-error model and consistency of the logs (see the module).
+
+    Parameters
+    ----------
+    episodes : sequence of Trajectory
+        The logs.
+    problem : LearningProblem
+        What the learner knows.
+    options : LearningOptions
+        How to learn (alignment, dead time, structure).
+
+    Returns
+    -------
+    Evidence
+
+    Raises
+    ------
+    ConsistencyError
+        If the data contradict the stated alignment, or the model cannot explain them.
+    """
+    fitted, dead_time_model = _fitted(episodes, options)
+    alignment = check_alignment(fitted, options.logged_input, options.input_delay)
+    structure = None
+    if options.structure == "spmsm":
+        assert options.electrical_speed is not None
+        structure = SpmsmStructure(
+            options.electrical_speed, alignment.model.h, options.dead_time, options.voltage_hold
+        )
+    precision, relative = log_precision(episodes)
+    fit = fit_output_error(fitted, alignment.shift, alignment.model, structure, resolution=relative)
+    test = (
+        ConsistencyTest(0.0, float("inf"), 0, True)
+        if fit is None
+        else _consistency(fitted, alignment.shift, fit)
+    )
+    if not test.passed:
+        raise ConsistencyError(
+            f"the model cannot explain the data: its output errors correlate with the "
+            f"inputs before them (statistic {test.statistic:.4g}, threshold {test.threshold:.4g} "
+            f"for {test.degrees_of_freedom} degrees of freedom), which the measurement "
+            "noise alone does not do; likely causes: an input error the log does not show "
+            "(inverter dead time: set dead_time = true), a misaligned or late voltage log, "
+            "a nonlinearity (saturation, the voltage limit), or a measurement resolution too "
+            "coarse for the signal"
+        )
+    extra = problem.n if options.dead_time else 0
+    return Evidence(fitted, alignment, fit, test, extra, precision, dead_time_model)
+
+
+def _fitted(
+    episodes: Sequence[Trajectory], options: LearningOptions
+) -> tuple[list[Trajectory], DeadTimeModel | None]:
+    """The logs as the model sees them: with the dead time's channels if asked for."""
+    if not options.dead_time:
+        return list(episodes), None
+    if episodes[0].n != 2 or episodes[0].m != 2:
+        raise InputError(
+            f"dead_time: the dead-time model is for a three-phase machine's dq currents "
+            f"(n = m = 2); the data have n = {episodes[0].n}, m = {episodes[0].m}"
+        )
+    shift = stated_shift(options.logged_input, options.input_delay)
+    if shift is None:  # "auto": the alignment of the simpler model decides the offset's fit
+        rough, _ = with_dead_time(episodes, None, 0)
+        shift = check_alignment(rough, "auto", options.input_delay).shift
+    return with_dead_time(episodes, options.electrical_speed, shift)
+
+
+def reduced_problem(problem: LearningProblem, extra: int) -> LearningProblem:
+    """The problem with ``extra`` zero columns in F (and E): the appended channels of the
+    current's direction are regulated against nothing.
+
+    Parameters
+    ----------
+    problem : LearningProblem
+        The user's problem.
+    extra : int
+        Number of appended exogenous channels.
+    """
+    if not extra:
+        return problem
+    assert problem.C is not None and problem.F is not None
+    F = np.hstack([problem.F, np.zeros((problem.r, extra))])
+    return LearningProblem(
+        problem.Q,
+        problem.R,
+        problem.K0,
+        C=problem.C,
+        E=np.zeros((F.shape[1], F.shape[1])),
+        F=F,
+        integral_action=problem.integral_weight is not None,
+        integral_weight=problem.integral_weight,
+    )

@@ -1,0 +1,423 @@
+"""One entry point for every learner: evidence, learning, verdict.
+
+:func:`learn_controller` runs the same pipeline for every target and method:
+
+1. **evidence** (:mod:`._evidence`): the alignment of the logged inputs, checked on every
+   call; the output-error model of the data with its noise estimate; the consistency
+   test. Data that contradict the stated alignment or that no linear model explains are
+   refused here, whatever the method.
+2. **learning**, by the options' target and method:
+
+   ============  ==========  ==========================================================
+   target        method      learner
+   ============  ==========  ==========================================================
+   continuous    adp         the paper's continuous-time ADP (:mod:`._continuous`)
+   digital       adp         discrete-time ADP with the computation delay (:mod:`._digital`)
+   continuous    identify    discrete model, matrix logarithm, continuous optimum
+   digital       identify    discrete model, optimum of the delayed sampled loop
+   ============  ==========  ==========================================================
+
+   The ADP learners meet measurement noise as ``options.noise`` says (by default they
+   learn from the output-error model's noise-free simulation of the log).
+3. **verdict** (:mod:`._quality`): standard errors, noise, stability margin; the
+   controller is returned only if the data support it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..core import Array, ControlLaw, WithLaw
+from ..errors import InputError
+from ._alignment import Alignment, applied_inputs
+from ._continuous import lqr_from_moments, regulator_from_moments, solutions_of_output_equation
+from ._digital import DigitalTransitions, digital_transitions, learn_digital_adp
+from ._evidence import Evidence, gather_evidence, reduced_problem
+from ._moments import IntervalMoments, WKind, interval_moments
+from ._output_error import simulated_trajectories
+from ._policy_iteration import IterationRecord
+from ._problem import LearningOptions, LearningProblem
+from ._quality import Quality, check_precision, check_safety
+from ._servo import servo_from_moments
+from ._trajectory import Trajectory, as_trajectories
+from ._verdict import (
+    ROUNDING_FLOOR,
+    ModelErrors,
+    design_target,
+    model_errors,
+    relative_size,
+    verdict,
+    without_extra,
+)
+
+__all__ = [
+    "ROUNDING_FLOOR",
+    "LearnedController",
+    "aligned_trajectory",
+    "assess",
+    "learn_controller",
+]
+
+
+@dataclass(frozen=True)
+class LearnedController(WithLaw):
+    """A controller learned from data, what it is, how it was learned, and how good it is.
+
+    Attributes
+    ----------
+    law : ControlLaw
+        The controller a drive runs (``u_k = U w_k - K [...] - K_i z_k``).
+    P : ndarray
+        Its value matrix (over the law's state, :attr:`state`).
+    B : ndarray
+        The estimated input matrix: B (continuous target) or Bd of the exact discrete
+        model (digital target).
+    target : str
+        ``"continuous"`` or ``"digital"``.
+    method : str
+        ``"adp"`` or ``"identify"``.
+    sampling_period : float
+        h of the data, s.
+    input_delay : int
+        d, the computation delay the digital target accounts for, samples.
+    quality : Quality
+        Standard errors, noise, alignment, consistency and stability margin.
+    alignment : Alignment
+        The alignment of the logged inputs used, and what the data said about it.
+    history : tuple of IterationRecord
+        Policy-iteration steps (empty for identify-then-design).
+    """
+
+    law: ControlLaw
+    P: Array
+    B: Array
+    target: str
+    method: str
+    sampling_period: float
+    input_delay: int
+    quality: Quality
+    alignment: Alignment = field(repr=False)
+    history: tuple[IterationRecord, ...] = field(default=(), repr=False)
+
+
+def aligned_trajectory(episode: Trajectory, shift: int) -> Trajectory:
+    """The log with row k of ``u`` the input applied during sample k.
+
+    Parameters
+    ----------
+    episode : Trajectory
+        The log.
+    shift : int
+        The voltage applied during sample k is in row ``k - shift`` of the log.
+
+    Returns
+    -------
+    Trajectory
+        The samples at which the applied input is known.
+    """
+    if shift == 0:
+        return episode
+    a, first = applied_inputs(episode, shift)
+    stop = first + a.shape[0] + 1
+    w = None if episode.w is None else episode.w[first : min(stop, episode.w.shape[0])]
+    return Trajectory(t=episode.t[first:stop], x=episode.x[first:stop], u=a, w=w)
+
+
+def _check_data(episodes: Sequence[Trajectory], problem: LearningProblem) -> None:
+    first = episodes[0]
+    if (first.n, first.m) != (problem.n, problem.m):
+        raise InputError(
+            f"K0: is {problem.m}x{problem.n}, but the data have n = {first.n} states and "
+            f"m = {first.m} inputs"
+        )
+    if problem.q and first.q != problem.q:
+        raise InputError(
+            f"F: has {problem.q} columns, but the data have {first.q} exogenous channels w"
+        )
+
+
+def learn_controller(
+    data: Trajectory | Sequence[Trajectory],
+    problem: LearningProblem,
+    options: LearningOptions | None = None,
+) -> LearnedController:
+    """Learn the optimal controller of ``options.target`` from logs, by ``options.method``.
+
+    Parameters
+    ----------
+    data : Trajectory or sequence of Trajectory
+        The logs (one or more episodes, uniform sampling, ``w`` held over each sample for
+        the digital target and identify-then-design).
+    problem : LearningProblem
+        What the learner knows: C, E, F, the cost weights, K0, integral action.
+    options : LearningOptions, optional
+        Target, method, input delay, log alignment, noise handling, iteration settings
+        (defaults: the paper's continuous ADP on an applied-voltage log).
+
+    Returns
+    -------
+    LearnedController
+        With its :class:`Quality`.
+
+    Raises
+    ------
+    ConsistencyError
+        If the data contradict the stated alignment of the logged inputs, or the model
+        cannot explain them (the message gives the statistic and the likely causes).
+    ExcitationError
+        If the data do not excite the plant enough, or are too short for their noise
+        (the message says how much longer they should be).
+    ConvergenceError
+        If the learned controller does not stabilize every plant the data allow, or
+        policy iteration did not behave as theory says.
+    UnsolvableError, InputError
+        As the learners raise them.
+    """
+    options = LearningOptions() if options is None else options
+    evidence, known, errors = _prepared(data, problem, options)
+    check_precision(
+        (relative_size(errors.K_se, errors.K), relative_size(errors.U_se, errors.U)),
+        evidence,
+        options.max_relative_error,
+    )
+    if options.method == "identify":
+        model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
+        law, P, B = design_target(model, known, options)
+        history: tuple[IterationRecord, ...] = ()
+    elif options.target == "digital":
+        law, P, B, history = _digital_adp(
+            _regression_data(evidence, options), evidence, known, options
+        )
+    else:
+        law, P, B, history = _continuous_adp(
+            _regression_data(evidence, options), evidence, known, options
+        )
+    return _judged((without_extra(law, problem.q), P, B, history), evidence, errors, options)
+
+
+def assess(
+    law: ControlLaw,
+    data: Trajectory | Sequence[Trajectory],
+    problem: LearningProblem,
+    options: LearningOptions | None = None,
+    *,
+    P: Array | None = None,
+    history: tuple[IterationRecord, ...] = (),
+    feedforward: bool = True,
+) -> LearnedController:
+    """The verdict on a controller learned elsewhere from these data (for example by an
+    on-policy session, one episode per step): the same evidence, standard errors and
+    safety checks as :func:`learn_controller` gives its own results.
+
+    Parameters
+    ----------
+    law : ControlLaw
+        The learned controller.
+    data : Trajectory or sequence of Trajectory
+        Every log it was learned from.
+    problem : LearningProblem
+        What the learner knew.
+    options : LearningOptions, optional
+        How it was learned (target and method decide what its standard errors include).
+    P : ndarray, optional
+        Its learned value matrix (default: the target's on the fitted model).
+    history : tuple of IterationRecord
+        Its policy-iteration steps (checked for a monotone value).
+    feedforward : bool
+        Whether the law's feedforward was learned; if not (the paper's Algorithm 1), U is
+        not judged and its standard errors are NaN.
+
+    Returns
+    -------
+    LearnedController
+        ``law`` with its :class:`Quality`.
+
+    Raises
+    ------
+    ConsistencyError, ExcitationError, ConvergenceError
+        As :func:`learn_controller`.
+    """
+    options = LearningOptions() if options is None else options
+    evidence, _, errors = _prepared(data, problem, options)
+    model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
+    value = errors.P if P is None else np.asarray(P, dtype=float)
+    if feedforward:
+        return _judged((law, value, model.Bd, history), evidence, errors, options)
+    errors = replace(errors, U=law.U, U_se=np.full_like(law.U, np.nan))
+    judged = _judged((law, value, model.Bd, history), evidence, errors, options)
+    note = "the feedforward U was not learned, so it is not judged (U_se is NaN)"
+    quality = replace(judged.quality, notes=(*judged.quality.notes, note))
+    return replace(judged, quality=quality)
+
+
+def _prepared(
+    data: Trajectory | Sequence[Trajectory], problem: LearningProblem, options: LearningOptions
+) -> tuple[Evidence, LearningProblem, ModelErrors]:
+    """The evidence of the logs, the problem as the fitted model sees it, and the target's
+    optimum on that model with its standard errors."""
+    episodes = as_trajectories(data)
+    _check_data(episodes, problem)
+    if not problem.held and (options.target == "digital" or options.method == "identify"):
+        raise InputError(
+            "E: the digital target and identify-then-design need w held over each sample "
+            "(E = 0); with an exosystem use target = 'continuous', method = 'adp'"
+        )
+    evidence = gather_evidence(episodes, problem, options)
+    known = reduced_problem(problem, evidence.extra)
+    return evidence, known, model_errors(evidence, (known, problem.q), options)
+
+
+def _judged(
+    learned: tuple[ControlLaw, Array, Array, tuple[IterationRecord, ...]],
+    evidence: Evidence,
+    errors: ModelErrors,
+    options: LearningOptions,
+) -> LearnedController:
+    """The learned ``(law, P, B, history)`` with its verdict, or the error that refuses it."""
+    law, P, B, history = learned
+    quality, radii = verdict(law, errors, evidence, options)
+    check_safety(quality, evidence, history, options.max_relative_error, radii)
+    return LearnedController(
+        law=law,
+        P=P,
+        B=B,
+        target=options.target,
+        method=options.method,
+        sampling_period=evidence.alignment.model.h,
+        input_delay=options.input_delay if options.target == "digital" else 0,
+        quality=quality,
+        alignment=evidence.alignment,
+        history=history,
+    )
+
+
+_Logs = tuple[Sequence[Trajectory], Sequence[Trajectory] | None]
+
+
+def _regression_data(evidence: Evidence, options: LearningOptions) -> _Logs:
+    """The logs an ADP learner regresses on, and its instruments (see ``noise``)."""
+    if evidence.fit is None or options.noise == "none":
+        return evidence.episodes, None
+    simulated = simulated_trajectories(evidence.episodes, evidence.alignment.shift, evidence.fit)
+    if options.noise == "smoothed":
+        return simulated, None
+    return evidence.episodes, simulated
+
+
+def _interval(options: LearningOptions, episodes: Sequence[Trajectory], unknowns: int) -> int:
+    """Samples per regression row: ``options.interval``, shortened so that the logs give
+    at least two rows per unknown when they can."""
+    samples = sum(episode.num_samples for episode in episodes)
+    return max(1, min(options.interval, samples // (2 * unknowns)))
+
+
+def _unique_X(problem: LearningProblem) -> Array:
+    if problem.C is None or problem.F is None:
+        return np.zeros((problem.n, 0))
+    X, null_basis = solutions_of_output_equation(problem.C, problem.F)
+    if null_basis:
+        raise InputError(
+            "C: the digital ADP learner needs a unique X from C X + F = 0 (C of full column "
+            "rank); use method = 'identify' for this problem"
+        )
+    return X
+
+
+def _digital_adp(
+    logs: _Logs, evidence: Evidence, problem: LearningProblem, options: LearningOptions
+) -> tuple[ControlLaw, Array, Array, tuple[IterationRecord, ...]]:
+    X = _unique_X(problem)
+    integrator = problem.C if problem.integral_weight is not None else None
+    episodes, instruments = logs
+    nz = problem.n + options.input_delay * problem.m + (problem.r if integrator is not None else 0)
+    m, q = problem.m, problem.q
+    unknowns = nz * (nz + 1) // 2 + m * nz + m * (m + 1) // 2 + q * nz + m * q + q * (q + 1) // 2
+    interval = _interval(options, episodes, unknowns)
+
+    def transitions_of(trajectories: Sequence[Trajectory]) -> DigitalTransitions:
+        return digital_transitions(
+            trajectories,
+            X,
+            shift=evidence.alignment.shift,
+            delay=options.input_delay,
+            h=evidence.alignment.model.h,
+            C=integrator,
+            interval=interval,
+        )
+
+    transitions = transitions_of(episodes)
+    if instruments is not None:
+        transitions = replace(transitions, instruments=transitions_of(instruments))
+    law, P, history = learn_digital_adp(
+        transitions,
+        problem.K0,
+        (problem.Q, problem.R, problem.integral_weight),
+        (X, problem.C, problem.F),
+        (options.max_iterations, options.tolerance),
+    )
+    model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
+    return law, P, model.Bd, history
+
+
+def _continuous_adp(
+    logs: _Logs, evidence: Evidence, problem: LearningProblem, options: LearningOptions
+) -> tuple[ControlLaw, Array, Array, tuple[IterationRecord, ...]]:
+    episodes, instruments = logs
+    w_kind: WKind = "held" if problem.held else "exosystem"
+    shift = evidence.alignment.shift
+    integrator = None  # with integral action: z, the integral of e = C x + F w
+    if problem.integral_weight is not None:
+        assert problem.C is not None and problem.F is not None
+        integrator = (problem.C, problem.F)
+    size = problem.n + (problem.r if integrator is not None else 0)  # [xbar; z]
+    m, q = problem.m, problem.q
+    interval = _interval(options, episodes, size * (size + 1) // 2 + m * size + q * size)
+
+    def aligned(trajectories: Sequence[Trajectory]) -> list[Trajectory]:
+        shifted = [aligned_trajectory(episode, shift) for episode in trajectories]
+        if problem.C is None:
+            return [Trajectory(t=a.t, x=a.x, u=a.u) for a in shifted]
+        return shifted
+
+    logs_aligned = aligned(episodes)
+    instruments_aligned = None if instruments is None else aligned(instruments)
+
+    def moments_at(discount: float) -> IntervalMoments:
+        """The moments at a discount (0: none), with the instruments' attached."""
+
+        def of(trajectories: Sequence[Trajectory]) -> IntervalMoments:
+            return interval_moments(
+                trajectories, interval, w_kind=w_kind, integrator=integrator, discount=discount
+            )
+
+        moments = of(logs_aligned)
+        if instruments_aligned is not None:
+            moments = moments.with_instruments(of(instruments_aligned))
+        return moments
+
+    cost = (problem.Q, problem.R, problem.K0)
+    settings = (options.max_iterations, options.tolerance)
+    if problem.C is None:
+        plain = lqr_from_moments(moments_at(0.0), cost, settings)
+        law = ControlLaw.regulator(plain.K, np.zeros((problem.n, 0)), np.zeros((problem.m, 0)))
+        return law, plain.P, plain.B, plain.history
+    assert problem.E is not None and problem.F is not None
+    output = (problem.C, problem.E, problem.F)
+    if problem.integral_weight is not None:
+        servo = servo_from_moments(
+            moments_at,
+            output,
+            (problem.Q, problem.R, problem.integral_weight, problem.K0),
+            settings,
+        )
+        law = ControlLaw(
+            servo.K, servo.X, servo.U, K_i=servo.K_i, C=problem.C, F=problem.F,
+            h=evidence.alignment.model.h,
+        )  # fmt: skip
+        return law, servo.P, servo.B, servo.history
+    learned = regulator_from_moments(moments_at(0.0), output, cost, "auto", settings)
+    law = ControlLaw.regulator(learned.K, learned.X, learned.U)
+    return law, learned.P, learned.B, learned.history

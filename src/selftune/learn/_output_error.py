@@ -1,0 +1,564 @@
+"""Output-error identification: the consistent fit of the exact discrete model under noise.
+
+Measured states carry white noise, ``x~_k = x_k + v_k``; the logged inputs are exact (they
+are what the controller computed). Least squares on ``x~_(k+1) = Ad x~_k + ...`` is then
+biased (errors in variables: ``x~_k`` is a regressor). Output error fits the model's
+SIMULATION from the logged inputs to the measurements::
+
+    minimize  sum_k (x~_k - xhat_k)' W (x~_k - xhat_k),
+    xhat_(k+1) = Ad xhat_k + Bd a_k + Ed w_k,   xhat_first = x0 (one per log)
+
+At the true model the residual is the noise itself, independent of the gradient (which
+depends on past inputs only, even in closed loop), so the fit is consistent, and the
+maximum-likelihood one for Gaussian noise with ``W`` the inverse noise covariance, which
+is estimated from the residuals as the fit iterates. Gauss-Newton with the exact
+sensitivities (one more linear recursion per parameter, propagated together by
+:func:`selftune.core._propagate.propagate_uniform`), damped (Levenberg-Marquardt).
+
+The model may be the unstructured ``[Ad, Bd, Ed]`` or a structured one (a few physical
+parameters mapped to the matrices, e.g. a PMSM's R_s, L_s and flux at a known speed:
+:class:`SpmsmStructure`). The plant must be stable (the simulation runs open loop over
+the whole log); otherwise the least-squares model is kept and the quality says so.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from typing import Literal
+
+import numpy as np
+import scipy.linalg
+
+from ..core import Array, discretize, rotating_hold
+from ..core._propagate import plant_last, propagate_uniform
+from ..errors import InputError
+from ._alignment import applied_inputs
+from ._discrete_model import DiscreteModel
+from ._trajectory import Trajectory
+
+__all__ = [
+    "OutputErrorFit",
+    "SpmsmStructure",
+    "Structure",
+    "fit_output_error",
+    "resolution_floor",
+    "simulate_model",
+    "simulated_trajectories",
+]
+
+#: A structure maps physical parameters to ``(Ad, Bd, Ed)``.
+Structure = Callable[[Array], tuple[Array, Array, Array]]
+
+
+@dataclass(frozen=True)
+class _Log:
+    """One log's aligned data: measured states ``x~_first .. x~_(last+1)``, the applied
+    inputs and held references of the transitions."""
+
+    x: Array
+    a: Array
+    w: Array
+
+
+def _logs(episodes: Sequence[Trajectory], shift: int) -> list[_Log]:
+    logs = []
+    for episode in episodes:
+        a, first = applied_inputs(episode, shift)
+        count = min(a.shape[0], episode.num_samples - first)
+        w = np.zeros((episode.num_samples, 0)) if episode.w is None else episode.w
+        logs.append(
+            _Log(x=episode.x[first : first + count + 1], a=a[:count], w=w[first : first + count])
+        )
+    return logs
+
+
+def simulate_model(matrices: tuple[Array, Array, Array], x0: Array, a: Array, w: Array) -> Array:
+    """``xhat`` (T + 1, n) of ``xhat_(k+1) = Ad xhat_k + Bd a_k + Ed w_k`` from ``x0``.
+
+    Parameters
+    ----------
+    matrices : (Ad, Bd, Ed)
+        The discrete model.
+    x0 : ndarray, shape (n,)
+        Initial state.
+    a : ndarray, shape (T, m)
+        Applied inputs.
+    w : ndarray, shape (T, q)
+        Held references.
+    """
+    Ad, Bd, Ed = matrices
+    forcing = a @ Bd.T + w @ Ed.T
+    x = propagate_uniform(plant_last(Ad[np.newaxis]), forcing[:, :, np.newaxis], x0[:, None])
+    return np.asarray(x[:, :, 0])
+
+
+def _sensitivities(matrices: tuple[Array, Array, Array], log: _Log, xhat: Array) -> Array:
+    """``d xhat_k / d vec([Ad, Bd, Ed])`` and ``d xhat_k / d x0``: shape (T + 1, n, p + n)."""
+    Ad = matrices[0]
+    n = Ad.shape[0]
+    v = np.hstack([xhat[:-1], log.a, log.w])  # (T, n + m + q)
+    size = v.shape[1]
+    # d(Ad x + Bd a + Ed w)/d vec(M)[j n + i] = e_i v_j: forcing (T, n, n size)
+    forcing = np.zeros((v.shape[0], n, n * size))
+    for i in range(n):
+        forcing[:, i, i::n] = v
+    transition = plant_last(Ad[np.newaxis])
+    theta = propagate_uniform(transition, forcing, np.zeros((n, n * size)))
+    initial = propagate_uniform(transition, np.zeros((v.shape[0], n, n)), np.eye(n))
+    return np.concatenate([theta, initial], axis=2)
+
+
+@dataclass(frozen=True)
+class OutputErrorFit:
+    """The output-error model, its noise estimate and its parameter covariance.
+
+    Attributes
+    ----------
+    model : DiscreteModel
+        The fitted ``(Ad, Bd, Ed)``; its residuals are the output errors.
+    parameters : ndarray, shape (p,)
+        The fitted parameters (``vec([Ad, Bd, Ed])`` or the structure's).
+    parameter_covariance : ndarray, shape (p, p)
+        Their covariance: the inverse Fisher information under the estimated noise, made
+        robust to output errors that are not white (Newey-West).
+    noise_covariance : ndarray, shape (n, n)
+        The measurement-noise covariance estimated from the output errors, unit^2.
+    simulated : tuple of ndarray
+        The noise-free simulated states ``xhat`` of each log (aligned with the data used).
+    residuals : tuple of ndarray
+        The output errors ``x~ - xhat`` of each log.
+    iterations : int
+        Gauss-Newton iterations.
+    structure : SpmsmStructure or None
+        The structure fitted (None: every entry of ``[Ad, Bd, Ed]``).
+    """
+
+    model: DiscreteModel
+    parameters: Array
+    parameter_covariance: Array
+    noise_covariance: Array
+    simulated: tuple[Array, ...]
+    residuals: tuple[Array, ...]
+    iterations: int
+    structure: SpmsmStructure | None = None
+
+    def matrices(self, parameters: Array) -> tuple[Array, Array, Array]:
+        """``(Ad, Bd, Ed)`` of parameters of this fit's kind.
+
+        Parameters
+        ----------
+        parameters : ndarray, shape (p,)
+            Parameters like :attr:`parameters`.
+        """
+        if self.structure is not None:
+            return self.structure(parameters)
+        n, m, q = self.model.n, self.model.Bd.shape[1], self.model.Ed.shape[1]
+        return _unstructured(parameters, n, m, q)
+
+
+@dataclass(frozen=True)
+class SpmsmStructure:
+    """A surface PMSM's current dynamics at a known electrical speed: parameters
+    ``[R_s, L_s, kappa]`` (and ``v`` with dead time).
+
+    The known-flux form of the data (``w = [w_1, T*]``, ``w_1 = p speed phi_assumed`` the
+    back-EMF the controller assumes, q = 2)::
+
+        A = [[-R_s/L_s, w_e], [-w_e, -R_s/L_s]],  B = I / L_s,  D = [[0, 0], [-kappa/L_s, 0]]
+
+    ``kappa = phi_pm / phi_assumed`` is the true back-EMF per unit of ``w_1``: the flux is
+    fitted, not assumed (``phi_pm = kappa w_1 / w_e``).
+
+    Parameters
+    ----------
+    electrical_speed : float
+        ``w_e = p speed``, rad/s.
+    h : float
+        Sampling period, s.
+    dead_time : bool
+        The data carry the dq vector ``s_k`` of the phase currents' signs as two extra
+        exogenous channels (:mod:`._dead_time`): an inverter's dead-time voltage ``v =
+        t_d f_sw V_dc`` per phase, V, a fourth parameter. It is held in the stationary
+        frame from the sample's start, so in dq it turns by ``-w_e s`` within the sample.
+    hold : {"stationary", "rotor"}
+        What the drive holds over a sample: the stationary-frame voltage (a PWM inverter),
+        rotated by the usual angle compensation so that its dq mean is the command (it
+        turns from ``+w_e h / 2`` to ``-w_e h / 2`` in dq), or the dq voltage (an ideal
+        zero-order hold, e.g. :class:`selftune.sim.SimulatedDrive`).
+    """
+
+    electrical_speed: float
+    h: float
+    dead_time: bool = False
+    hold: Literal["stationary", "rotor"] = "stationary"
+
+    def __call__(self, theta: Array) -> tuple[Array, Array, Array]:
+        """``(Ad, Bd, Ed)`` of ``theta = [R_s (ohm), L_s (H), kappa]`` (and ``v``, V).
+
+        Parameters
+        ----------
+        theta : ndarray, shape (3,) or (4,)
+            ``[R_s, L_s, kappa]``, and ``v`` with dead time.
+        """
+        R_s, L_s, kappa = float(theta[0]), float(theta[1]), float(theta[2])
+        w_e, h = self.electrical_speed, self.h
+        A = np.array([[-R_s / L_s, w_e], [-w_e, -R_s / L_s]])
+        B = np.eye(2) / L_s
+        D = np.array([[0.0, 0.0], [-kappa / L_s, 0.0]])
+        exact = discretize(A, B, h, D=D)
+        Bd = exact.Bd
+        if self.hold == "stationary":  # the angle compensation centres the command
+            Bd = rotating_hold(A, B, h, w_e, advance=0.5 * w_e * h)
+        if not self.dead_time:
+            return exact.Ad, Bd, exact.Ed
+        dead_time = rotating_hold(A, B, h, w_e)  # set at the sample's start, then held
+        return exact.Ad, Bd, np.hstack([exact.Ed, -float(theta[3]) * dead_time])
+
+    def initial(self, model: DiscreteModel) -> Array:
+        """``[R_s, L_s, kappa]`` (and ``v``) read off an unstructured model (a start).
+
+        Parameters
+        ----------
+        model : DiscreteModel
+            The least-squares model.
+        """
+        L_s = self.h / float(np.mean(np.diag(model.Bd)))
+        decay = -np.log(max(float(np.abs(np.linalg.det(model.Ad))), 1e-300)) / (2 * self.h)
+        gains = np.linalg.solve(model.Bd, model.Ed)  # B^-1 D, nearly: [[0, 0], [-kappa, 0]]
+        start = [max(decay * L_s, 1e-9), L_s, -float(gains[1, 0])]
+        if self.dead_time:
+            start.append(-float(np.trace(gains[:, 2:])) / 2.0)  # -v I
+        return np.array(start)
+
+    @staticmethod
+    def names(dead_time: bool) -> tuple[str, ...]:
+        """The parameters' names, in order.
+
+        Parameters
+        ----------
+        dead_time : bool
+            With the dead-time voltage.
+        """
+        return ("R_s", "L_s", "kappa", "v") if dead_time else ("R_s", "L_s", "kappa")
+
+
+def _unstructured(theta: Array, n: int, m: int, q: int) -> tuple[Array, Array, Array]:
+    M = theta.reshape((n, n + m + q), order="F")
+    return M[:, :n], M[:, n : n + m], M[:, n + m :]
+
+
+def fit_output_error(
+    episodes: Sequence[Trajectory],
+    shift: int,
+    start: DiscreteModel,
+    structure: SpmsmStructure | None = None,
+    max_iterations: int = 60,
+    resolution: float = 0.0,
+) -> OutputErrorFit | None:
+    """Fit the discrete model by output error, starting from ``start``.
+
+    Parameters
+    ----------
+    episodes : sequence of Trajectory
+        The logs.
+    shift : int
+        The alignment of the logged inputs (:func:`selftune.learn.check_alignment`).
+    start : DiscreteModel
+        The least-squares model to start from.
+    structure : SpmsmStructure, optional
+        Fit only the structure's parameters instead of every entry of ``[Ad, Bd, Ed]``.
+    max_iterations : int
+        Upper bound on Gauss-Newton iterations.
+    resolution : float
+        The log's relative precision (e.g. 6e-8 for float32 values): the noise of each
+        state is taken to be at least its rounding (:func:`resolution_floor`).
+
+    Returns
+    -------
+    OutputErrorFit or None
+        None when the plant is not stable (the open-loop simulation would diverge).
+    """
+    radius = float(np.max(np.abs(np.linalg.eigvals(start.Ad))))
+    if radius >= 1.0 - 1e-9:
+        # noise can push the least-squares model of a stable plant just past the limit:
+        # start inside it; an unstable plant stays unstable and is left to least squares
+        start = replace(start, Ad=start.Ad * (1.0 - 1e-3) / radius)
+    logs = _logs(episodes, shift)
+    n, m, q = start.n, start.Bd.shape[1], start.Ed.shape[1]
+    matrices: Callable[[Array], tuple[Array, Array, Array]]
+    if structure is None:
+        theta = np.concatenate([start.Ad, start.Bd, start.Ed], axis=1).ravel(order="F")
+
+        def unstructured(values: Array) -> tuple[Array, Array, Array]:
+            return _unstructured(values, n, m, q)
+
+        matrices = unstructured
+    else:
+        if (n, m, q) != (2, 2, 4 if structure.dead_time else 2):
+            raise InputError(
+                "structure: the PMSM structure needs n = m = q = 2 (the known-flux form)"
+            )
+        theta = structure.initial(start)
+        matrices = structure
+    stacked_x = np.concatenate([log.x for log in logs])
+    floor = resolution_floor(stacked_x, resolution)
+    fit = _gauss_newton(
+        logs, theta, matrices, structure is not None, max_iterations, start.h, floor
+    )
+    if not np.all(np.isfinite(fit.model.Ad)):
+        return None
+    if float(np.max(np.abs(np.linalg.eigvals(fit.model.Ad)))) >= 1.0:
+        return None  # an unstable plant: its open-loop simulation is no model of the data
+    return replace(fit, structure=structure)
+
+
+def _jacobian_map(
+    matrices: Callable[[Array], tuple[Array, Array, Array]], theta: Array, structured: bool
+) -> Array | None:
+    """``d vec([Ad, Bd, Ed]) / d theta`` for a structure (central differences); None for
+    the unstructured model (the identity)."""
+    if not structured:
+        return None
+    columns = []
+    for index in range(theta.shape[0]):
+        step = 1e-6 * max(abs(float(theta[index])), 1e-3)
+        plus, minus = theta.copy(), theta.copy()
+        plus[index] += step
+        minus[index] -= step
+        high = np.concatenate(matrices(plus), axis=1).ravel(order="F")
+        low = np.concatenate(matrices(minus), axis=1).ravel(order="F")
+        columns.append((high - low) / (2 * step))
+    return np.column_stack(columns)
+
+
+def _residuals_and_jacobian(
+    logs: list[_Log],
+    mats: tuple[Array, Array, Array],
+    x0s: list[Array],
+    chain: Array | None,
+) -> tuple[list[Array], list[Array], list[Array]]:
+    residuals, jacobians, simulated = [], [], []
+    for log, x0 in zip(logs, x0s, strict=True):
+        xhat = simulate_model(mats, x0, log.a, log.w)
+        S = _sensitivities(mats, log, xhat)
+        n = xhat.shape[1]
+        theta_part, x0_part = S[:, :, :-n], S[:, :, -n:]
+        if chain is not None:
+            theta_part = theta_part @ chain
+        residuals.append(log.x - xhat)
+        jacobians.append(np.concatenate([theta_part, x0_part], axis=2))
+        simulated.append(xhat)
+    return residuals, jacobians, simulated
+
+
+#: Rounds of re-estimating the noise weight W; Levenberg-Marquardt runs within each.
+WEIGHT_ROUNDS = 3
+
+
+def _cost(
+    logs: list[_Log],
+    matrices: Callable[[Array], tuple[Array, Array, Array]],
+    point: tuple[Array, list[Array]],
+    weight: Array,
+) -> float:
+    """The weighted output-error cost at ``(theta, x0s)``."""
+    theta, x0s = point
+    mats = matrices(theta)
+    total = 0.0
+    for log, x0 in zip(logs, x0s, strict=True):
+        r = log.x - simulate_model(mats, x0, log.a, log.w)
+        total += float(np.einsum("ki,ij,kj->", r, weight, r))
+    return total if np.isfinite(total) else float("inf")
+
+
+def _gauss_newton(
+    logs: list[_Log],
+    theta: Array,
+    matrices: Callable[[Array], tuple[Array, Array, Array]],
+    structured: bool,
+    max_iterations: int,
+    h: float,
+    floor: Array,
+) -> OutputErrorFit:
+    """Levenberg-Marquardt on the parameters and every log's initial state: a step is kept
+    only if it lowers the cost (else the damping grows), with the noise weight
+    re-estimated from the output errors between rounds (iteratively reweighted)."""
+    n, p = logs[0].x.shape[1], theta.shape[0]
+    x0s = [log.x[0].copy() for log in logs]
+    iterations = 0
+    for _ in range(WEIGHT_ROUNDS):
+        mats = matrices(theta)
+        chain = _jacobian_map(matrices, theta, structured)
+        residuals, jacobians, _ = _residuals_and_jacobian(logs, mats, x0s, chain)
+        root = _noise_root(np.concatenate(residuals), floor)  # W = root' root
+        weight, damping = root.T @ root, 1e-4
+        cost = _cost(logs, matrices, (theta, x0s), weight)
+        while iterations < max_iterations:
+            iterations += 1
+            step = _step(residuals, jacobians, root, p, damping)
+            trial = theta + step[:p]
+            trial_x0s = [x0 + step[p + i * n : p + (i + 1) * n] for i, x0 in enumerate(x0s)]
+            trial_cost = _cost(logs, matrices, (trial, trial_x0s), weight)
+            if trial_cost >= cost:
+                damping *= 10.0
+                if damping > 1e8:
+                    break
+                continue
+            improvement = (cost - trial_cost) / max(cost, 1e-300)
+            theta, x0s, cost, damping = trial, trial_x0s, trial_cost, max(damping / 10, 1e-12)
+            if improvement < 1e-12:
+                break
+            chain = _jacobian_map(matrices, theta, structured)
+            residuals, jacobians, _ = _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
+    return _finish(logs, theta, matrices, structured, x0s, h, iterations, floor)
+
+
+def _noise_root(stacked: Array, floor: Array) -> Array:
+    """``root`` with ``root' root`` the inverse of the residuals' covariance, each state's
+    variance at least ``floor^2`` (the log's resolution; never zero, so that noise-free
+    data weigh finitely)."""
+    covariance = np.atleast_2d(np.cov(stacked.T))
+    covariance = covariance + np.diag(np.maximum(floor**2 - np.diag(covariance), 0.0))
+    return np.asarray(scipy.linalg.cholesky(np.linalg.inv(covariance)), dtype=np.float64)
+
+
+def resolution_floor(x: Array, relative: float) -> Array:
+    """The standard deviation of rounding to ``relative`` precision of each state's values
+    (uniform rounding, ``relative max|x| / sqrt(3)``), at least 1e-12 of the states' size.
+
+    Parameters
+    ----------
+    x : ndarray, shape (T, n)
+        The states.
+    relative : float
+        The log's relative precision (e.g. 6e-8 for float32).
+    """
+    size = float(np.max(np.abs(x))) if x.size else 1.0
+    per_state = relative * np.max(np.abs(x), axis=0) / np.sqrt(3.0)
+    return np.asarray(np.maximum(per_state, 1e-12 * max(size, 1e-300)))
+
+
+def _whitened(
+    residuals: list[Array], jacobians: list[Array], root: Array, p: int
+) -> list[tuple[Array, Array]]:
+    """Per log: the whitened residuals (T, n) and Jacobian (T, n, p + logs n), every log's
+    initial state its own columns."""
+    n, count = residuals[0].shape[1], len(residuals)
+    result = []
+    for index, (r, J) in enumerate(zip(residuals, jacobians, strict=True)):
+        full = np.zeros((J.shape[0], n, p + count * n))
+        full[:, :, :p] = J[:, :, :p]
+        full[:, :, p + index * n : p + (index + 1) * n] = J[:, :, p:]
+        result.append((r @ root.T, np.einsum("ij,kjl->kil", root, full)))
+    return result
+
+
+def _step(
+    residuals: list[Array], jacobians: list[Array], root: Array, p: int, damping: float
+) -> Array:
+    """The damped Gauss-Newton step for (theta, x0 of every log)."""
+    parts = _whitened(residuals, jacobians, root, p)
+    J_all = np.vstack([J.reshape(-1, J.shape[2]) for _, J in parts])
+    r_all = np.concatenate([r.reshape(-1) for r, _ in parts])
+    normal = J_all.T @ J_all
+    normal += damping * np.diag(np.diag(normal))
+    return np.asarray(np.linalg.solve(normal, J_all.T @ r_all))
+
+
+def _robust_covariance(parts: list[tuple[Array, Array]]) -> tuple[Array, Array]:
+    """The parameters' covariance ``H^-1 S H^-1`` (Newey-West): ``H`` the Fisher
+    information, ``S`` the long-run covariance of the per-sample scores with Bartlett
+    weights. It equals ``H^-1`` for white output errors and stays honest when they are
+    not (an effect the model misses, e.g. a voltage ripple): the standard errors then
+    grow instead of lying. Also returns ``H``."""
+    size = parts[0][1].shape[2]
+    fisher = np.zeros((size, size))
+    long_run = np.zeros((size, size))
+    for r, J in parts:
+        fisher += np.einsum("kil,kim->lm", J, J)
+        scores = np.einsum("kil,ki->kl", J, r)
+        count = scores.shape[0]
+        lags = int(min(count // 10, 4 * count ** (1 / 3)))
+        long_run += scores.T @ scores
+        for lag in range(1, lags + 1):
+            weight = 1.0 - lag / (lags + 1)
+            cross = scores[lag:].T @ scores[:-lag]
+            long_run += weight * (cross + cross.T)
+    inverse = np.linalg.pinv(fisher)
+    return inverse @ long_run @ inverse, fisher
+
+
+def _finish(
+    logs: list[_Log],
+    theta: Array,
+    matrices: Callable[[Array], tuple[Array, Array, Array]],
+    structured: bool,
+    x0s: list[Array],
+    h: float,
+    iterations: int,
+    floor: Array,
+) -> OutputErrorFit:
+    mats = matrices(theta)
+    chain = _jacobian_map(matrices, theta, structured)
+    residuals, jacobians, simulated = _residuals_and_jacobian(logs, mats, x0s, chain)
+    stacked = np.concatenate(residuals)
+    noise = np.atleast_2d(np.cov(stacked.T))
+    noise = noise + np.diag(np.maximum(floor**2 - np.diag(noise), 0.0))
+    p = theta.shape[0]
+    robust, fisher = _robust_covariance(
+        _whitened(residuals, jacobians, _noise_root(stacked, floor), p)
+    )
+    changes = np.concatenate([log.x[1:] - log.x[:-1] for log in logs])
+    model = DiscreteModel(
+        Ad=mats[0],
+        Bd=mats[1],
+        Ed=mats[2],
+        h=h,
+        residual_rms=np.sqrt(np.mean(stacked**2, axis=0)),
+        relative_residual=float(np.linalg.norm(stacked))
+        / max(float(np.linalg.norm(changes)), 1e-300),
+        condition=float(np.linalg.cond(fisher)),
+        transitions=int(sum(log.a.shape[0] for log in logs)),
+    )
+    return OutputErrorFit(
+        model=model,
+        parameters=theta,
+        parameter_covariance=robust[:p, :p],  # the initial states are nuisances
+        noise_covariance=noise,
+        simulated=tuple(simulated),
+        residuals=tuple(residuals),
+        iterations=iterations,
+    )
+
+
+def simulated_trajectories(
+    episodes: Sequence[Trajectory], shift: int, fit: OutputErrorFit
+) -> list[Trajectory]:
+    """The logs with their states replaced by the fit's noise-free simulation.
+
+    The rows the fit used (those with a known applied input) hold ``xhat``; inputs,
+    references and times are the logs' own, so every regression built from these
+    trajectories is an instrument for the one built from the logs (same rows, same
+    inputs, no measurement noise).
+
+    Parameters
+    ----------
+    episodes : sequence of Trajectory
+        The logs.
+    shift : int
+        The alignment the fit used.
+    fit : OutputErrorFit
+        The fitted model and its simulations.
+
+    Returns
+    -------
+    list of Trajectory
+    """
+    result = []
+    for episode, xhat in zip(episodes, fit.simulated, strict=True):
+        _, first = applied_inputs(episode, shift)
+        x = episode.x.copy()
+        x[first : first + xhat.shape[0]] = xhat
+        result.append(Trajectory(t=episode.t, x=x, u=episode.u, w=episode.w))
+    return result

@@ -1,0 +1,302 @@
+"""The verdict on a learned controller: how good it is, and whether the data support it.
+
+Every :class:`~selftune.learn.LearnedController` carries a :class:`Quality`:
+
+- the alignment used and how clearly the data showed it; the measurement noise estimated
+  from the output errors; the consistency test of the model against the data;
+- standard errors of K, U and P. The parameters of the output-error model have a
+  covariance (the inverse Fisher information under the estimated noise); the controller
+  is a smooth function of them (the design of the target on that model), so its
+  covariance follows by the delta method, with a numerical Jacobian. For the paper's
+  continuous ADP, whose quadrature leaves an O(h^2) error that no noise explains, the
+  difference to the continuous optimum of the same model is added in quadrature
+  (``floor``). These errors are what the data support, and they are calibrated
+  (tests/test_quality.py checks the coverage on motors not in the tests);
+- the stability margin of the learned loop on the fitted model, with the delay, and on
+  models drawn from the parameters' uncertainty.
+
+:func:`check_safety` refuses a controller the data do not support: one that does not
+stabilize every plausible model with a margin, whose standard errors exceed the
+tolerance (too little data for the noise: it says how much would do), or whose policy
+iteration did not lower the value step by step as theory says it must.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core import RANK_TOLERANCE, Array, ControlLaw, delay_augmented
+from ..errors import ConvergenceError, ExcitationError
+from ._discrete_model import DiscreteModel
+from ._evidence import Evidence
+from ._policy_iteration import IterationRecord
+
+__all__ = [
+    "STABILITY_MARGIN",
+    "Quality",
+    "check_precision",
+    "check_safety",
+    "closed_loop_radius",
+    "standard_errors",
+]
+
+#: The least stability margin ``1 - spectral radius`` of the learned sampled loop.
+STABILITY_MARGIN = 1e-4
+
+#: Models drawn from the parameters' uncertainty on which the learned loop must be stable.
+PLAUSIBLE_MODELS = 24
+
+Design = Callable[[DiscreteModel], tuple[Array, Array, Array]]
+
+
+@dataclass(frozen=True)
+class Quality:
+    """How good a learned controller is, from the data alone.
+
+    Attributes
+    ----------
+    shift : int
+        The alignment used: the voltage applied during sample k is in row k - shift.
+    detected_shift : int
+        The shift that explains the data best.
+    alignment_ratio : float
+        The best other shift's one-step residual over the one used (above 2: clear).
+    noise_rms : ndarray or None
+        Estimated measurement noise of each state (standard deviation, the state's unit);
+        None without an output-error model.
+    residual_rms : ndarray
+        Root mean square of the model's output (or one-step) errors, per state.
+    consistency_statistic : float
+        The input-residual cross-correlation statistic.
+    consistency_threshold : float
+        Its threshold (chi-square at p = 1e-6); the data were refused above it.
+    noise_handling : str
+        ``"smoothed"``, ``"instruments"`` or ``"none"`` (see LearningOptions).
+    K_se : ndarray
+        Standard errors of K's entries.
+    U_se : ndarray
+        Standard errors of U's entries.
+    P_se : ndarray
+        Standard errors of P's entries.
+    K_relative_se : float
+        ``||K_se|| / ||K||``.
+    U_relative_se : float
+        ``||U_se|| / ||U||`` (0 without a reference).
+    stability_margin : float
+        ``1 - spectral radius`` of the learned loop on the fitted model (with the delay).
+    voltage_error : float or None
+        The inverter's dead-time voltage ``v = t_d f_sw V_dc`` per phase, V (its average
+        along the current is ``4 v / pi``); None unless modelled.
+    log_precision : str
+        The precision the states were logged with (float64, float32, significant digits).
+    notes : tuple of str
+        What else the user should know.
+    """
+
+    shift: int
+    detected_shift: int
+    alignment_ratio: float
+    noise_rms: Array | None
+    residual_rms: Array
+    consistency_statistic: float
+    consistency_threshold: float
+    noise_handling: str
+    K_se: Array
+    U_se: Array
+    P_se: Array
+    K_relative_se: float
+    U_relative_se: float
+    stability_margin: float
+    voltage_error: float | None
+    log_precision: str
+    notes: tuple[str, ...]
+
+
+def closed_loop_radius(model: DiscreteModel, law: ControlLaw, delay: int) -> float:
+    """Spectral radius of the sampled loop of ``law`` on ``model`` with a delay of d
+    samples (integral action included).
+
+    Parameters
+    ----------
+    model : DiscreteModel
+        The plant.
+    law : ControlLaw
+        The controller (its ``history`` at most ``delay``).
+    delay : int
+        The drive's computation delay, samples.
+    """
+    n, m = model.n, model.Bd.shape[1]
+    Az, Bz = delay_augmented(model.Ad, model.Bd, delay)
+    size = Az.shape[0]
+    K = np.zeros((m, size))
+    K[:, :n] = law.K_x
+    for lag in range(1, law.history + 1):  # u_(k-lag) sits in block delay - lag
+        block = n + (delay - lag) * m
+        column = n + (law.history - lag) * m
+        K[:, block : block + m] = law.K[:, column : column + m]
+    closed = Az - Bz @ K
+    if law.K_i is not None:  # z_(k+1) = z_k + h C xbar_k, u_k also -K_i z_k
+        assert law.C is not None and law.h is not None
+        r = law.K_i.shape[1]
+        closed = np.block(
+            [
+                [closed, -Bz @ law.K_i],
+                [np.hstack([law.h * law.C, np.zeros((r, size - n))]), np.eye(r)],
+            ]
+        )
+    return float(np.max(np.abs(np.linalg.eigvals(closed))))
+
+
+def standard_errors(
+    design: Design,
+    matrices: Callable[[Array], tuple[Array, Array, Array]],
+    parameters: Array,
+    covariance: Array,
+    h: float,
+) -> tuple[Array, Array, Array]:
+    """Standard errors of ``(K, U, P) = design(model(parameters))`` by the delta method.
+
+    Parameters
+    ----------
+    design : callable
+        Maps a model to ``(K, U, P)``.
+    matrices : callable
+        Maps parameters to ``(Ad, Bd, Ed)``.
+    parameters : ndarray, shape (p,)
+        The fitted parameters.
+    covariance : ndarray, shape (p, p)
+        Their covariance.
+    h : float
+        Sampling period of the model, s.
+
+    Returns
+    -------
+    K_se, U_se, P_se : ndarray
+        Entry by entry.
+    """
+
+    def outputs(theta: Array) -> list[Array]:
+        Ad, Bd, Ed = matrices(theta)
+        model = DiscreteModel(Ad, Bd, Ed, h, np.zeros(Ad.shape[0]), 0.0, 1.0, 0)
+        return list(design(model))
+
+    base = outputs(parameters)
+    deviations = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    variances = [np.zeros_like(part) for part in base]
+    derivatives = []
+    for index in range(parameters.shape[0]):
+        step = max(deviations[index], 1e-9 * max(abs(float(parameters[index])), 1e-12))
+        shifted = parameters.copy()
+        shifted[index] += step
+        changed = outputs(shifted)
+        derivatives.append([(part - ref) / step for part, ref in zip(changed, base, strict=True)])
+    for k, _ in enumerate(base):
+        J = np.stack([d[k].ravel() for d in derivatives], axis=1)
+        variances[k] = np.einsum("ij,jk,ik->i", J, covariance, J).reshape(base[k].shape)
+    K_var, U_var, P_var = variances
+    return np.sqrt(np.abs(K_var)), np.sqrt(np.abs(U_var)), np.sqrt(np.abs(P_var))
+
+
+def _monotone(history: tuple[IterationRecord, ...]) -> int | None:
+    """The first step whose value exceeds the previous one's beyond rounding (policy
+    iteration must lower the value matrix at every step), or None. A step numbered 0
+    starts a new iteration (a new discount of the schedule, whose values are larger)."""
+    for index in range(1, len(history)):
+        before, after = history[index - 1].P, history[index].P
+        if before.shape != after.shape or history[index].iteration == 0:
+            continue
+        rise = float(np.max(np.linalg.eigvalsh(after - before)))
+        if rise > 1e3 * RANK_TOLERANCE * float(np.max(np.abs(before))):
+            return index
+    return None
+
+
+def check_safety(
+    quality: Quality,
+    evidence: Evidence,
+    history: tuple[IterationRecord, ...],
+    limit: float,
+    radii: Array,
+) -> None:
+    """Raise unless the data support the controller (see the module docstring).
+
+    Parameters
+    ----------
+    quality : Quality
+        The verdict so far.
+    evidence : Evidence
+        The data's alignment, model and noise.
+    history : tuple of IterationRecord
+        Policy-iteration steps (empty for identify-then-design).
+    limit : float
+        The largest relative standard error of K and U accepted.
+    radii : ndarray
+        Spectral radii of the learned loop on plausible models (the fitted one first).
+
+    Raises
+    ------
+    ConvergenceError
+        If the loop is not stable with margin on every plausible model, or the value did
+        not decrease as policy iteration requires.
+    ExcitationError
+        If the standard errors exceed ``limit``: too little data for the noise.
+    """
+    if radii.size and float(np.max(radii)) > 1.0 - STABILITY_MARGIN:
+        raise ConvergenceError(
+            f"the learned controller does not stabilize every plant the data allow: the "
+            f"sampled loop's spectral radius reaches {float(np.max(radii)):.6f} on "
+            f"{int(np.sum(radii > 1.0 - STABILITY_MARGIN))} of {radii.size} plausible models "
+            "(1 is the stability limit); use longer or better-excited data, or a gentler cost"
+        )
+    step = _monotone(history)
+    if step is not None:
+        raise ConvergenceError(
+            f"policy iteration did not behave as theory says: the learned value rose at "
+            f"step {step} (it must fall at every step from a stabilizing policy); the data "
+            "do not support the controller (too noisy, too short, or a plant that is not "
+            "linear)"
+        )
+    check_precision((quality.K_relative_se, quality.U_relative_se), evidence, limit)
+
+
+def check_precision(relative: tuple[float, float], evidence: Evidence, limit: float) -> None:
+    """Raise unless the relative standard errors of K and U are within ``limit``.
+
+    Parameters
+    ----------
+    relative : (float, float)
+        Relative standard errors of K and U.
+    evidence : Evidence
+        The data's model and noise.
+    limit : float
+        The largest accepted.
+
+    Raises
+    ------
+    ExcitationError
+        "too little data for this noise level", with the length that would do.
+    """
+    worst = max(relative)
+    if not worst > limit:
+        return
+    duration = sum(float(e.duration) for e in evidence.episodes)
+    needed = duration * (worst / limit) ** 2
+    raise ExcitationError(
+        f"too little data for this noise level: the standard error of K is "
+        f"{relative[0]:.2%} and of U {relative[1]:.2%} of their size (the limit is "
+        f"{limit:.2%}) from {duration:.4g} s of data with about {_noise_text(evidence)} of "
+        f"noise; about {needed:.3g} s of the same kind of data would bring them within the "
+        "limit (or richer excitation: more exploration, reference changes, another "
+        "operating point)"
+    )
+
+
+def _noise_text(evidence: Evidence) -> str:
+    noise = evidence.model_noise
+    if noise is None:  # no output-error model: the one-step residual bounds the noise
+        residual = evidence.alignment.model.residual_rms
+        return ", ".join(f"{value:.3g}" for value in residual) + " (one-step residual)"
+    return ", ".join(f"{value:.3g}" for value in noise)

@@ -1,0 +1,183 @@
+"""The verdict's numbers: the target's optimum on the fitted model, its standard errors,
+and the quality of a learned law (see :mod:`._quality` for what they mean and
+:func:`~._learner.learn_controller` for where they are used)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..core import Array, ControlLaw
+from ._discrete_model import DiscreteModel
+from ._evidence import Evidence
+from ._identify import design_continuous, design_digital
+from ._problem import LearningOptions, LearningProblem
+from ._quality import PLAUSIBLE_MODELS, Quality, closed_loop_radius, standard_errors
+
+__all__ = [
+    "ROUNDING_FLOOR",
+    "ModelErrors",
+    "dead_time_voltage",
+    "design_target",
+    "model_errors",
+    "relative_size",
+    "verdict",
+    "without_extra",
+]
+
+#: The smallest standard error stated, relative to the largest entry: the learners are
+#: exact to about this on noise-free data, not better.
+ROUNDING_FLOOR = 1e-10
+
+
+def without_extra(law: ControlLaw, q: int) -> ControlLaw:
+    """The law without the feedforward of the appended direction channels."""
+    if law.X.shape[1] == q:
+        return law
+    return ControlLaw(
+        law.K, law.X[:, :q], law.U[:, :q], history=law.history, K_i=law.K_i,
+        C=law.C, F=None if law.F is None else law.F[:, :q], h=law.h,
+    )  # fmt: skip
+
+
+def design_target(
+    model: DiscreteModel, problem: LearningProblem, options: LearningOptions
+) -> tuple[ControlLaw, Array, Array]:
+    """The optimum of the options' target on a model (identify-then-design)."""
+    if options.target == "digital":
+        design = design_digital(model, problem, options.input_delay)
+    else:
+        design = design_continuous(model, problem)
+    return design.law, design.P, design.B
+
+
+def _outputs(law: ControlLaw, P: Array) -> tuple[Array, Array, Array]:
+    K = law.K if law.K_i is None else np.hstack([law.K, law.K_i])
+    return K, law.U, P
+
+
+@dataclass(frozen=True)
+class ModelErrors:
+    """The target's optimum on the fitted model and its standard errors, known before any
+    learner runs."""
+
+    K: Array
+    U: Array
+    P: Array
+    K_se: Array
+    U_se: Array
+    P_se: Array
+    notes: tuple[str, ...]
+
+
+def model_errors(
+    evidence: Evidence, problems: tuple[LearningProblem, int], options: LearningOptions
+) -> ModelErrors:
+    """Standard errors of the target's optimum from the output-error model's covariance."""
+    problem, q = problems
+    fit = evidence.fit
+    model = evidence.alignment.model if fit is None else fit.model
+
+    def design(candidate: DiscreteModel) -> tuple[Array, Array, Array]:
+        learned, P, _ = design_target(candidate, problem, options)
+        return _outputs(without_extra(learned, q), P)
+
+    K, U, P = design(model)
+    if fit is None:
+        assert model.covariance is not None
+        note = (
+            "the plant is not stable, so no output-error model: the least-squares model and "
+            "its standard errors are used, which measurement noise on the states biases"
+        )
+        errors = standard_errors(
+            design, model.matrices, model.parameters, model.covariance, model.h
+        )
+        return ModelErrors(K, U, P, *errors, notes=(note,))
+    K_se, U_se, P_se = standard_errors(
+        design, fit.matrices, fit.parameters, fit.parameter_covariance, model.h
+    )
+    return ModelErrors(K, U, P, K_se, U_se, P_se, notes=())
+
+
+def relative_size(se: Array, value: Array) -> float:
+    size = float(np.linalg.norm(value))
+    ratio = float(np.linalg.norm(se)) / size if size > 0 else 0.0
+    return ratio if np.isfinite(ratio) else 0.0
+
+
+def verdict(
+    law: ControlLaw, errors: ModelErrors, evidence: Evidence, options: LearningOptions
+) -> tuple[Quality, Array]:
+    """The quality of ``law`` and the spectral radii of its loop on plausible models."""
+    model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
+    notes = list(errors.notes)
+    K_learned = _outputs(law, errors.P)[0]
+    K_se, U_se = errors.K_se, errors.U_se
+    if options.method == "adp" and options.target == "continuous":
+        # the continuous data equation's quadrature error: no noise explains it
+        K_se = np.sqrt(K_se**2 + (K_learned - errors.K) ** 2)
+        U_se = np.sqrt(U_se**2 + (law.U - errors.U) ** 2)
+        notes.append(
+            "the standard errors include the O(h^2) quadrature error of the continuous data "
+            "equation, measured against the continuous optimum of the fitted model"
+        )
+    # rounding: no learner is exact beyond about 1e-10 of the gain's size
+    K_se = np.maximum(K_se, ROUNDING_FLOOR * float(np.max(np.abs(K_learned))))
+    U_se = np.maximum(U_se, ROUNDING_FLOOR * float(np.max(np.abs(law.U), initial=0.0)))
+    radii = _radii(law, evidence, options)
+    alignment = evidence.alignment
+    quality = Quality(
+        shift=alignment.shift,
+        detected_shift=alignment.detected_shift,
+        alignment_ratio=alignment.ratio,
+        noise_rms=evidence.model_noise,
+        residual_rms=model.residual_rms,
+        consistency_statistic=evidence.consistency.statistic,
+        consistency_threshold=evidence.consistency.threshold,
+        noise_handling=options.noise if options.method == "adp" else "output error",
+        K_se=K_se[:, : law.K.shape[1]],
+        U_se=U_se,
+        P_se=errors.P_se if options.method == "identify" else np.full_like(errors.P, np.nan),
+        K_relative_se=relative_size(K_se, K_learned),
+        U_relative_se=relative_size(U_se, law.U),
+        stability_margin=1.0 - float(radii[0]),
+        voltage_error=dead_time_voltage(evidence),
+        log_precision=evidence.precision,
+        notes=tuple(notes),
+    )
+    return quality, radii
+
+
+def _radii(law: ControlLaw, evidence: Evidence, options: LearningOptions) -> Array:
+    """Spectral radii of the learned loop on the fitted model (first) and on models drawn
+    from the parameters' uncertainty (a fixed seed: the verdict is reproducible)."""
+    fit = evidence.fit
+    model = evidence.alignment.model if fit is None else fit.model
+    radii = [closed_loop_radius(model, law, options.input_delay)]
+    if fit is not None:
+        rng = np.random.default_rng(0)
+        draws = rng.multivariate_normal(
+            fit.parameters, fit.parameter_covariance, size=PLAUSIBLE_MODELS, method="svd"
+        )
+        for theta in draws:
+            Ad, Bd, Ed = fit.matrices(theta)
+            candidate = replace(model, Ad=Ad, Bd=Bd, Ed=Ed)
+            radii.append(closed_loop_radius(candidate, law, options.input_delay))
+    return np.array(radii)
+
+
+def dead_time_voltage(evidence: Evidence) -> float | None:
+    """The dead-time voltage ``v = t_d f_sw V_dc`` per phase, V, of the fitted model (the
+    gain of the phase signs' channels is ``-v Bd``); None unless modelled.
+
+    Parameters
+    ----------
+    evidence : Evidence
+        The logs' evidence (with ``dead_time``).
+    """
+    if not evidence.extra:
+        return None
+    model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
+    gain = model.Ed[:, model.Ed.shape[1] - evidence.extra :]
+    return -float(np.trace(np.linalg.solve(model.Bd, gain))) / evidence.extra
