@@ -6,7 +6,13 @@
 - exogenous signals (:mod:`._signals`): :func:`constant`, :func:`steps`, :func:`held`,
   :func:`exosystem`;
 - exploration (:mod:`._exploration`): :func:`uniform`, :func:`prbs`, :func:`sum_of_sines`;
-- :class:`SimulatedDrive`: the ideal drive the self-tuning sessions run on.
+- :func:`simulate_loop`: the ideal digital loop of a :class:`~selftune.core.ControlLaw`
+  with a computation delay, exact (:mod:`._loop`);
+- :class:`SimulatedDrive`: the ideal drive the self-tuning sessions run on;
+- :class:`RealisticDrive`: a drive that behaves like hardware (computation delay, PWM,
+  dead time, noise, ADC, voltage limit, temperature; :mod:`._realistic`);
+- :class:`GemDrive`: gym-electric-motor's PMSM environment as a drive (the ``gem`` extra;
+  :mod:`._gem`), so a gym-electric-motor current loop is tuned by the same sessions.
 """
 
 from __future__ import annotations
@@ -23,6 +29,9 @@ from ._exploration import (
     sum_of_sines,
     uniform,
 )
+from ._gem import GEM_ENVIRONMENT, GEM_SOLVERS, GemDrive
+from ._loop import LoopLogs, simulate_loop
+from ._realistic import DriveRecord, DriveSettings, RealisticDrive, run_drive_batch
 from ._signals import (
     ConstantSignal,
     ExogenousSignal,
@@ -37,13 +46,20 @@ from ._signals import (
 from ._simulator import TrajectoryBatch, simulate, simulate_batch
 
 __all__ = [
+    "GEM_ENVIRONMENT",
+    "GEM_SOLVERS",
     "BinaryExploration",
     "ConstantSignal",
     "Discretization",
+    "DriveRecord",
+    "DriveSettings",
     "ExogenousSignal",
     "Exosystem",
     "Exploration",
+    "GemDrive",
     "HeldSignal",
+    "LoopLogs",
+    "RealisticDrive",
     "Seed",
     "SimulatedDrive",
     "SinusoidalExploration",
@@ -55,8 +71,10 @@ __all__ = [
     "exosystem",
     "held",
     "prbs",
+    "run_drive_batch",
     "simulate",
     "simulate_batch",
+    "simulate_loop",
     "steps",
     "sum_of_sines",
     "uniform",

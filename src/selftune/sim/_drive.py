@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import Array
+from ..core import Array, ControlLaw
 from ..errors import InputError
 from ..learn import Trajectory
 from ..model import SPMSM
@@ -52,11 +52,32 @@ class SimulatedDrive:
         """Number of pole pairs."""
         return self.motor.p
 
+    @property
+    def input_delay(self) -> int:
+        """0: the voltage computed at a sample acts during it (the ideal drive)."""
+        return 0
+
+    @property
+    def logged_input(self) -> str:
+        """``"applied"``: row k of the log holds the voltage applied during sample k."""
+        return "applied"
+
+    @property
+    def voltage_hold(self) -> str:
+        """``"rotor"``: the dq voltage is held over each sample (zero-order hold)."""
+        return "rotor"
+
+    def _regulator(self, law: ControlLaw) -> tuple[Array, Array, Array]:
+        if law.history or law.K_i is not None:
+            raise InputError(
+                "law: the ideal simulated drive runs u = -K (x - X w) + U w only (no past "
+                "inputs, no integral action); use selftune.sim.RealisticDrive for those"
+            )
+        return law.K, law.X, law.U
+
     def run(
         self,
-        K: Array,
-        X: Array,
-        U: Array,
+        law: ControlLaw,
         reference: ExogenousSignal,
         *,
         num_samples: int,
@@ -74,12 +95,8 @@ class SimulatedDrive:
 
         Parameters
         ----------
-        K : ndarray, shape (2, 2)
-            Feedback gain, V/A.
-        X : ndarray, shape (2, 2)
-            Steady-state map, ``x_ss = X w``.
-        U : ndarray, shape (2, 2)
-            Feedforward, ``u_ss = U w``.
+        law : ControlLaw
+            The controller ``u = -K (x - X w) + U w`` (no past inputs, no integrator).
         reference : ExogenousSignal
             The controller's ``w = [p speed phi, T*]`` (held).
         num_samples : int
@@ -91,6 +108,7 @@ class SimulatedDrive:
         assumed_flux : float, optional
             Flux linkage the controller's ``w`` assumes, Wb (default: the true one).
         """
+        K, X, U = self._regulator(law)
         problem = self.motor.regulation_problem(self.speed)
         D = problem.D
         if assumed_flux is not None and assumed_flux != self.motor.phi_pm:
@@ -117,14 +135,19 @@ class SimulatedDrive:
         )
 
     def run_no_load(
-        self, K: Array, *, num_samples: int, exploration: Exploration | None, seed: int
+        self,
+        law: ControlLaw,
+        *,
+        num_samples: int,
+        exploration: Exploration | None,
+        seed: int,
     ) -> Trajectory:
         """One no-load episode (eq. 15): ``w = [p speed]``, ``T* = 0``, ``u = -K x + rho``.
 
         Parameters
         ----------
-        K : ndarray, shape (2, 2)
-            Feedback gain, V/A.
+        law : ControlLaw
+            The controller (its feedforward on ``w = [p speed]``, usually 0).
         num_samples : int
             Length of the episode, samples.
         exploration : Exploration or None
@@ -132,6 +155,7 @@ class SimulatedDrive:
         seed : int
             Seed of the exploration.
         """
+        K, X, U = self._regulator(law)
         problem = self.motor.no_load_problem(self.speed)
         return simulate(
             problem.A,
@@ -139,6 +163,8 @@ class SimulatedDrive:
             D=problem.D,
             exogenous=constant(self.motor.no_load_exogenous(self.speed)),
             K=K,
+            X=X,
+            U=U,
             exploration=exploration,
             h=self.sampling,
             num_samples=num_samples,

@@ -17,9 +17,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..core import Array, augmented, expm_stack
+from ..core._propagate import plant_last, propagate_steps, propagate_uniform
 from ..errors import InputError
 from ._checks import UNIFORM_ROUNDING_FACTOR, as_float_array, sample_times, uniform_period
-from ._propagate import plant_last, propagate_steps, propagate_uniform
 
 __all__ = [
     "ConstantSignal",

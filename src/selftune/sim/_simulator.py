@@ -65,17 +65,17 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..core import Array, augmented, discretize, expm_stack, positive_finite, positive_integer
-from ..errors import InputError
-from ..learn import Trajectory
-from ._checks import Seed, TimeGrid, as_float_array, as_generator, as_stack, square_stack, time_grid
-from ._exploration import Exploration
-from ._propagate import (
+from ..core._propagate import (
     plant_last,
     propagate_steps,
     propagate_uniform,
     to_plant_last,
     to_plant_major,
 )
+from ..errors import InputError
+from ..learn import Trajectory
+from ._checks import Seed, TimeGrid, as_float_array, as_generator, as_stack, square_stack, time_grid
+from ._exploration import Exploration
 from ._signals import ExogenousSignal, check_signal_values
 
 __all__ = ["TrajectoryBatch", "simulate", "simulate_batch"]

@@ -1,0 +1,578 @@
+"""The physics and the time loop under :class:`~selftune.sim._realistic.RealisticDrive`.
+
+Everything acts on P motors at once. A complex number ``a + j b`` is a two-axis vector:
+``[alpha, beta]`` (stationary frame) or ``[d, q]`` (rotor frame), ``i_dq = exp(-j theta)
+i_ab`` (Park). SI units.
+
+**Motor**: ``L_s di/dt = v - R_s i - e``, back-EMF ``e = j w_e phi_pm exp(j theta)``
+(``w_e phi_pm [-sin theta, cos theta]``, V), ``theta = w_e t``, ``w_e = p speed``; in dq
+exactly PAPER_NOTES eq. (8) with ``w_1 = p speed phi_pm``. For a voltage ``c + r exp(j
+w_e s)`` over ``[0, tau]`` (a constant part and one turning with the rotor), exactly::
+
+    i(tau) = a i(0) + (1 - a) c / R_s
+             + (r - j w_e phi_pm exp(j theta_0)) (exp(j w_e tau) - a) / (L_s (gamma + j w_e))
+
+``a = exp(-gamma tau)``, ``gamma = R_s / L_s``: the EMF and a turning voltage are the same
+integral ``int_0^tau exp(-gamma (tau - s)) exp(j w_e s) ds``. No ODE solver.
+
+**Inverter**: two-level legs on ``V_dc``; space-vector duties ``d_x = 1/2 + (v_x + v_0) /
+V_dc``, ``v_0 = -(max v_x + min v_x) / 2``, in ``[0, 1]`` while ``|v| <= V_dc / sqrt(3)``.
+Center-aligned carrier: leg x high on ``[(1 - d_x) T/2, (1 + d_x) T/2]``, all legs low at
+the period boundary (the carrier peak, where the currents are sampled); up to 7 constant
+segments per period. Dead time ``t_d``: a leg whose current flows out (``i_x > 0``) rises
+``t_d`` late, one whose current flows in falls ``t_d`` late, so the mean phase voltage
+moves by ``-t_d f_sw V_dc sign(i_x)``; the sign is the one at the period start (the
+sample instant) for all the period's edges (exact unless a phase current crosses zero
+within the period). A leg at duty 0 or 1 does not switch; a pulse cannot be shorter than
+0 or longer than the period (the average model does not clip its error).
+
+**Sensor**: phase currents (amplitude-invariant inverse Clarke) plus Gaussian noise, then
+an ADC rounding to the LSB ``adc_range / 2**(adc_bits - 1)`` and clipping to the codes
+``-2**(adc_bits - 1) .. 2**(adc_bits - 1) - 1``; then Clarke (dropping the common mode).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core import Array, ControlLaw
+from ..errors import InputError
+from ..model import SPMSM
+from ._checks import as_float_array, as_generator
+from ._exploration import Exploration
+
+__all__ = [
+    "CLARKE",
+    "COPPER_COEFFICIENT",
+    "MAGNET_COEFFICIENT",
+    "ComplexArray",
+    "CurrentSensor",
+    "Feedback",
+    "LoopInputs",
+    "LoopOutputs",
+    "Modulator",
+    "MotorBatch",
+    "PwmSegments",
+    "carrier_segments",
+    "dead_time_voltage",
+    "feedback_of",
+    "from_phases",
+    "leg_duties",
+    "phasor_mean",
+    "propagate_segments",
+    "random_inputs",
+    "run_loop",
+    "segments_mean_dq",
+    "to_phases",
+]
+
+ComplexArray = NDArray[np.complex128]
+
+#: Resistance rise of copper per kelvin, 1/K.
+COPPER_COEFFICIENT = 0.0039
+#: Flux loss of NdFeB magnets per kelvin, 1/K.
+MAGNET_COEFFICIENT = 0.001
+
+#: The directions of phases a, b, c in the stationary frame: ``exp(j 2 pi x / 3)``.
+PHASE_DIRECTIONS: ComplexArray = np.exp(2j * np.pi * np.arange(3) / 3)
+#: The amplitude-invariant Clarke transform as a row: ``i_ab = i_abc @ CLARKE``.
+CLARKE: ComplexArray = (2.0 / 3.0) * PHASE_DIRECTIONS
+
+
+def to_phases(vector: ComplexArray) -> Array:
+    """Phase values ``[a, b, c]`` (..., 3) of stationary vectors (amplitude-invariant)."""
+    return np.real(vector[..., np.newaxis] * np.conj(PHASE_DIRECTIONS))
+
+
+def from_phases(phases: Array) -> ComplexArray:
+    """``alpha + j beta`` of phase values (..., 3) (Clarke; the common mode is dropped)."""
+    return phases @ CLARKE
+
+
+def phasor_mean(x: Array) -> ComplexArray:
+    """``(1 - exp(-j x)) / (j x) = exp(-j x / 2) sin(x / 2) / (x / 2)``: the mean of
+    ``exp(-j s)`` over ``[0, x]`` (x in rad), without cancellation at small x."""
+    x = np.asarray(x, dtype=float)
+    return np.exp(-0.5j * x) * np.sinc(x / (2.0 * np.pi))
+
+
+@dataclass(frozen=True, eq=False)
+class MotorBatch:
+    """P motors at their operating temperature and held speed, as arrays (P,).
+
+    Attributes
+    ----------
+    R_s : ndarray
+        Stator resistance, ohm, heated: ``R_s (1 + 0.0039 dT)``.
+    L_s : ndarray
+        Stator inductance, H.
+    phi_pm : ndarray
+        Magnet flux linkage, Wb, heated: ``phi_pm (1 - 0.001 dT)``.
+    p : ndarray
+        Pole pairs.
+    electrical_speed : ndarray
+        ``w_e = p speed``, rad/s.
+    """
+
+    R_s: Array
+    L_s: Array
+    phi_pm: Array
+    p: Array
+    electrical_speed: Array
+
+    @classmethod
+    def build(cls, motors: Sequence[SPMSM], speed: Array, temperature_rise: float) -> MotorBatch:
+        """The motors (nameplate values) heated by ``temperature_rise`` (K), at ``speed``
+        (rad/s, mechanical, one per motor)."""
+        p = np.array([motor.p for motor in motors], dtype=float)
+        return cls(
+            R_s=np.array([m.R_s for m in motors]) * (1.0 + COPPER_COEFFICIENT * temperature_rise),
+            L_s=np.array([m.L_s for m in motors]),
+            phi_pm=np.array([m.phi_pm for m in motors])
+            * (1.0 - MAGNET_COEFFICIENT * temperature_rise),
+            p=p,
+            electrical_speed=p * speed,
+        )
+
+    @property
+    def gamma(self) -> Array:
+        """``R_s / L_s``, 1/s."""
+        return self.R_s / self.L_s
+
+    def rotating_gain(self, tau: float) -> ComplexArray:
+        """``(exp(j w_e tau) - exp(-gamma tau)) / (L_s (gamma + j w_e))``, A/V: the current
+        that a voltage ``exp(j w_e s)`` makes from rest over ``tau`` (s); computed as
+        ``exp(-gamma tau) expm1((gamma + j w_e) tau) / ...`` (no cancellation)."""
+        rate = np.asarray(self.gamma + 1j * self.electrical_speed, dtype=np.complex128)
+        return np.exp(-self.gamma * tau) * np.expm1(rate * tau) / (self.L_s * rate)
+
+    def emf_phasor(self, rotor: ComplexArray) -> ComplexArray:
+        """The back-EMF ``j w_e phi_pm exp(j theta)``, V, at ``rotor = exp(j theta)`` (P, ...)."""
+        shape = (-1,) + (1,) * (rotor.ndim - 1)
+        return 1j * (self.electrical_speed * self.phi_pm).reshape(shape) * rotor
+
+    def torque(self, i_q: Array) -> Array:
+        """``1.5 p phi_pm i_q``, N m, with the true (heated) flux; ``i_q`` (P, ...) in A."""
+        shape = (-1,) + (1,) * (i_q.ndim - 1)
+        return 1.5 * (self.p * self.phi_pm).reshape(shape) * i_q
+
+
+@dataclass(frozen=True, eq=False)
+class CurrentSensor:
+    """Phase-current measurement: noise, then an ADC (see the module docstring).
+
+    Attributes
+    ----------
+    noise : ndarray, shape (P or 1, N + 1, 3), or None
+        The noise added to each phase at each sample, A (drawn in advance).
+    lsb : float or None
+        The ADC's least significant bit, A; None: no ADC.
+    codes : int
+        ``2**(adc_bits - 1)``: the ADC codes are ``-codes .. codes - 1``.
+    """
+
+    noise: Array | None
+    lsb: float | None
+    codes: int
+
+    @property
+    def exact(self) -> bool:
+        """Whether the measurement returns the true currents (no noise, no ADC)."""
+        return self.noise is None and self.lsb is None
+
+    def phases(self, current: ComplexArray, k: int) -> Array:
+        """The measured phase currents (P, 3), A, at sample ``k`` of the true ``i_ab`` (P,)."""
+        phases = to_phases(current)
+        if self.noise is not None:
+            phases = phases + self.noise[:, k]
+        if self.lsb is not None:
+            codes = np.clip(np.round(phases / self.lsb), -self.codes, self.codes - 1)
+            phases = codes * self.lsb
+        return phases
+
+
+def dead_time_voltage(signs: Array, amplitude: float) -> ComplexArray:
+    """The stationary vector (P,) of the phase errors ``-amplitude sign(i_x)``, V.
+
+    ``signs`` (P, 3) are ``sign(i_x)`` (0: no error); ``amplitude`` is ``t_d f_sw V_dc``, V.
+    """
+    return -amplitude * from_phases(signs)
+
+
+def leg_duties(voltage: ComplexArray, dc_voltage: float) -> Array:
+    """Space-vector duties (P, 3) of legs a, b, c for the references ``voltage`` (P,), V,
+    with the min-max zero sequence, clipped to ``[0, 1]``; ``dc_voltage`` in V."""
+    phases = to_phases(voltage)
+    zero_sequence = -0.5 * (phases.max(axis=-1) + phases.min(axis=-1))
+    duties = 0.5 + (phases + zero_sequence[:, np.newaxis]) / dc_voltage
+    return np.clip(duties, 0.0, 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class PwmSegments:
+    """The voltage over one carrier period, piecewise constant.
+
+    Attributes
+    ----------
+    boundaries : ndarray, shape (P, 8)
+        Segment boundaries from the period start, s: ``0 <= b_1 <= ... <= b_6 <= T``.
+    voltages : ndarray of complex, shape (P, 7)
+        The stationary-frame voltage of each segment, V.
+    """
+
+    boundaries: Array
+    voltages: ComplexArray
+
+    @property
+    def durations(self) -> Array:
+        """Segment lengths, s, shape (P, 7)."""
+        return np.diff(self.boundaries, axis=-1)
+
+
+def carrier_segments(
+    voltage: ComplexArray, dc_voltage: float, period: float, dead_time: float, signs: Array
+) -> PwmSegments:
+    """The segments of one center-aligned carrier period, with dead time.
+
+    Parameters
+    ----------
+    voltage : ndarray of complex, shape (P,)
+        Reference ``alpha + j beta`` over the period, V.
+    dc_voltage : float
+        DC-bus voltage, V.
+    period : float
+        Carrier period ``T = 1 / f_sw``, s.
+    dead_time : float
+        ``t_d``, s.
+    signs : ndarray, shape (P, 3)
+        ``sign(i_x)`` of the phase currents at the period start.
+
+    Returns
+    -------
+    PwmSegments
+        Without dead time the volt-seconds equal ``voltage * period`` exactly.
+    """
+    duties = leg_duties(voltage, dc_voltage)
+    switching = (duties > 0.0) & (duties < 1.0)  # a leg held at 0 or 1 does not switch
+    rise = (1.0 - duties) * (0.5 * period) + dead_time * ((signs > 0.0) & switching)
+    fall = (1.0 + duties) * (0.5 * period) + dead_time * ((signs < 0.0) & switching)
+    fall = np.minimum(fall, period)
+    rise = np.minimum(rise, fall)
+    count = voltage.shape[0]
+    edges = np.sort(np.concatenate([rise, fall], axis=-1), axis=-1)
+    boundaries = np.concatenate([np.zeros((count, 1)), edges, np.full((count, 1), period)], -1)
+    middle = 0.5 * (boundaries[:, 1:] + boundaries[:, :-1])[:, :, np.newaxis]
+    high = (rise[:, np.newaxis, :] <= middle) & (middle < fall[:, np.newaxis, :])
+    voltages = dc_voltage * (high.astype(float) @ CLARKE)  # the -V_dc/2 common mode cancels
+    return PwmSegments(boundaries=boundaries, voltages=voltages)
+
+
+def propagate_segments(
+    motor: MotorBatch, current: ComplexArray, segments: PwmSegments, emf: ComplexArray
+) -> ComplexArray:
+    """``i_ab`` (P,) at the end of a carrier period, exactly, from its start value ``current``.
+
+    ``i(T) = a_T i(0) + sum_j v_j (exp(-gamma (T - b_(j+1))) - exp(-gamma (T - b_j))) / R_s
+    + emf``, where ``emf`` (P,), A, is the back-EMF's part over the whole period.
+    """
+    gamma = motor.gamma[:, np.newaxis]
+    period = segments.boundaries[:, -1:]
+    remaining = np.exp(-gamma * (period - segments.boundaries[:, 1:]))  # (P, 7)
+    weights = -remaining * np.expm1(-gamma * segments.durations)
+    forced = np.sum(segments.voltages * weights, axis=-1) / motor.R_s
+    return np.exp(-motor.gamma * period[:, 0]) * current + forced + emf
+
+
+def segments_mean_dq(motor: MotorBatch, segments: PwmSegments, rotor: ComplexArray) -> ComplexArray:
+    """The mean rotor-frame voltage (P,), V, over a carrier period starting at the rotor
+    phasor ``rotor = exp(j theta)`` (P,)."""
+    w = motor.electrical_speed[:, np.newaxis]
+    durations = segments.durations
+    turn = np.exp(-1j * w * segments.boundaries[:, :-1]) * phasor_mean(w * durations)
+    total = np.sum(segments.voltages * durations * turn, axis=-1)
+    return np.conj(rotor) * total / segments.boundaries[:, -1]
+
+
+# -- the time loop ----------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Modulator:
+    """What the drive does between the controller's command and the motor's terminals.
+
+    Attributes
+    ----------
+    period : float
+        Sampling and PWM period h, s.
+    delay : int
+        Computation delay d, samples.
+    carrier, stationary, compensation : bool
+        Carrier PWM (else average); hold the ``alpha-beta`` vector (else the dq vector);
+        dead-time compensation from the measured currents.
+    dc_voltage : float or None
+        DC bus, V (None: no limit).
+    dead_time : float
+        ``t_d``, s.
+    """
+
+    period: float
+    delay: int
+    carrier: bool
+    stationary: bool
+    dc_voltage: float | None
+    dead_time: float
+    compensation: bool
+
+    @property
+    def dead_time_amplitude(self) -> float:
+        """``t_d f_sw V_dc``, V."""
+        return self.dead_time * (self.dc_voltage or 0.0) / self.period
+
+    @property
+    def limit(self) -> float:
+        """The largest voltage magnitude, ``V_dc / sqrt(3)``, V (inf without a DC bus)."""
+        return np.inf if self.dc_voltage is None else self.dc_voltage / np.sqrt(3.0)
+
+
+@dataclass(frozen=True, eq=False)
+class Feedback:
+    """The controllers as one linear map: ``gains @ [x; w; past; z] = [u; z_(k+1) - z_k]``.
+
+    Attributes
+    ----------
+    gains : ndarray, shape (P, 2 + R, 2 + q + 2 H + R)
+        The map (``u`` without exploration, V).
+    history, integrators : int
+        H, past commands fed back, and R, integrator states (the most of the laws').
+    """
+
+    gains: Array
+    history: int
+    integrators: int
+
+
+@dataclass(frozen=True, eq=False)
+class LoopInputs:
+    """Everything the time loop needs, over P motors and N samples.
+
+    Attributes
+    ----------
+    motor, modulator, feedback, sensor : MotorBatch, Modulator, Feedback, CurrentSensor
+        The motors, the inverter, the controllers, the measurement.
+    rotor : ndarray of complex, shape (P, N + 1)
+        ``exp(j theta_k)``.
+    modulation : ndarray of complex, shape (P, N)
+        ``exp(j (theta_k + eps))``: the modulator's angle over sample k.
+    w, rho : ndarray, shape (P or 1, N + 1, q) and (P or 1, N, 2)
+        The controllers' reference and the exploration, V.
+    """
+
+    motor: MotorBatch
+    modulator: Modulator
+    feedback: Feedback
+    sensor: CurrentSensor
+    rotor: ComplexArray
+    modulation: ComplexArray
+    w: Array
+    rho: Array
+
+    @cached_property
+    def decay(self) -> Array:
+        """``exp(-gamma h)`` (P,)."""
+        return np.exp(-self.motor.gamma * self.modulator.period)
+
+    @cached_property
+    def charge(self) -> Array:
+        """``(1 - exp(-gamma h)) / R_s`` (P,), A/V: a constant voltage's effect over h."""
+        return -np.expm1(-self.motor.gamma * self.modulator.period) / self.motor.R_s
+
+    @cached_property
+    def gain(self) -> ComplexArray:
+        """:meth:`MotorBatch.rotating_gain` over a sample (P,), A/V."""
+        return self.motor.rotating_gain(self.modulator.period)
+
+    @cached_property
+    def emf(self) -> ComplexArray:
+        """The back-EMF's part of ``i_(k+1)`` (P, N), A."""
+        return -self.motor.emf_phasor(self.rotor[:, :-1]) * self.gain[:, np.newaxis]
+
+    @cached_property
+    def turn(self) -> ComplexArray:
+        """The mean of ``exp(-j w_e s)`` over a sample (P,)."""
+        return phasor_mean(self.motor.electrical_speed * self.modulator.period)
+
+
+@dataclass(frozen=True, eq=False)
+class LoopOutputs:
+    """The time loop's results for P motors (complex: ``d + j q`` or ``alpha + j beta``).
+
+    Attributes
+    ----------
+    measured, current : ndarray of complex, shape (P, N + 1)
+        Measured ``i_dq`` and true ``i_ab``, A.
+    commands : ndarray, shape (P, N + pad, 2)
+        The limited commands, V; row ``pad + k`` computed at sample k (zeros before).
+    applied : ndarray of complex, shape (P, N)
+        Mean dq voltage over each sample, V.
+    pad : int
+        Rows of zeros before the first command.
+    """
+
+    measured: ComplexArray
+    current: ComplexArray
+    commands: Array
+    applied: ComplexArray
+    pad: int
+
+
+def _limit(u: Array, limit: float) -> Array:
+    """Each row of ``u`` (P, 2) scaled to a magnitude of at most ``limit``, V."""
+    magnitude = np.sqrt(u[:, 0] ** 2 + u[:, 1] ** 2)
+    return u * np.minimum(1.0, limit / np.maximum(magnitude, np.finfo(float).tiny))[:, None]
+
+
+def _step(
+    inputs: LoopInputs, k: int, current: ComplexArray, command: ComplexArray, extra: ComplexArray
+) -> tuple[ComplexArray, ComplexArray]:
+    """Sample k: ``i_ab`` at ``t_(k+1)`` and the mean dq voltage over the sample.
+
+    ``command`` is ``exp(j (theta_k + eps)) u`` of the command applied now and ``extra``
+    the stationary dead-time compensation computed with it, V.
+    """
+    motor, mod, rotor = inputs.motor, inputs.modulator, inputs.rotor[:, k]
+    amplitude, h = mod.dead_time_amplitude, mod.period
+    signs = np.sign(to_phases(current)) if amplitude > 0.0 else np.zeros((current.shape[0], 3))
+    steady, turning = (command + extra, None) if mod.stationary else (extra, command)
+    emf = inputs.emf[:, k]
+    if mod.carrier:
+        assert mod.dc_voltage is not None
+        segments = carrier_segments(steady, mod.dc_voltage, h, mod.dead_time, signs)
+        after = propagate_segments(motor, current, segments, emf)
+        return after, segments_mean_dq(motor, segments, rotor)
+    steady = steady + dead_time_voltage(signs, amplitude)
+    after = inputs.decay * current + inputs.charge * steady + emf
+    mean = steady * np.conj(rotor) * inputs.turn
+    if turning is not None:
+        after = after + turning * inputs.gain
+        mean = mean + turning * np.conj(rotor)
+    return after, mean
+
+
+def _measure(
+    inputs: LoopInputs, k: int, current: ComplexArray
+) -> tuple[ComplexArray, ComplexArray]:
+    """The measured ``i_dq`` at sample k and the dead-time compensation it asks for, V."""
+    mod, sensor = inputs.modulator, inputs.sensor
+    compensate = mod.compensation and mod.dead_time_amplitude > 0.0
+    measured, extra = current, np.zeros_like(current)
+    if not sensor.exact:
+        phases = sensor.phases(current, k)
+        measured = from_phases(phases)
+    elif compensate:
+        phases = to_phases(current)
+    if compensate:
+        extra = -dead_time_voltage(np.sign(phases), mod.dead_time_amplitude)
+    return measured * np.conj(inputs.rotor[:, k]), extra
+
+
+def run_loop(inputs: LoopInputs) -> LoopOutputs:
+    """The time loop: measure, compute, limit, modulate, propagate, all motors at once.
+
+    Parameters
+    ----------
+    inputs : LoopInputs
+        The motors, the drive and the controllers.
+    """
+    count, plants = inputs.rho.shape[1], inputs.rotor.shape[0]
+    delay, feedback, q = inputs.modulator.delay, inputs.feedback, inputs.w.shape[-1]
+    history, integrators = feedback.history, feedback.integrators
+    pad = max(history, delay)
+    commands = np.zeros((plants, count + pad, 2))
+    extras = np.zeros((plants, count + pad), dtype=complex)
+    measured = np.empty((plants, count + 1), dtype=complex)
+    currents = np.empty((plants, count + 1), dtype=complex)
+    applied = np.empty((plants, count), dtype=complex)
+    state = np.zeros((plants, feedback.gains.shape[2], 1))
+    past = slice(2 + q, 2 + q + 2 * history)
+    current = np.zeros(plants, dtype=complex)
+    for k in range(count + 1):
+        currents[:, k] = current
+        measured[:, k], extra = _measure(inputs, k, current)
+        if k == count:
+            break
+        state[:, 0, 0], state[:, 1, 0] = measured[:, k].real, measured[:, k].imag
+        state[:, 2 : 2 + q, 0] = inputs.w[:, k]
+        state[:, past, 0] = commands[:, pad + k - history : pad + k].reshape(plants, 2 * history)
+        output = (feedback.gains @ state)[:, :, 0]
+        commands[:, pad + k] = _limit(output[:, :2] + inputs.rho[:, k], inputs.modulator.limit)
+        if integrators:
+            state[:, state.shape[1] - integrators :, 0] += output[:, 2:]
+        extras[:, pad + k] = extra
+        now = pad + k - delay
+        command = inputs.modulation[:, k] * (commands[:, now, 0] + 1j * commands[:, now, 1])
+        current, applied[:, k] = _step(inputs, k, current, command, extras[:, now])
+    return LoopOutputs(measured, currents, commands, applied, pad)
+
+
+def feedback_of(laws: Sequence[ControlLaw], q: int) -> Feedback:
+    """The laws as one linear map (:class:`Feedback`), read off by applying
+    :meth:`ControlLaw.command` to the unit vectors (the law is linear), so the equations
+    stay the law's own; shorter histories and fewer integrators are padded with zeros."""
+    history = max(law.history for law in laws)
+    integrators = max(law.r for law in laws)
+    size = 2 + q + 2 * history + integrators
+    basis = np.eye(size)
+    x, w = basis[:, :2], basis[:, 2 : 2 + q]
+    past_all = basis[:, 2 + q : 2 + q + 2 * history].reshape(size, history, 2)
+    z_all = basis[:, size - integrators :]
+    gains = np.zeros((len(laws), 2 + integrators, size))
+    for index, law in enumerate(laws):
+        past = past_all[:, history - law.history :]
+        z = z_all[:, : law.r] if law.K_i is not None else None
+        gains[index, :2] = law.command(x, w, past, z).T
+        if law.K_i is not None and law.C is not None and law.F is not None and law.h:
+            gains[index, 2 : 2 + law.r, :2] = law.h * law.C
+            gains[index, 2 : 2 + law.r, 2 : 2 + q] = law.h * law.F
+    return Feedback(gains=gains, history=history, integrators=integrators)
+
+
+def _draws(
+    exploration: Exploration | None, t: Array, seed: int, noise: float
+) -> tuple[Array, Array | None]:
+    """``rho`` (N, 2) then the phase noise (N + 1, 3) from one generator made from ``seed``."""
+    if exploration is not None and not isinstance(exploration, Exploration):
+        raise InputError(
+            f"exploration: expected an Exploration (uniform, prbs, sum_of_sines) or None, "
+            f"got {type(exploration).__name__}"
+        )
+    rng = as_generator(seed)
+    count = t.shape[0] - 1
+    rho = np.zeros((count, 2))
+    if exploration is not None:
+        rho = as_float_array(exploration.sample(t.copy(), 2, rng), "exploration.sample")
+        if rho.shape != (count, 2):
+            raise InputError(f"exploration.sample: expected shape {(count, 2)}, got {rho.shape}")
+    drawn = rng.normal(0.0, noise, size=(count + 1, 3)) if noise > 0.0 else None
+    return rho, drawn
+
+
+def random_inputs(
+    exploration: Exploration | None, t: Array, seed: int | Sequence[int], plants: int, noise: float
+) -> tuple[Array, Array | None]:
+    """``rho`` (P or 1, N, 2) and noise (P or 1, N + 1, 3): one seed shared, or one per motor."""
+    if isinstance(seed, Sequence):
+        if len(seed) != plants:
+            raise InputError(
+                f"seed: expected one integer or {plants} (one per motor), got {len(seed)}"
+            )
+        draws = [_draws(exploration, t, item, noise) for item in seed]
+        rho = np.stack([item[0] for item in draws])
+        noises = [item[1] for item in draws]
+        return rho, None if noises[0] is None else np.stack(noises)  # type: ignore[arg-type]
+    rho_one, noise_one = _draws(exploration, t, seed, noise)
+    return rho_one[np.newaxis], None if noise_one is None else noise_one[np.newaxis]
