@@ -294,7 +294,62 @@ def test_usage_errors_exit_2(argv: list[str]) -> None:
     assert code == 2
     assert out == ""
     assert "Traceback" not in err
-    assert "error:" in err.splitlines()[-1]
+    assert len(err.splitlines()) == 1 and err.startswith("selftune: error: "), err
+
+
+def test_a_usage_error_names_the_command_and_its_help() -> None:
+    code, _, err = run(["solve", "--speed"])
+    assert code == 2
+    assert err == (
+        "selftune: error: solve: argument --speed: expected one argument"
+        " (see 'selftune solve --help')\n"
+    )
+
+
+@pytest.mark.parametrize("speed", ["-1e3", "-1.5E2", "-.5", "-0"])
+def test_negative_numbers_in_any_notation_are_values(speed: str) -> None:
+    code, out, err = run(["solve", "--speed", speed, "--torque", "-2e0"])
+    assert (code, err) == (0, ""), err
+    assert f"speed = {float(speed):g} rad/s" in out and "torque = -2 N m" in out
+
+
+def test_an_option_value_out_of_range_names_the_option() -> None:
+    code, _, err = run(["solve", "--speed", "-1e9"])
+    line = assert_clean_failure(code, err, "--speed", "between -100000 and 100000 rad/s")
+    assert line.endswith("(paper preset)")
+    code, _, err = run(["solve", "--speed", "9000"])
+    assert_clean_failure(code, err, "--speed", "too fast for this motor")
+
+
+def test_json_to_standard_output_replaces_the_report(tmp_path: Path) -> None:
+    code, out, err = run(["solve", "--json", "-"])
+    assert (code, err) == (0, "")
+    data = json.loads(out)
+    np.testing.assert_allclose(data["K"], 31.1868 * np.eye(2), atol=5e-5)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("kind", ["symlink", "device", "read-only", "directory"])
+def test_json_is_never_written_over_what_is_not_a_writable_regular_file(
+    tmp_path: Path, kind: str
+) -> None:
+    target = tmp_path / "out.json"
+    if kind == "symlink":
+        (tmp_path / "real.json").write_text("kept")
+        target.symlink_to(tmp_path / "real.json")
+    elif kind == "device":
+        target = Path("/dev/null")
+    elif kind == "read-only":
+        target.write_text("kept")
+        target.chmod(0o444)
+    else:
+        target.mkdir()
+    code, out, err = run(["solve", "--json", str(target)])
+    assert_clean_failure(code, err, str(target), "cannot write the file")
+    assert out == ""
+    if kind in ("symlink", "read-only"):
+        assert target.is_symlink() == (kind == "symlink")
+        assert target.read_text() == "kept"
 
 
 # -- fuzzing the motor file ---------------------------------------------------------------

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -103,15 +104,30 @@ def test_whole_float_pole_pairs_are_accepted(tmp_path: Path) -> None:
 
 
 def test_a_learning_table_is_kept_raw(tmp_path: Path) -> None:
-    text = MOTOR_TOML + "[learning]\nsampling = 1e-5\nK0 = [[62.8, 0], [0, 62.8]]\nanything = 'x'\n"
+    text = MOTOR_TOML + "[learning]\nsampling = 1e-5\nK0 = [[62.8, 0], [0, 62.8]]\n"
     config = load_motor_config(write(tmp_path, text))
-    assert config.learning == {
-        "sampling": 1e-5,
-        "K0": [[62.8, 0], [0, 62.8]],
-        "anything": "x",
-    }
+    assert config.learning == {"sampling": 1e-5, "K0": [[62.8, 0], [0, 62.8]]}
     with pytest.raises(TypeError):
         config.learning["sampling"] = 1.0  # type: ignore[index]
+
+
+@pytest.mark.parametrize(
+    ("line", "expected"),
+    [
+        ("anything = 'x'", "[learning] anything: unknown key (known: sampling,"),
+        ("sampeling = 1e-5", "[learning] sampeling: unknown key (known: sampling,"),
+        ("sampling = -1e-5", "[learning] sampling: must be positive"),
+        ("sampling = 1e-12", "[learning] sampling: must be between 1e-08 and 0.1 s"),
+        ("exploration = 'a'", "[learning] exploration: must be a number, got a string"),
+        ("K0 = [[1.0]]", "[learning] K0: must be a 2x2 matrix"),
+        ("input_hold = 1e6", "[learning] input_hold: must be at most 200000"),
+        ("max_iterations = 2.5", "[learning] max_iterations: must be a whole number"),
+    ],
+)
+def test_the_learning_table_is_checked_on_load(tmp_path: Path, line: str, expected: str) -> None:
+    """Every command that reads MOTOR.toml (solve too) refuses a bad [learning] table."""
+    message = load_error(tmp_path, MOTOR_TOML + "[learning]\n" + line + "\n")
+    assert message.startswith(expected), message
 
 
 def test_motor_config_is_frozen_and_checks_its_fields() -> None:
@@ -169,10 +185,23 @@ def test_motor_config_is_frozen_and_checks_its_fields() -> None:
         ),
         (
             "R = [[1.0, 0.0], [0.0, 1.0]]",
-            "R = [[1e20, 0.0], [0.0, 1.0]]",
+            "R = [[1e11, 0.0], [0.0, 1.0]]",
             "[cost] R: must be symmetric positive definite; it is nearly singular"
-            " (eigenvalues from 1 to 1e+20)",
+            " (eigenvalues from 1 to 1e+11)",
         ),
+        (
+            "R = [[1.0, 0.0], [0.0, 1.0]]",
+            "R = [[1e20, 0.0], [0.0, 1.0]]",
+            "[cost] R: entries must be 0 or between 1e-12 and 1e+12 in magnitude, got 1e+20",
+        ),
+        ("R_s = 0.439", "R_s = 1e-300", "[motor] R_s: must be between 1e-06 and 1000 ohm"),
+        ("L_s = 0.0601", "L_s = 1e300", "[motor] L_s: must be between 1e-07 and 10 H"),
+        ("phi_pm = 0.46", "phi_pm = 1e300", "[motor] phi_pm: must be between 1e-05 and 10 Wb"),
+        ("p = 2", "p = 1e15", "[motor] p: must be at most 100"),
+        ("p = 2", "p = 1" + "0" * 400, "[motor] p: must be finite"),
+        ("torque = 10.0", "torque = 1e308", "[operating_point] torque: must be between -1e+06"),
+        ("speed = 10.0", "speed = -1e9", "[operating_point] speed: must be between -100000"),
+        ("speed = 10.0", "speed = 9000", "[operating_point] speed: 9000 rad/s is too fast"),
         ("R = [[1.0, 0.0], [0.0, 1.0]]", "R = [1.0, 1.0]", "[cost] R: must be a 2x2 matrix"),
         ("R = [[1.0, 0.0], [0.0, 1.0]]", "R = 1.0", "[cost] R: must be a 2x2 matrix"),
         ("R = [[1.0, 0.0], [0.0, 1.0]]", "R = [[1.0, 0.0], [0.0]]", "[cost] R: rows have"),
@@ -226,6 +255,27 @@ def test_read_toml_names_a_file_that_is_not_toml(tmp_path: Path) -> None:
 
 def test_read_toml_returns_the_document(tmp_path: Path) -> None:
     assert read_toml(write(tmp_path, "[a]\nb = 1\n")) == {"a": {"b": 1}}
+
+
+def test_read_toml_accepts_a_byte_order_mark(tmp_path: Path) -> None:
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf[a]\nb = 1\n")
+    assert read_toml(path) == {"a": {"b": 1}}
+
+
+def test_read_toml_refuses_what_is_not_a_small_regular_file(tmp_path: Path) -> None:
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)
+    with pytest.raises(DataFileError, match=r"fifo\.toml: cannot read the file \(it is a FIFO"):
+        read_toml(fifo)  # refused without waiting for a writer
+    with pytest.raises(DataFileError, match=r"cannot read the file \(it is a character device"):
+        read_toml("/dev/null")
+    big = write(tmp_path, "# " + "x" * (1 << 20) + "\n", "big.toml")
+    with pytest.raises(DataFileError, match=r"more than the 1048576 bytes \(1 MiB\)"):
+        read_toml(big)
+    deep = write(tmp_path, "a = " + "[" * 5000 + "]" * 5000 + "\n", "deep.toml")
+    with pytest.raises(DataFileError, match=r"deep\.toml: not a valid TOML file \(nested too"):
+        read_toml(deep)
 
 
 # -- the generic table helpers ----------------------------------------------------------

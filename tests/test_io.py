@@ -38,6 +38,7 @@ from selftune.learn import (
     save_npz,
     save_trajectory,
 )
+from selftune.learn._io import trajectory_dimensions
 
 Arrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
 
@@ -87,19 +88,36 @@ def expect_error(load: Callable[[Path], Trajectory], path: Path, *parts: str) ->
     return message
 
 
-finite = st.floats(allow_nan=False, allow_infinity=False)
+#: The format's bounds (selftune.core._validation): values at most 1e50 in magnitude; the
+#: time column's numbers at most 1e-9 of the smallest step apart at its largest time.
+VALUE_LIMIT = 1e50
+TIME_RESOLUTION = 1e-9
+
+finite = st.floats(min_value=-VALUE_LIMIT, max_value=VALUE_LIMIT)
 moderate = st.one_of(
     st.integers(-20, 20).map(float), st.floats(-1e3, 1e3, allow_nan=False, width=64)
 )
 
 
-def strictly_increasing(values: np.ndarray) -> np.ndarray:
-    """Sorted ``values``, each repeat nudged up to the next float (finite if |values| < max)."""
-    t = np.sort(values)
-    for k in range(1, t.shape[0]):
-        if t[k] <= t[k - 1]:
-            t[k] = np.nextafter(t[k - 1], np.inf)
-    return t
+def resolves(t: np.ndarray) -> bool:
+    """The time rule, written from its definition: the spacing of t's numbers (float64 for
+    integers) at the largest |t| is at most TIME_RESOLUTION of the smallest step."""
+    dtype = t.dtype if t.dtype.kind == "f" else np.dtype(np.float64)
+    spacing = float(np.spacing(np.max(np.abs(t.astype(dtype)))))
+    return spacing <= TIME_RESOLUTION * float(np.min(np.diff(t.astype(np.float64))))
+
+
+def plausible(*arrays: np.ndarray | None) -> bool:
+    """Every value at most VALUE_LIMIT in magnitude (NaN and inf are not)."""
+    return all(a is None or bool(np.all(np.abs(a) <= VALUE_LIMIT)) for a in arrays)
+
+
+@st.composite
+def sample_times(draw: st.DrawFn, count: int) -> np.ndarray:
+    """``count`` increasing times that resolve their steps, from an arbitrary start."""
+    start = draw(st.one_of(st.just(0.0), st.integers(-20, 20).map(float), st.floats(-1e3, 1e3)))
+    steps = draw(hnp.arrays(np.float64, count - 1, elements=st.floats(1e-2, 1e3)))
+    return start + np.concatenate([[0.0], np.cumsum(steps)])
 
 
 @st.composite
@@ -112,8 +130,7 @@ def trajectory_arrays(
     """Valid (t, x, u, w): u with N + one of ``u_rows`` rows, w with N + one of ``w_rows``."""
     N = draw(st.integers(1, 6))
     n, m, q = draw(st.integers(1, 3)), draw(st.integers(1, 3)), draw(st.integers(0, 2))
-    times = elements.filter(lambda value: abs(value) < 1e308)
-    t = strictly_increasing(draw(hnp.arrays(np.float64, N + 1, elements=times)))
+    t = draw(sample_times(N + 1))
     x = draw(hnp.arrays(np.float64, (N + 1, n), elements=elements))
     u = draw(hnp.arrays(np.float64, (N + draw(st.sampled_from(u_rows)), m), elements=elements))
     w = None
@@ -129,6 +146,7 @@ def trajectory_arrays(
 def test_csv_round_trip_is_bit_exact(workdir: Path, arrays: Arrays) -> None:
     t, x, u, w = arrays
     original = Trajectory(t=t, x=x, u=u, w=w)
+    assert same(original.t, t - t[0])  # stored relative to the first sample
     path = workdir / "round.csv"
     save_csv(original, path)
     loaded = load_csv(path)
@@ -402,7 +420,7 @@ def reference_csv(raw: bytes) -> Arrays | None:
     names = [name.strip(" \t") for name in lines[0].split(",")]
     size = {letter: sum(name.startswith(letter) for name in names) for letter in "xuw"}
     expected = ["t"] + [f"{letter}{i}" for letter in "xuw" for i in range(1, size[letter] + 1)]
-    if names != expected or size["x"] == 0 or size["u"] == 0:
+    if names != expected or size["x"] == 0 or size["u"] == 0 or sum(size.values()) > 12:
         return None
     rows = []
     for line in lines[1:]:
@@ -410,12 +428,12 @@ def reference_csv(raw: bytes) -> Arrays | None:
         if len(fields) != len(names) or not all(_NUMBER.fullmatch(f) for f in fields):
             return None
         values = [float(field) for field in fields]
-        if not all(math.isfinite(value) for value in values):
+        if not all(math.isfinite(value) and abs(value) <= VALUE_LIMIT for value in values):
             return None
         rows.append(values)
     table = np.array(rows, dtype=np.float64)
     t = table[:, 0]
-    if not all(later > earlier for earlier, later in itertools.pairwise(t)):
+    if not all(later > earlier for earlier, later in itertools.pairwise(t)) or not resolves(t):
         return None
     n, m = size["x"], size["u"]
     w = table[:, 1 + n + m :] if size["w"] else None
@@ -432,7 +450,7 @@ def check_csv(path: Path, raw: bytes) -> None:
         return
     loaded = load_csv(path)
     t, x, u, w = expected
-    assert same(loaded.t, t)
+    assert same(loaded.t, t - t[0])  # relative to the first sample
     assert same(loaded.x, x)
     assert same(loaded.u, u[:-1])
     assert same(loaded.w, w)
@@ -758,10 +776,13 @@ def reference_npz(contents: dict[str, np.ndarray]) -> Trajectory | None:
         if array.dtype.kind not in "iuf" or array.ndim not in ((1,) if name == "t" else (1, 2)):
             return None
     floats = {name: array.astype(np.float64) for name, array in contents.items()}
+    if not plausible(*floats.values()):
+        return None
     try:
-        return Trajectory(**floats)
+        trajectory = Trajectory(**floats)
     except InputError:
         return None
+    return trajectory if resolves(contents["t"]) else None
 
 
 @given(contents=npz_contents())
@@ -839,3 +860,80 @@ def test_random_bytes_as_npz(workdir: Path, raw: bytes) -> None:
     path = workdir / "random.npz"
     path.write_bytes(raw)
     expect_error(load_npz, path)
+
+
+# --------------------------------------------------------------------------- bounds
+
+
+def test_dimensions_are_read_from_the_header_alone(tmp_path: Path) -> None:
+    csv = tmp_path / "data.csv"
+    csv.write_text("t,x1,x2,u1,w1,w2,w3\n0,1,abc\n")  # the rows are not read
+    assert trajectory_dimensions(csv) == (2, 1, 3)
+    npz = write_npz(tmp_path / "data.npz", t=T, x=X, u=U)
+    assert trajectory_dimensions(npz) == (2, 1, 0)
+    bad = write_npz(tmp_path / "bad.npz", t=T, x=X.astype(str), u=U)
+    with pytest.raises(DataFileError, match=r"array 'x'.*dtype"):
+        trajectory_dimensions(bad)
+
+
+@pytest.mark.parametrize("load", [load_csv, load_npz, trajectory_dimensions])
+def test_only_regular_files_are_read(tmp_path: Path, load: Callable[[Path], Any]) -> None:
+    fifo = tmp_path / "fifo.csv"
+    os.mkfifo(fifo)
+    with pytest.raises(DataFileError, match=r"cannot read the file \(it is a FIFO"):
+        load(fifo)  # refused without waiting for a writer
+    (tmp_path / "directory.csv").mkdir()
+    with pytest.raises(DataFileError, match=r"cannot read the file \(it is a directory"):
+        load(tmp_path / "directory.csv")
+    link = tmp_path / "zero.npz"
+    link.symlink_to("/dev/zero")
+    with pytest.raises(DataFileError, match=r"cannot read the file \(it is a character device"):
+        load(link)
+
+
+def test_sizes_are_bounded_before_reading(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(selftune_io, "LIMITS", {**selftune_io.LIMITS, "samples": 2})
+    path = tmp_path / "rows.csv"
+    path.write_text("t,x1,u1\n0,1,2\n1,2,3\n2,3,4\n")
+    expect_error(load_csv, path, "3 data rows; at most 2 are read")
+    npz = write_npz(tmp_path / "rows.npz", t=np.arange(5.0), x=np.ones(5), u=np.ones(4))
+    expect_error(load_npz, npz, "array 't': 5 rows; at most 2 are read")
+    wide = tmp_path / "wide.csv"
+    wide.write_text("t," + ",".join(f"x{i}" for i in range(1, 13)) + ",u1\n")
+    expect_error(load_csv, wide, "line 1: 13 channels (n = 12, m = 1, q = 0); at most 12")
+
+
+def test_a_zip_bomb_is_refused_by_its_directory(tmp_path: Path) -> None:
+    path = write_npz(tmp_path / "bomb.npz", t=T, x=X, u=U)
+    raw = bytearray(path.read_bytes())
+    at = raw.find(b"PK\x01\x02")  # the first central-directory entry: its uncompressed size
+    raw[at + 24 : at + 28] = struct.pack("<I", 0xF0000000)
+    path.write_bytes(bytes(raw))
+    expect_error(load_npz, path, "bytes uncompressed (by the archive's directory)", "at most")
+
+
+def test_values_beyond_the_limit_are_refused(tmp_path: Path) -> None:
+    path = tmp_path / "huge.csv"
+    path.write_text("t,x1,u1\n0,1,2\n1,1e300,3\n")
+    expect_error(load_csv, path, "line 3, column 2 (x1)", "beyond 1e+50")
+    npz = write_npz(tmp_path / "huge.npz", t=T, x=X * 1e60, u=U)
+    expect_error(load_npz, npz, "array 'x'", "beyond 1e+50")
+
+
+@pytest.mark.parametrize(
+    ("times", "part"),
+    [
+        (np.arange(50) * 1e-5 + 1e9, "float64 numbers are 1.2e-07 s apart"),
+        ((np.arange(50) * 1e-5 + 2.0).astype(np.float32), "float32 numbers are 2.4e-07 s apart"),
+    ],
+)
+def test_times_that_cannot_resolve_the_steps_are_refused(
+    tmp_path: Path, times: np.ndarray, part: str
+) -> None:
+    """Also when float32 times were written out as text (the CSV): they are all float32
+    numbers, unevenly spaced, so the float32 spacing is the one that counts."""
+    path = write_npz(tmp_path / "coarse.npz", t=times, x=np.ones(50), u=np.ones(49))
+    expect_error(load_npz, path, part, "relative to the first sample")
+    csv = tmp_path / "coarse.csv"
+    csv.write_text("t,x1,u1\n" + "".join(f"{t!r},1,2\n" for t in times.astype(float).tolist()))
+    expect_error(load_csv, csv, "Trajectory.t", part)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from .config import LearnConfig, MotorConfig, load_learn_config, load_motor_config
 from .errors import (
+    ConsistencyError,
     ConvergenceError,
     DataFileError,
     ExcitationError,
@@ -51,6 +52,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "SPMSM",
+    "ConsistencyError",
     "ConvergenceError",
     "DataFileError",
     "ExcitationError",

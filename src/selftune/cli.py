@@ -4,8 +4,10 @@ Each subcommand is one registration function, ``_add_<name>(subparsers)``, liste
 :data:`_COMMANDS`, and one handler, ``_run_<name>(args) -> int``, which imports what its
 command needs when it runs (:mod:`selftune.commands`, :mod:`selftune.bench`) and calls it
 with plain values. Handlers raise :class:`~selftune.errors.SelftuneError` on bad input;
-:func:`main` turns it (and ``OSError``) into one line on stderr,
-``selftune: error: <message>``, and exit code 2.
+:func:`main` turns it (and ``OSError``, a usage error, an out-of-memory error) into one
+line on stderr, ``selftune: error: <message>``, and exit code 2. Ctrl-C is one line,
+``selftune: interrupted``, and exit code 130. Warnings are never shown: a command that
+needs them turns a numerical one into an error naming the input.
 """
 
 from __future__ import annotations
@@ -14,12 +16,16 @@ import argparse
 import dataclasses
 import math
 import os
+import re
+import signal
 import sys
+import threading
+import warnings
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, TypeAlias
+from typing import TYPE_CHECKING, Any, NoReturn, TypeAlias
 
 from . import __version__
-from .errors import SelftuneError
+from .errors import InputError, SelftuneError
 
 if TYPE_CHECKING:
     from .config import MotorConfig
@@ -29,7 +35,38 @@ __all__ = ["build_parser", "main"]
 #: Exit code of a usage error or of bad input (argparse uses 2 as well).
 EXIT_USAGE = 2
 
-_Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
+#: Exit code after Ctrl-C (128 + SIGINT, as a shell reports it).
+EXIT_INTERRUPTED = 130
+
+#: Largest ``--seed`` (numpy's seeds are unbounded; this keeps them reproducible anywhere).
+MAX_SEED = 2**32 - 1
+
+_Subparsers: TypeAlias = "argparse._SubParsersAction[_Parser]"
+
+# What argparse takes for a negative number rather than an option: -1, -1.5, -.5, -1e9,
+# -1.5E-3, -inf, -nan (argparse's own pattern misses exponents, so --speed -1e9 failed).
+_NEGATIVE_NUMBER = re.compile(
+    r"^-(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|inf(?:inity)?|nan)$",
+    re.IGNORECASE,
+)
+
+
+class _UsageError(Exception):
+    """A usage error argparse found; its message is one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with usage errors raised (one line in :func:`main`) rather than printed
+    with the usage and an exit, and with negative numbers in any notation as values."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
+
+    def error(self, message: str) -> NoReturn:
+        command = self.prog.partition(" ")[2]  # "solve" of "selftune solve"
+        where = f"{command}: " if command else ""
+        raise _UsageError(f"{where}{message} (see '{self.prog} --help')")
 
 
 def _finite_float(text: str) -> float:
@@ -40,6 +77,17 @@ def _finite_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"must be finite: {text!r}")
+    return value
+
+
+def _seed(text: str) -> int:
+    """argparse type: a whole number from 0 to :data:`MAX_SEED`."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"must be from 0 to {MAX_SEED}, got {value}")
     return value
 
 
@@ -74,11 +122,19 @@ def _motor_config(args: argparse.Namespace) -> MotorConfig:
         for name, value in (("speed", args.speed), ("torque", args.torque))
         if value is not None
     }
-    return dataclasses.replace(config, **overrides) if overrides else config
+    try:
+        return dataclasses.replace(config, **overrides) if overrides else config
+    except InputError as exc:  # name the option, and the motor it is checked against
+        name, _, reason = str(exc).partition(": ")
+        option = f"--{name}" if name in overrides else name
+        raise InputError(f"{option}: {reason} ({config.source})") from None
+
+
+_JSON_HELP = "also write the results to FILE as JSON; '-': the JSON alone, to standard output"
 
 
 def _add_json_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--json", metavar="FILE", help="also write the results to FILE as JSON")
+    parser.add_argument("--json", metavar="FILE", help=_JSON_HELP)
 
 
 # -- the commands ---------------------------------------------------------------------
@@ -97,9 +153,7 @@ def _add_solve(subparsers: _Subparsers) -> None:
         ),
     )
     _add_motor_options(parser)
-    parser.add_argument(
-        "--json", metavar="FILE", help="also write the results to FILE as JSON (nested lists)"
-    )
+    _add_json_option(parser)
     parser.set_defaults(handler=_run_solve)
 
 
@@ -151,9 +205,10 @@ def _add_reproduce(subparsers: _Subparsers) -> None:
         "--out",
         metavar="DIR",
         default="selftune-results",
-        help="directory for the figures and results.json (default: %(default)s)",
+        help="directory for the figures and results.json: new, empty, or an earlier"
+        " output of this command, replaced as a whole (default: %(default)s)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="exploration seed (default: 0)")
+    parser.add_argument("--seed", type=_seed, default=0, help="exploration seed (default: 0)")
     parser.set_defaults(handler=_run_reproduce)
 
 
@@ -181,7 +236,7 @@ def _add_tune(subparsers: _Subparsers) -> None:
         default="offpolicy",
         help="which algorithm (default: %(default)s)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="exploration seed (default: 0)")
+    parser.add_argument("--seed", type=_seed, default=0, help="exploration seed (default: 0)")
     _add_json_option(parser)
     parser.set_defaults(handler=_run_tune)
 
@@ -211,7 +266,8 @@ def _add_bench(subparsers: _Subparsers) -> None:
         "--out",
         metavar="DIR",
         default=".",
-        help="directory for bench.md and bench.json (default: the current directory)",
+        help="directory for bench.md and bench.json: new, empty, or an earlier output of"
+        " this command, replaced as a whole (default: the current directory)",
     )
     parser.set_defaults(handler=_run_bench)
 
@@ -239,7 +295,7 @@ def build_parser() -> argparse.ArgumentParser:
     -------
     argparse.ArgumentParser
     """
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="selftune",
         description=(
             "Self-tuning optimal torque control of PMSM drives by adaptive dynamic"
@@ -267,24 +323,14 @@ def _fail(message: str) -> int:
     return EXIT_USAGE
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``selftune`` command line; return the exit code.
-
-    Parameters
-    ----------
-    argv : sequence of str, optional
-        The arguments (default: ``sys.argv[1:]``).
-
-    Returns
-    -------
-    int
-        0 on success; 2 on a usage error or bad input, after one line on stderr
-        ``selftune: error: <message>``.
-    """
+def _run(argv: Sequence[str] | None) -> int:
+    """Parse ``argv`` and run its command; every user error is one line."""
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except SystemExit as exc:  # usage error (2), or --help / --version (0)
+    except _UsageError as exc:
+        return _fail(str(exc))
+    except SystemExit as exc:  # --help / --version (0)
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     handler: Callable[[argparse.Namespace], int] = args.handler
     try:
@@ -297,3 +343,111 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as exc:
         where = f"{os.fsdecode(exc.filename)}: " if exc.filename is not None else ""
         return _fail(f"{where}{exc.strerror or exc}")
+    except MemoryError:  # sizes are bounded at the door; this is the last resort
+        return _fail(f"{args.command}: out of memory (the inputs ask for more than is free)")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``selftune`` command line; return the exit code.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        0 on success; 2 on a usage error or bad input, after one line on stderr
+        ``selftune: error: <message>``; 130 after Ctrl-C, with one line
+        ``selftune: interrupted`` (no output set is left half written). Without
+        ``argv`` (the process's own command line), an interrupt ends the process at once
+        with code 130, without finalizing the interpreter.
+    """
+    with _Interrupts() as interrupts:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # never on the terminal
+                code = _run(argv)
+        except KeyboardInterrupt:
+            interrupts.received = True
+        except Exception as exc:
+            # After Ctrl-C, whatever the interrupted code raised is its consequence: a C
+            # extension's import fails with an ImportError, a binding's argument
+            # conversion with a TypeError.
+            if not (interrupts.received or _caused_by_interrupt(exc)):
+                raise
+            interrupts.received = True
+    if not interrupts.received:
+        return code
+    _interrupted()
+    if argv is None:  # the process's own command line: end it now (see _exit_now)
+        _exit_now(EXIT_INTERRUPTED)
+    return EXIT_INTERRUPTED
+
+
+class _Interrupts:
+    """Ctrl-C while a command runs, however it surfaces.
+
+    SIGINT raises KeyboardInterrupt, as by default, and is remembered; an exception Python
+    cannot raise (in a finalizer or a weak-reference callback: ``sys.unraisablehook``) is
+    not printed, and a KeyboardInterrupt that landed there is remembered too, so the
+    command still ends as interrupted.
+    """
+
+    def __init__(self) -> None:
+        self.received = False
+        self._hook: Any = None
+        self._handler: Any = None
+
+    def __enter__(self) -> _Interrupts:
+        self._hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
+        if threading.current_thread() is threading.main_thread():
+            self._handler = signal.signal(signal.SIGINT, self._signal)
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        sys.unraisablehook = self._hook
+        if self._handler is not None:
+            signal.signal(signal.SIGINT, self._handler)
+
+    def _signal(self, signum: int, frame: object) -> None:
+        self.received = True
+        raise KeyboardInterrupt
+
+    def _unraisable(self, unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt):
+            self.received = True
+
+
+def _caused_by_interrupt(exc: BaseException) -> bool:
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        if isinstance(current, KeyboardInterrupt):
+            return True
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return False
+
+
+def _interrupted() -> None:
+    try:
+        print("selftune: interrupted", file=sys.stderr)
+    except (OSError, ValueError):  # stderr is gone
+        pass
+
+
+def _exit_now(code: int) -> None:
+    """Flush the output and end the process without finalizing the interpreter.
+
+    An interrupt can leave a C extension half initialized (its import cut short), and
+    finalizing it may then crash the interpreter (a fatal error, SIGABRT) or re-raise
+    the interrupt; the outputs are already complete or removed, so nothing is lost.
+    """
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)

@@ -21,6 +21,7 @@ from ..core import (
     write_json,
     write_text,
 )
+from ..core._atomic import check_output_directory, output_directory
 from ._common import (
     CONTROLLER_TITLES,
     EXACT_RELATIVE_ERROR,
@@ -303,13 +304,24 @@ def _markdown(report: BenchReport) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: The files of ``selftune bench``'s output set.
+BENCH_OUTPUTS = ("bench.md", "bench.json")
+
+_WHAT = "selftune bench output"
+
+
 def bench_command(out: str, quick: bool) -> int:
     """Run the bench, print its tables, write ``bench.md`` and ``bench.json`` to ``out``.
+
+    ``out`` is checked before the bench runs, and the two files are put in place as one
+    set (:func:`~selftune.core._atomic.output_directory`): both or neither, never one
+    of them beside an earlier run's other.
 
     Parameters
     ----------
     out : str
-        Directory for the two files, created if missing.
+        Directory for the two files: absent (created), empty, or holding only an earlier
+        ``bench.md`` and ``bench.json`` (replaced).
     quick : bool
         The CI-sized run (:meth:`BenchConfig.quick`).
 
@@ -320,15 +332,19 @@ def bench_command(out: str, quick: bool) -> int:
 
     Raises
     ------
+    InputError
+        If ``out`` is not a directory, holds other files, or cannot be written (before
+        the bench runs).
     OSError
-        If the directory or the files cannot be written (nothing partial is left).
+        If the files cannot be written (nothing partial is left).
     """
+    check_output_directory(out, BENCH_OUTPUTS, _WHAT)
     report = run_bench(quick=quick, progress=True)
     directory = Path(out)
-    directory.mkdir(parents=True, exist_ok=True)
     markdown = report.to_markdown()
-    write_text(directory / "bench.md", markdown)
-    write_json(directory / "bench.json", report.to_json())
+    with output_directory(out, BENCH_OUTPUTS, _WHAT) as temporary:
+        write_text(temporary / "bench.md", markdown)
+        write_json(temporary / "bench.json", report.to_json())
     print(markdown, end="")
     print(
         f"\nwrote {directory / 'bench.md'} and {directory / 'bench.json'} "

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 from types import MappingProxyType
 
 from ..core import Array
+from ..core._validation import LIMITS, check_weight_ratio
+from ..errors import InputError
 from ._toml import ConfigFile
 
 __all__ = ["LEARN_TABLES", "LearnConfig", "load_learn_config"]
@@ -78,9 +80,9 @@ def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> L
         E = [[...]]           # q x q (all zeros: w held over each sample)
         F = [[...]]           # r x q
         [learning]            # optional
-        interval = 10         # samples per regression interval
-        max_iterations = 50
-        tolerance = 1e-9
+        interval = 10         # samples per regression interval (at most 1,000,000)
+        max_iterations = 50   # at most 1000
+        tolerance = 1e-9      # in (0, 1e-3], as the learners require
 
     Parameters
     ----------
@@ -99,6 +101,8 @@ def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> L
         One line naming the file, the table and the key, for anything missing, unknown,
         of the wrong shape (the shapes follow from the data), or out of range.
     """
+    from ..learn import check_iteration_settings  # here: selftune solve loads no learner
+
     config = ConfigFile(path, LEARN_TABLES)
     cost = config.table("cost", required=True)
     policy = config.table("policy", required=True)
@@ -113,16 +117,18 @@ def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> L
         C = regulation.matrix("C", (None, n))
         E = regulation.matrix("E", (q, q))
         F = regulation.matrix("F", (C.shape[0], q))
+    Q, R = cost.positive_definite("Q", n), cost.positive_definite("R", m)
+    try:
+        check_weight_ratio(Q, R)
+    except InputError as exc:
+        raise cost.error("Q", str(exc).removeprefix("Q: ")) from None
+    K0 = policy.matrix("K0", (m, n))
+    interval = learning.positive_integer("interval", 10, maximum=LIMITS["samples"])
+    iterations = learning.positive_integer("max_iterations", 50, maximum=LIMITS["iterations"])
     tolerance = learning.positive("tolerance", 1e-9)
-    return LearnConfig(
-        Q=cost.positive_definite("Q", n),
-        R=cost.positive_definite("R", m),
-        K0=policy.matrix("K0", (m, n)),
-        C=C,
-        E=E,
-        F=F,
-        interval=learning.positive_integer("interval", 10),
-        max_iterations=learning.positive_integer("max_iterations", 50),
-        tolerance=tolerance,
-        source=config.file,
-    )
+    try:  # the learners' own rule
+        iterations, tolerance = check_iteration_settings(iterations, tolerance)
+    except InputError as exc:
+        key, _, reason = str(exc).partition(": ")
+        raise learning.error(key, reason) from None
+    return LearnConfig(Q, R, K0, C, E, F, interval, iterations, tolerance, source=config.file)

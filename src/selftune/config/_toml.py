@@ -26,6 +26,8 @@ from typing import Any
 import numpy as np
 
 from ..core import Array, check_positive_definite
+from ..core._atomic import read_regular_file
+from ..core._validation import LIMITS, check_entries, check_range
 from ..errors import DataFileError, InputError
 
 __all__ = ["ConfigFile", "ConfigTable", "read_toml"]
@@ -42,6 +44,17 @@ def _suggestion(word: str, known: Iterable[str]) -> str:
         match = lowered.get(word.lower().replace("_", ""))
         close = [match] if match else []
     return f"; did you mean {close[0]}?" if close else ""
+
+
+def _clip(text: str, limit: int = 40) -> str:
+    """A key as written, shortened for a message."""
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
+def _short(value: object, limit: int = 40) -> str:
+    """``repr`` of a value, shortened for a message (an integer of 500 digits, say)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + "..."
 
 
 def _type_name(value: object) -> str:
@@ -74,17 +87,15 @@ def read_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
     Raises
     ------
     DataFileError
-        If the file cannot be read, is not UTF-8 text, or is not valid TOML; the message
-        names the file.
+        If the file cannot be read, is not a regular file (a FIFO, a device or a directory
+        is refused before it is opened for reading), is larger than 1 MiB, is not UTF-8
+        text (a byte-order mark is allowed), or is not valid TOML; the message names the
+        file.
     """
     name = os.fspath(path)
+    raw = read_regular_file(path, LIMITS["toml_bytes"], "a configuration file")
     try:
-        raw = Path(path).read_bytes()
-    except OSError as exc:
-        reason = exc.strerror or str(exc)
-        raise DataFileError(one_line(f"{name}: cannot read the file ({reason})")) from None
-    try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8").removeprefix("\ufeff")
     except UnicodeDecodeError as exc:
         raise DataFileError(
             f"{name}: not a TOML file (not UTF-8 text at byte {exc.start})"
@@ -93,6 +104,8 @@ def read_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise DataFileError(one_line(f"{name}: not a valid TOML file ({exc})")) from None
+    except RecursionError:
+        raise DataFileError(f"{name}: not a valid TOML file (nested too deeply)") from None
 
 
 class ConfigTable:
@@ -147,7 +160,7 @@ class ConfigTable:
         message : str
             What is wrong.
         """
-        where = f"[{self.name}]" if key is None else f"[{self.name}] {key}"
+        where = f"[{self.name}]" if key is None else f"[{self.name}] {_clip(key)}"
         return DataFileError(one_line(f"{self.file}: {where}: {message}"))
 
     def check_keys(self, known_keys: Iterable[str]) -> None:
@@ -184,10 +197,32 @@ class ConfigTable:
         value = self._get(key, default)
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.error(key, f"must be a number, got {_type_name(value)}")
-        number = float(value)
+        try:
+            number = float(value)
+        except OverflowError:
+            number = math.inf
         if not math.isfinite(number):
-            raise self.error(key, f"must be finite, got {value!r}")
+            raise self.error(key, f"must be finite, got {_short(value)}")
         return number
+
+    def ranged(self, key: str, default: float | None = None, limits: str | None = None) -> float:
+        """A number within its plausible range (:data:`~selftune.core._validation.
+        PLAUSIBLE_RANGES`); required unless ``default`` is given.
+
+        Parameters
+        ----------
+        key : str
+            The key in this table.
+        default : float, optional
+            Returned if the key is absent; without it the key is required.
+        limits : str, optional
+            The entry of the ranges (default: ``key``).
+        """
+        number = self.number(key, default)
+        try:
+            return check_range(number, key, limits)
+        except InputError as exc:
+            raise self.error(key, str(exc).removeprefix(f"{key}: ")) from None
 
     def positive(self, key: str, default: float | None = None) -> float:
         """A finite, strictly positive number; required unless ``default`` is given.
@@ -201,10 +236,12 @@ class ConfigTable:
         """
         number = self.number(key, default)
         if number <= 0.0:
-            raise self.error(key, f"must be positive, got {self.data.get(key, default)!r}")
+            raise self.error(key, f"must be positive, got {_short(self.data.get(key, default))}")
         return number
 
-    def positive_integer(self, key: str, default: int | None = None) -> int:
+    def positive_integer(
+        self, key: str, default: int | None = None, maximum: int | None = None
+    ) -> int:
         """A whole number >= 1 (``2`` or ``2.0``); required unless ``default`` is given.
 
         Parameters
@@ -213,11 +250,49 @@ class ConfigTable:
             The key in this table.
         default : int, optional
             Returned if the key is absent; without it the key is required.
+        maximum : int, optional
+            The largest value allowed (default: none).
         """
         number = self.positive(key, None if default is None else float(default))
         if not number.is_integer():
-            raise self.error(key, f"must be a whole number, got {self.data.get(key)!r}")
+            raise self.error(key, f"must be a whole number, got {_short(self.data.get(key))}")
+        if maximum is not None and number > maximum:
+            raise self.error(key, f"must be at most {maximum}, got {_short(self.data.get(key))}")
         return int(number)
+
+    def flag(self, key: str, default: bool) -> bool:
+        """``true`` or ``false``; ``default`` if the key is absent.
+
+        Parameters
+        ----------
+        key : str
+            The key in this table.
+        default : bool
+            Returned if the key is absent.
+        """
+        value = self.data.get(key, default)
+        if not isinstance(value, bool):
+            raise self.error(key, f"must be true or false, got {_type_name(value)}")
+        return value
+
+    def choice(self, key: str, allowed: tuple[str, ...], default: str) -> str:
+        """One of the strings ``allowed``; ``default`` if the key is absent.
+
+        Parameters
+        ----------
+        key : str
+            The key in this table.
+        allowed : tuple of str
+            The accepted values.
+        default : str
+            Returned if the key is absent.
+        """
+        value = self.data.get(key, default)
+        if not isinstance(value, str) or value not in allowed:
+            listing = ", ".join(f'"{option}"' for option in allowed)
+            shown = _short(value) if isinstance(value, str) else _type_name(value)
+            raise self.error(key, f"must be one of {listing}, got {shown}")
+        return value
 
     def matrix(
         self,
@@ -257,10 +332,16 @@ class ConfigTable:
             for size, actual in zip(shape, (len(value), columns), strict=True)
         ):
             raise self.error(key, f"must be a {expected} matrix, got {len(value)}x{columns}")
-        matrix = np.array(value, dtype=float).reshape(len(value), columns)
+        try:
+            matrix = np.array(value, dtype=float).reshape(len(value), columns)
+        except OverflowError:
+            raise self.error(key, "contains NaN or infinite values") from None
         if not np.all(np.isfinite(matrix)):
             raise self.error(key, "contains NaN or infinite values")
-        return matrix
+        try:
+            return check_entries(matrix, key, floor=True)
+        except InputError as exc:
+            raise self.error(key, str(exc).removeprefix(f"{key}: ")) from None
 
     def positive_definite(self, key: str, size: int, default: Array | None = None) -> Array:
         """A ``size x size`` symmetric positive definite matrix (a weight of the cost).
@@ -311,14 +392,16 @@ class ConfigFile:
             known = ", ".join(f"[{name}]" for name in self.tables)
             if key not in self.tables and not isinstance(value, dict):
                 raise DataFileError(
-                    f"{self.file}: {key}: a key outside any table (tables: {known})"
+                    one_line(
+                        f"{self.file}: {_clip(key)}: a key outside any table (tables: {known})"
+                    )
                 )
             if key not in self.tables:
                 hint = _suggestion(key, self.tables)
                 if hint:
                     hint = hint.replace("mean ", "mean [").replace("?", "]?")
                 raise DataFileError(
-                    one_line(f"{self.file}: {key}: unknown table (known: {known}{hint})")
+                    one_line(f"{self.file}: {_clip(key)}: unknown table (known: {known}{hint})")
                 )
             if not isinstance(value, dict):
                 raise DataFileError(

@@ -9,12 +9,24 @@ Thresholds, each defined once and used everywhere:
   smallest eigenvalue exceeds this fraction of its largest entry (and as symmetric when
   ``M - M'`` is within the same fraction);
 - :data:`RANK_TOLERANCE`: singular values below this fraction of the largest count as
-  zero, in every rank test (controllability, the regulator equations, the data equation).
+  zero, in every rank test (controllability, the regulator equations, the data equation);
+- :data:`TIME_RESOLUTION_TOLERANCE`: the spacing of the numbers a time column is stored
+  in, at its largest time, must be at most this fraction of the smallest sampling step
+  (:func:`check_time_resolution`);
+- :data:`PLAUSIBLE_RANGES`: the range of each physical input (:func:`check_range`), and
+  :data:`MATRIX_ENTRY_LIMIT`, :data:`DATA_VALUE_LIMIT`,
+  :data:`ELECTRICAL_STIFFNESS_LIMIT`, :data:`WEIGHT_RATIO_LIMIT`: the largest matrix
+  entry, data value, motor stiffness and ratio of the cost weights the numerics stay
+  meaningful for;
+- :data:`LIMITS`: the sizes and counts bounded before anything is allocated (file sizes,
+  samples, channels, samples per episode, iterations).
 """
 
 from __future__ import annotations
 
 import operator
+from collections.abc import Mapping
+from types import MappingProxyType
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -22,14 +34,27 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import InputError
 
 __all__ = [
+    "DATA_VALUE_LIMIT",
     "DEFINITENESS_TOLERANCE",
+    "ELECTRICAL_STIFFNESS_LIMIT",
+    "LIMITS",
+    "MATRIX_ENTRY_LIMIT",
+    "PLAUSIBLE_RANGES",
     "RANK_TOLERANCE",
+    "TIME_RESOLUTION_TOLERANCE",
+    "WEIGHT_RATIO_LIMIT",
     "Array",
     "as_matrix",
     "as_vector",
+    "check_electrical_speed",
+    "check_electrical_time_constant",
+    "check_entries",
     "check_positive_definite",
     "check_positive_semidefinite",
+    "check_range",
     "check_symmetric",
+    "check_time_resolution",
+    "check_weight_ratio",
     "check_weights",
     "finite_float",
     "first_non_increasing",
@@ -47,6 +72,63 @@ DEFINITENESS_TOLERANCE = 1e-10
 
 #: Relative singular-value threshold of every rank test (see the module docstring).
 RANK_TOLERANCE = 1e-9
+
+#: Largest spacing of a time column's numbers (at its largest time) relative to its
+#: smallest sampling step. The learners use only time differences, but a difference of
+#: two rounded times carries their rounding: near 1e9 s float64 times are 1.2e-7 s apart,
+#: and a 10 us step is then off by 1%. On the paper's motor a relative timing error of
+#: 2e-11 already moves K by 2e-7 and one of 1e-5 by 25%; at 1e-9 K moves by 5e-5 (float64
+#: times up to 64 s at 10 us sampling).
+TIME_RESOLUTION_TOLERANCE = 1e-9
+
+#: Plausible range of each physical input: (smallest, largest, unit). Values outside are
+#: refused at the door, named by their key, before they can overflow the model.
+PLAUSIBLE_RANGES: Mapping[str, tuple[float, float, str]] = MappingProxyType(
+    {
+        "R_s": (1e-6, 1e3, "ohm"),
+        "L_s": (1e-7, 10.0, "H"),
+        "phi_pm": (1e-5, 10.0, "Wb"),
+        "p": (1.0, 100.0, "pole pairs"),
+        "J": (1e-9, 1e6, "kg m^2"),
+        "speed": (-1e5, 1e5, "rad/s"),
+        "torque": (-1e6, 1e6, "N m"),
+        "sampling": (1e-8, 0.1, "s"),
+        "episode_length": (1e-6, 100.0, "s"),
+        "exploration": (1e-9, 1e4, "V"),
+    }
+)
+
+#: Largest magnitude of an entry of a cost weight, a gain or a known matrix
+#: (Q, R, K0, C, E, F); a nonzero entry must be at least its inverse, 1e-12.
+MATRIX_ENTRY_LIMIT = 1e12
+
+#: Largest ratio of the state weight's largest eigenvalue to the input weight's smallest:
+#: beyond it the Riccati equation's Hamiltonian is too ill-conditioned to solve.
+WEIGHT_RATIO_LIMIT = 1e16
+
+#: Largest magnitude of a value in a data file: its squares and products (the data
+#: equation) must stay far from overflow.
+DATA_VALUE_LIMIT = 1e50
+
+#: Largest ``R_s^2 / L_s + (p speed)^2 L_s`` (ohm/s), half of it for each term: the
+#: condition number of the motor's ``[[A, B], [C, 0]]`` is about this, and beyond it the
+#: matrices span more than the rank tests (:data:`RANK_TOLERANCE`) resolve, so the
+#: optimum would be numerically meaningless (the paper's motor: 27).
+ELECTRICAL_STIFFNESS_LIMIT = 1e7
+
+#: Sizes and counts bounded before anything is read or allocated.
+LIMITS: Mapping[str, int] = MappingProxyType(
+    {
+        "toml_bytes": 1 << 20,  # a configuration file
+        "csv_bytes": 256 << 20,  # a CSV data file
+        "npz_bytes": 256 << 20,  # the arrays of an NPZ file, uncompressed
+        "header_bytes": 1 << 16,  # the header line of a CSV file
+        "samples": 1_000_000,  # sample times in a data file
+        "channels": 12,  # n + m + q of a data file
+        "episode_samples": 200_000,  # samples per episode of a self-tuning session
+        "iterations": 1000,  # max_iterations
+    }
+)
 
 
 def as_matrix(
@@ -297,6 +379,60 @@ def first_non_increasing(t: Array) -> int | None:
     return int(np.argmax(bad)) if np.any(bad) else None
 
 
+def check_time_resolution(t: ArrayLike, name: str) -> None:
+    """Raise unless the numbers ``t`` is stored in resolve its sampling steps.
+
+    The spacing of the numbers of ``t``'s dtype (float64 for integers) at its largest
+    magnitude must be at most :data:`TIME_RESOLUTION_TOLERANCE` times the smallest step
+    ``t[k + 1] - t[k]``. Times whose steps are not all equal and which are all float16 or
+    float32 numbers were rounded to that type on their way (a float32 log written out as
+    text, say): its spacing is the one that counts. Call it on the times as given (before
+    any conversion), after checking that they are finite and strictly increasing.
+
+    Parameters
+    ----------
+    t : array_like, shape (N + 1,)
+        Sample times, s.
+    name : str
+        Name of the times in error messages.
+    """
+    times = np.asarray(t)
+    if times.ndim != 1 or times.shape[0] < 2:
+        return
+    kind = times.dtype if times.dtype.kind == "f" else np.dtype(np.float64)
+    values = times.astype(kind, copy=False)
+    steps = np.diff(values.astype(np.float64))
+    step = float(np.min(steps))
+    if not step > 0.0:
+        return  # not increasing: for the caller's own check to report
+    rounded = "" if step == float(np.max(steps)) else _narrower(values)
+    if rounded:
+        kind = np.dtype(rounded)
+        values = values.astype(kind)
+    largest = np.max(np.abs(values))
+    resolution = float(np.spacing(largest))
+    if resolution > TIME_RESOLUTION_TOLERANCE * step:
+        wider = "" if kind.itemsize >= 8 else " in float64"
+        why = f" (every time is a {rounded} number: they were rounded to it)" if rounded else ""
+        raise InputError(
+            f"{name}: the times reach {float(largest):.6g} s, where {kind.name} numbers are"
+            f" {resolution:.2g} s apart{why}: too coarse for sampling steps of {step:.2g} s (the"
+            f" resolution must be at most {TIME_RESOLUTION_TOLERANCE:g} of the smallest step);"
+            f" store the times relative to the first sample{wider}"
+        )
+
+
+def _narrower(values: NDArray[np.floating]) -> str:
+    """The narrowest float type narrower than ``values``' that holds each of them exactly
+    ("" if none): times stored wide but rounded narrow on the way keep the narrow rounding."""
+    for narrow in ("float16", "float32"):
+        if np.dtype(narrow).itemsize < values.dtype.itemsize:
+            with np.errstate(over="ignore", invalid="ignore"):
+                if np.array_equal(values.astype(narrow).astype(values.dtype), values):
+                    return narrow
+    return ""
+
+
 def check_weights(Q: ArrayLike, R: ArrayLike, n: int, m: int) -> tuple[Array, Array]:
     """Cost weights: Q (n x n) symmetric positive semidefinite, R (m x m) positive definite.
 
@@ -314,3 +450,117 @@ def check_weights(Q: ArrayLike, R: ArrayLike, n: int, m: int) -> tuple[Array, Ar
     Q = check_positive_semidefinite(as_matrix(Q, "Q", (n, n)), "Q")
     R = check_positive_definite(as_matrix(R, "R", (m, m)), "R")
     return Q, R
+
+
+def check_range(value: float, name: str, key: str | None = None) -> float:
+    """``value`` if it lies in the plausible range of ``key`` (:data:`PLAUSIBLE_RANGES`).
+
+    Parameters
+    ----------
+    value : float
+        The value checked (already a finite number).
+    name : str
+        Name of the value in error messages.
+    key : str, optional
+        The entry of :data:`PLAUSIBLE_RANGES` (default: ``name``).
+    """
+    low, high, unit = PLAUSIBLE_RANGES[name if key is None else key]
+    if not low <= value <= high:
+        raise InputError(f"{name}: must be between {low:g} and {high:g} {unit}, got {value!r}")
+    return value
+
+
+def check_entries(
+    M: Array, name: str, limit: float = MATRIX_ENTRY_LIMIT, floor: bool = False
+) -> Array:
+    """``M`` if no entry exceeds ``limit`` in magnitude (and, with ``floor``, every nonzero
+    entry is at least ``1 / limit``: what a user writes, not a computed matrix).
+
+    Parameters
+    ----------
+    M : ndarray
+        The matrix checked (finite).
+    name : str
+        Name of the matrix in error messages.
+    limit : float, optional
+        Largest magnitude allowed (default :data:`MATRIX_ENTRY_LIMIT`).
+    floor : bool, optional
+        Also refuse nonzero entries below ``1 / limit`` (default False).
+    """
+    magnitudes = np.abs(M)
+    largest = float(np.max(magnitudes, initial=0.0))
+    smallest = float(np.min(magnitudes[magnitudes > 0.0], initial=np.inf)) if floor else np.inf
+    if largest > limit or smallest < 1.0 / limit:
+        value = largest if largest > limit else smallest
+        bounds = f"0 or between {1.0 / limit:g} and {limit:g}" if floor else f"at most {limit:g}"
+        raise InputError(f"{name}: entries must be {bounds} in magnitude, got {value:.3g}")
+    return M
+
+
+def check_electrical_time_constant(R_s: float, L_s: float, name: str = "R_s") -> float:
+    """``R_s`` unless ``R_s^2 / L_s`` exceeds half :data:`ELECTRICAL_STIFFNESS_LIMIT`.
+
+    Parameters
+    ----------
+    R_s : float
+        Stator resistance, ohm.
+    L_s : float
+        Stator inductance, H.
+    name : str, optional
+        Name of the resistance in error messages.
+    """
+    limit = 0.5 * ELECTRICAL_STIFFNESS_LIMIT
+    if R_s * R_s / L_s > limit:
+        raise InputError(
+            f"{name}: {R_s:g} ohm is too large for L_s = {L_s:g} H (time constant"
+            f" L_s / R_s = {L_s / R_s:.3g} s): the model is numerically meaningful up to"
+            f" R_s^2 / L_s = {limit:g}, i.e. R_s <= {(limit * L_s) ** 0.5:.4g} ohm"
+        )
+    return R_s
+
+
+def check_electrical_speed(speed: float, p: int, L_s: float, name: str = "speed") -> float:
+    """``speed`` unless ``(p speed)^2 L_s`` exceeds half :data:`ELECTRICAL_STIFFNESS_LIMIT`.
+
+    Parameters
+    ----------
+    speed : float
+        Mechanical speed, rad/s.
+    p : int
+        Pole pairs.
+    L_s : float
+        Stator inductance, H.
+    name : str, optional
+        Name of the speed in error messages.
+    """
+    electrical, limit = p * speed, 0.5 * ELECTRICAL_STIFFNESS_LIMIT
+    if electrical * electrical * L_s > limit:
+        fastest = (limit / L_s) ** 0.5 / p
+        raise InputError(
+            f"{name}: {speed:g} rad/s is too fast for this motor (p = {p}, L_s = {L_s:g} H):"
+            f" the model is numerically meaningful up to (p speed)^2 L_s = {limit:g},"
+            f" i.e. |speed| <= {fastest:.4g} rad/s"
+        )
+    return speed
+
+
+def check_weight_ratio(Q: Array, R: Array, name: str = "Q") -> None:
+    """Raise if ``Q``'s largest eigenvalue exceeds :data:`WEIGHT_RATIO_LIMIT` times ``R``'s
+    smallest.
+
+    Parameters
+    ----------
+    Q : ndarray, shape (n, n)
+        State weight, symmetric.
+    R : ndarray, shape (m, m)
+        Input weight, symmetric positive definite.
+    name : str, optional
+        Name of the weights in error messages.
+    """
+    largest = float(np.max(np.linalg.eigvalsh(Q), initial=0.0))
+    smallest = float(np.min(np.linalg.eigvalsh(R), initial=np.inf))
+    if largest > WEIGHT_RATIO_LIMIT * smallest:
+        raise InputError(
+            f"{name}: the cost weights are too far apart: Q's largest eigenvalue {largest:.3g}"
+            f" is more than {WEIGHT_RATIO_LIMIT:g} times R's smallest {smallest:.3g}"
+        )

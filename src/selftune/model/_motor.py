@@ -20,11 +20,26 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..core import PAPER_MOTOR, PAPER_TABLE_MOTOR, Array, as_vector, finite_float, positive_finite
+from ..core import (
+    PAPER_MOTOR,
+    PAPER_TABLE_MOTOR,
+    Array,
+    as_vector,
+    discretize,
+    finite_float,
+    positive_finite,
+    rotating_hold,
+)
+from ..core._validation import check_range
 from ..errors import InputError
 from ._problem import RegulationProblem
 
 __all__ = ["SPMSM"]
+
+
+def _checked(value: float, name: str) -> float:
+    """A finite speed (rad/s) or torque (N m) in its plausible range."""
+    return check_range(finite_float(value, name), name)
 
 
 @dataclass(frozen=True)
@@ -47,8 +62,11 @@ class SPMSM:
     Raises
     ------
     InputError
-        (a ``ValueError``) naming the field, if a value is not positive and finite, or
-        ``p`` is not a positive integer.
+        (a ``ValueError``) naming the field, if a value is not positive and finite or is
+        outside its plausible range (``PLAUSIBLE_RANGES`` of :mod:`selftune.core`: R_s
+        1e-6..1e3 ohm, L_s 1e-7..10 H, phi_pm 1e-5..10 Wb, p 1..100, J 1e-9..1e6 kg m^2),
+        or ``p`` is not a whole number. Speeds (at most 1e5 rad/s in magnitude) and torques
+        (1e6 N m) given to the methods are checked the same way.
 
     Examples
     --------
@@ -64,13 +82,14 @@ class SPMSM:
 
     def __post_init__(self) -> None:
         for name in ("R_s", "L_s", "phi_pm"):
-            object.__setattr__(self, name, positive_finite(getattr(self, name), name))
+            value = check_range(positive_finite(getattr(self, name), name), name)
+            object.__setattr__(self, name, value)
         pole_pairs = positive_finite(self.p, "p")
         if pole_pairs != int(pole_pairs):
             raise InputError(f"p: the number of pole pairs must be a whole number, got {self.p!r}")
-        object.__setattr__(self, "p", int(pole_pairs))
+        object.__setattr__(self, "p", int(check_range(pole_pairs, "p")))
         if self.J is not None:
-            object.__setattr__(self, "J", positive_finite(self.J, "J"))
+            object.__setattr__(self, "J", check_range(positive_finite(self.J, "J"), "J"))
 
     @classmethod
     def paper(cls) -> SPMSM:
@@ -161,7 +180,7 @@ class SPMSM:
         B : ndarray, shape (2, 2)
             Input matrix ``I / L_s``, 1/H.
         """
-        electrical_speed = self.p * finite_float(speed, "speed")
+        electrical_speed = self.p * _checked(speed, "speed")
         A = np.array([[-self.gamma, electrical_speed], [-electrical_speed, -self.gamma]])
         B = np.eye(2) / self.L_s
         return A, B
@@ -176,8 +195,8 @@ class SPMSM:
         torque : float
             Torque reference ``T*``, N m.
         """
-        speed = finite_float(speed, "speed")
-        return np.array([self.p * speed * self.phi_pm, finite_float(torque, "torque")])
+        speed = _checked(speed, "speed")
+        return np.array([self.p * speed * self.phi_pm, _checked(torque, "torque")])
 
     def regulation_problem(self, speed: float) -> RegulationProblem:
         """The known-flux output-regulation form (eq. 8, corrected sign of D).
@@ -196,6 +215,35 @@ class SPMSM:
         F = np.array([[0.0, 0.0], [0.0, -2.0 / (3.0 * self.p * self.phi_pm)]])
         return RegulationProblem(A=A, B=B, C=np.eye(2), D=D, E=np.zeros((2, 2)), F=F)
 
+    def sampled_plant(
+        self, speed: float, h: float, hold: str = "rotor"
+    ) -> tuple[Array, Array, Array]:
+        """``(Ad, Bd, Ed)`` of :meth:`regulation_problem` sampled at h, exactly.
+
+        ``hold = "rotor"``: the dq voltage held over each sample (zero-order hold, the
+        paper's). ``"stationary"``: the stationary-frame vector held, as a PWM inverter
+        does, with the usual angle compensation that centres it on the sample
+        (:func:`selftune.core.rotating_hold`): Bd differs, by about ``(w_e h)^2 / 24``.
+
+        Parameters
+        ----------
+        speed : float
+            Mechanical speed, rad/s.
+        h : float
+            Sampling period, s.
+        hold : {"rotor", "stationary"}
+            What is held over a sample.
+        """
+        if hold not in ("rotor", "stationary"):
+            raise InputError(f"hold: must be 'rotor' or 'stationary', got {hold!r}")
+        problem = self.regulation_problem(speed)
+        exact = discretize(problem.A, problem.B, h, D=problem.D)
+        if hold == "rotor":
+            return exact.Ad, exact.Bd, exact.Ed
+        w_e = self.p * finite_float(speed, "speed")
+        Bd = rotating_hold(problem.A, problem.B, h, w_e, advance=0.5 * w_e * h)
+        return exact.Ad, Bd, exact.Ed
+
     def no_load_exogenous(self, speed: float) -> Array:
         """``w = [p speed]`` of the no-load, unknown-flux form (eq. 15).
 
@@ -204,7 +252,7 @@ class SPMSM:
         speed : float
             Mechanical speed, rad/s.
         """
-        return np.array([self.p * finite_float(speed, "speed")])
+        return np.array([self.p * _checked(speed, "speed")])
 
     def no_load_problem(self, speed: float) -> RegulationProblem:
         """The no-load, unknown-flux form (eq. 15, corrected sign): ``T* = 0``, ``w = [p speed]``.
@@ -228,7 +276,7 @@ class SPMSM:
         torque : float
             Torque reference ``T*``, N m.
         """
-        return np.array([0.0, 2.0 * finite_float(torque, "torque") / (3.0 * self.p * self.phi_pm)])
+        return np.array([0.0, 2.0 * _checked(torque, "torque") / (3.0 * self.p * self.phi_pm)])
 
     def equilibrium(self, speed: float, torque: float) -> tuple[Array, Array]:
         """The operating point ``(x_e, u_e)`` in closed form (eq. 3, corrected sign).
@@ -251,7 +299,7 @@ class SPMSM:
             Voltages ``[u_d, u_q]``, V.
         """
         x_e = self.current_reference(torque)
-        electrical_speed = self.p * finite_float(speed, "speed")
+        electrical_speed = self.p * _checked(speed, "speed")
         i_q = x_e[1]
         u_e = np.array(
             [-electrical_speed * self.L_s * i_q, self.R_s * i_q + electrical_speed * self.phi_pm]
