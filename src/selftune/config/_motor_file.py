@@ -11,9 +11,22 @@
     [cost]             # optional: weights of the cost, both symmetric positive definite
     Q = [[1000.0, 0.0], [0.0, 1000.0]]
     R = [[1.0, 0.0], [0.0, 1.0]]
+    [learning]         # optional: selftune tune's settings (selftune.tuning.TuningSettings)
+    target = "digital" # or "continuous"; integral_action, dead_time (true/false),
+                       # perturbation, flux_length (s), sampling, K0, exploration, ...
+    [drive]            # optional: tune on a realistic drive (see ._drive_table)
+    input_delay = 1
 
-A ``[learning]`` table is also allowed; it is kept unvalidated in
-:attr:`MotorConfig.learning` for the command that learns.
+A ``[learning]`` table (``selftune tune``'s settings) is also allowed; its keys and each
+value's type and range are checked here, and the table is kept in
+:attr:`MotorConfig.learning` for the command that learns (which checks how the values
+fit together). A ``[drive]`` table makes ``selftune tune`` run on a realistic drive
+(:mod:`._drive_table`): :attr:`MotorConfig.drive`.
+
+Every number has a plausible range (``PLAUSIBLE_RANGES`` of :mod:`selftune.core`), and
+the motor's resistance and speed must suit its inductance (``R_s^2 / L_s`` and
+``(p speed)^2 L_s`` at most 5e6); a value outside is named by its key, before it can
+overflow the model.
 """
 
 from __future__ import annotations
@@ -22,7 +35,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..core import (
     PAPER_SPEED,
@@ -34,19 +47,66 @@ from ..core import (
     paper_Q,
     paper_R,
 )
+from ..core._validation import (
+    LIMITS,
+    PLAUSIBLE_RANGES,
+    check_electrical_speed,
+    check_electrical_time_constant,
+    check_entries,
+    check_range,
+    check_weight_ratio,
+)
 from ..errors import DataFileError, InputError
 from ..model import SPMSM, RegulationProblem
-from ._toml import ConfigFile
+from ._toml import ConfigFile, ConfigTable
 
-__all__ = ["MOTOR_TABLES", "MotorConfig", "load_motor_config"]
+if TYPE_CHECKING:
+    from ..sim import DriveSettings
 
-#: The tables of MOTOR.toml and the keys each may hold (``learning`` is checked later).
+__all__ = ["LEARNING_KEYS", "MOTOR_TABLES", "MotorConfig", "load_motor_config"]
+
+#: Keys of MOTOR.toml's optional [learning] table (``selftune tune``'s settings).
+LEARNING_KEYS = (
+    "sampling",
+    "episode_length",
+    "K0",
+    "exploration",
+    "input_hold",
+    "interval",
+    "max_iterations",
+    "target",
+    "integral_action",
+    "dead_time",
+    "flux_length",
+    "perturbation",
+)
+
+#: The values of the [learning] keys that are words.
+LEARNING_CHOICES: Mapping[str, tuple[str, ...]] = MappingProxyType(
+    {"target": ("continuous", "digital"), "perturbation": ("paper", "torque", "steps")}
+)
+
+#: The tables of MOTOR.toml and the keys each may hold.
 MOTOR_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
     {
         "motor": ("R_s", "L_s", "phi_pm", "p", "J"),
         "operating_point": ("speed", "torque"),
         "cost": ("Q", "R"),
-        "learning": (),
+        "learning": LEARNING_KEYS,
+        "drive": (
+            "input_delay",
+            "switching_frequency",
+            "pwm",
+            "dead_time",
+            "dead_time_compensation",
+            "dc_voltage",
+            "current_noise",
+            "adc_bits",
+            "adc_range",
+            "temperature_rise",
+            "logged_input",
+            "voltage_hold",
+        ),
     }
 )
 
@@ -69,6 +129,10 @@ class MotorConfig:
         Input weight of the cost, symmetric positive definite.
     learning : mapping
         The raw ``[learning]`` table (empty if absent); validated by the learning command.
+    drive : DriveSettings or None
+        The realistic drive of the ``[drive]`` table; None without one (the ideal drive).
+    drive_sampling : float or None
+        ``1 / switching_frequency`` of the ``[drive]`` table, s, if it gives one.
     source : str
         Where the configuration came from (a file name, or ``"paper preset"``), for
         messages.
@@ -76,8 +140,9 @@ class MotorConfig:
     Raises
     ------
     InputError
-        Naming the field, if a value is not finite or Q, R are not 2x2 symmetric positive
-        definite.
+        Naming the field, if a value is not finite or outside its plausible range, the
+        speed is too fast for the motor (``(p speed)^2 L_s`` above 1e7), or Q, R are not
+        2x2 symmetric positive definite with entries at most 1e12.
     """
 
     motor: SPMSM
@@ -87,14 +152,22 @@ class MotorConfig:
     R: Array = field(default_factory=paper_R)
     learning: Mapping[str, Any] = field(default_factory=dict)
     source: str = "paper preset"
+    drive: DriveSettings | None = None
+    drive_sampling: float | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "speed", finite_float(self.speed, "speed"))
-        object.__setattr__(self, "torque", finite_float(self.torque, "torque"))
+        for name in ("speed", "torque"):
+            object.__setattr__(
+                self, name, check_range(finite_float(getattr(self, name), name), name)
+            )
+        check_electrical_time_constant(self.motor.R_s, self.motor.L_s)
+        check_electrical_speed(self.speed, self.motor.p, self.motor.L_s)
         for name in ("Q", "R"):
-            matrix = check_positive_definite(as_matrix(getattr(self, name), name, (2, 2)), name)
+            matrix = check_entries(as_matrix(getattr(self, name), name, (2, 2)), name)
+            matrix = check_positive_definite(matrix, name)
             matrix.setflags(write=False)
             object.__setattr__(self, name, matrix)
+        check_weight_ratio(self.Q, self.R)
         object.__setattr__(self, "learning", MappingProxyType(dict(self.learning)))
 
     @classmethod
@@ -142,28 +215,70 @@ def load_motor_config(path: str | os.PathLike[str]) -> MotorConfig:
     (0.0601, 10.0)
     """
     config = ConfigFile(path, MOTOR_TABLES)
-    motor_table = config.table("motor", required=True)
-    try:
-        motor = SPMSM(
-            R_s=motor_table.positive("R_s"),
-            L_s=motor_table.positive("L_s"),
-            phi_pm=motor_table.positive("phi_pm"),
-            p=motor_table.positive_integer("p"),
-            J=motor_table.positive("J") if "J" in motor_table else None,
-        )
-    except DataFileError:
-        raise
-    except InputError as exc:  # a rule of SPMSM not checked above: still name the file
-        raise motor_table.error(None, str(exc)) from None
+    motor = _motor(config.table("motor", required=True))
     operating_point = config.table("operating_point")
     cost = config.table("cost")
-    learning = config.data.get("learning", {})
-    return MotorConfig(
-        motor=motor,
-        speed=operating_point.number("speed", PAPER_SPEED),
-        torque=operating_point.number("torque", PAPER_TORQUE),
-        Q=cost.positive_definite("Q", 2, paper_Q()),
-        R=cost.positive_definite("R", 2, paper_R()),
-        learning=learning,
-        source=config.file,
-    )
+    learning = config.table("learning")
+    _check_learning(learning)
+    speed = operating_point.ranged("speed", PAPER_SPEED)
+    torque = operating_point.ranged("torque", PAPER_TORQUE)
+    Q = cost.positive_definite("Q", 2, paper_Q())
+    R = cost.positive_definite("R", 2, paper_R())
+    drive, drive_sampling = None, None
+    if "drive" in config:
+        from ._drive_table import drive_settings  # here: solve loads no simulator
+
+        drive, drive_sampling = drive_settings(config.table("drive"))
+    try:
+        return MotorConfig(
+            motor, speed, torque, Q, R, learning.data, config.file, drive, drive_sampling
+        )
+    except InputError as exc:  # a rule across tables (the speed for the motor)
+        key, _, reason = str(exc).partition(": ")
+        table = operating_point if key in ("speed", "torque") else cost
+        raise table.error(key, reason) from None
+
+
+def _motor(table: ConfigTable) -> SPMSM:
+    """The [motor] table's motor, each parameter positive and in its range."""
+    values: dict[str, float] = {}
+    for key in ("R_s", "L_s", "phi_pm", "J"):
+        if key != "J" or key in table:
+            table.positive(key)
+            values[key] = table.ranged(key)
+    pole_pairs = table.positive_integer("p", maximum=int(PLAUSIBLE_RANGES["p"][1]))
+    try:
+        check_electrical_time_constant(values["R_s"], values["L_s"])
+        return SPMSM(p=pole_pairs, **values)
+    except DataFileError:
+        raise
+    except InputError as exc:  # a rule across keys: name the first key
+        key, _, reason = str(exc).partition(": ")
+        raise table.error(key, reason) from None
+
+
+def _check_learning(table: ConfigTable) -> None:
+    """Each [learning] value of the right type and in its range (``selftune tune`` checks
+    how they fit together)."""
+    for key in ("sampling", "episode_length", "exploration"):
+        if key in table:
+            table.positive(key)
+            table.ranged(key)
+    if "K0" in table:
+        table.matrix("K0", (2, 2))
+    for key, limit in (
+        ("input_hold", LIMITS["episode_samples"]),
+        ("interval", LIMITS["episode_samples"]),
+        ("max_iterations", LIMITS["iterations"]),
+    ):
+        if key in table:
+            table.positive_integer(key, maximum=limit)
+    for key, allowed in LEARNING_CHOICES.items():
+        if key in table:
+            table.choice(key, allowed, allowed[0])
+    for key in ("integral_action", "dead_time"):
+        if key in table:
+            table.flag(key, False)
+    if "flux_length" in table:
+        table.positive("flux_length")
+        table.ranged("flux_length", limits="episode_length")

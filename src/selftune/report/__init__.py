@@ -4,12 +4,24 @@
   model-based optimum (:mod:`._evaluate`);
 - :func:`reproduce`, :func:`report`, :func:`write_outputs`: the paper's Section V
   (:mod:`._reproduce`), with Figs. 1-5 (:mod:`._figures`);
-- :func:`regulator_document`, :func:`history_document`: JSON derived from the results.
+- :func:`regulator_document`, :func:`history_document`: JSON derived from the results;
+- :func:`evaluate_digital` (:mod:`._digital_evaluation`): a digital result against the
+  optimum of the same sampled loop, with the excess cost of its feedback;
+- :func:`steady_torque_error` (:mod:`._drive_check`): a controller's steady torque on the
+  simulated drive; :func:`tune_lines`, :func:`tune_document` (:mod:`._tune_report`): what
+  ``selftune tune`` prints and writes.
 """
 
 from __future__ import annotations
 
+from ._digital_evaluation import (
+    digital_step_cost,
+    evaluate_digital,
+    feedback_excess_cost,
+    true_motor,
+)
 from ._documents import history_document, regulator_document
+from ._drive_check import STEADY_SECONDS, steady_torque_error
 from ._evaluate import TuningEvaluation, closed_loop_response, evaluate, policy_true_cost
 from ._reproduce import (
     ALGORITHMS,
@@ -19,18 +31,40 @@ from ._reproduce import (
     results_document,
     write_outputs,
 )
+from ._tune_report import (
+    HOT_RESISTANCE,
+    TorqueCheck,
+    drive_text,
+    law_document,
+    torque_check,
+    tune_document,
+    tune_lines,
+)
 
 __all__ = [
     "ALGORITHMS",
+    "HOT_RESISTANCE",
+    "STEADY_SECONDS",
     "Reproduction",
+    "TorqueCheck",
     "TuningEvaluation",
     "closed_loop_response",
+    "digital_step_cost",
+    "drive_text",
     "evaluate",
+    "evaluate_digital",
+    "feedback_excess_cost",
     "history_document",
+    "law_document",
     "policy_true_cost",
     "regulator_document",
     "report",
     "reproduce",
     "results_document",
+    "steady_torque_error",
+    "torque_check",
+    "true_motor",
+    "tune_document",
+    "tune_lines",
     "write_outputs",
 ]

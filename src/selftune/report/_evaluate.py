@@ -11,13 +11,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import Array, policy_value
-from ..learn import Trajectory
-from ..model import SPMSM, ModelBasedSolution, solve_optimal_regulation
-from ..sim import constant, simulate
-from ..tuning import TuningResult, TuningSettings
+from ..core import Array, ControlLaw, policy_value
+from ..learn import LearningProblem, Trajectory
+from ..model import SPMSM, DigitalSolution, ModelBasedSolution, solve_optimal_regulation
+from ..sim import DriveSettings, constant, simulate
+from ..tuning import TuningResult, TuningSettings, known_flux_form
 
-__all__ = ["TuningEvaluation", "closed_loop_response", "evaluate", "policy_true_cost"]
+__all__ = [
+    "TuningEvaluation",
+    "closed_loop_response",
+    "evaluate",
+    "gains",
+    "learner_integral_weight",
+    "policy_true_cost",
+]
 
 
 @dataclass(frozen=True)
@@ -36,18 +43,24 @@ class TuningEvaluation:
         (5) of its transient to its own steady state (equal to (5) when the policy
         regulates, i.e. ``U_j = U*``); ``inf`` if it does not stabilize.
     final_theta_error : float
-        ``||Theta - Theta*|| / ||Theta*||`` of the result.
+        ``||Theta - Theta*|| / ||Theta*||`` of the result (NaN for the digital target).
     K_error, U_error : float
-        ``||K - K*|| / ||K*||`` and ``||U - U*|| / ||U*||``.
+        ``||K - K*|| / ||K*||`` and ``||U - U*|| / ||U*||`` (K with K_i beside it).
+    excess_cost : float
+        The true cost of the result's controller over the optimum's, minus 1, for the
+        torque step from rest: on the continuous loop (continuous target, NaN with
+        integral action) or on the sampled loop with the drive's delay and the same
+        integral weight (digital target, :mod:`._digital_evaluation`).
     """
 
-    optimum: ModelBasedSolution
+    optimum: ModelBasedSolution | DigitalSolution
     theta_error: Array
     learned_cost: Array
     true_cost: Array
     final_theta_error: float
     K_error: float
     U_error: float
+    excess_cost: float = float("nan")
 
 
 def policy_true_cost(
@@ -88,7 +101,12 @@ def policy_true_cost(
     return float(start @ value @ start)
 
 
-def evaluate(result: TuningResult, motor: SPMSM, settings: TuningSettings) -> TuningEvaluation:
+def evaluate(
+    result: TuningResult,
+    motor: SPMSM,
+    settings: TuningSettings,
+    drive: DriveSettings | None = None,
+) -> TuningEvaluation:
     """Compare a self-tuning result with the model-based optimum of ``motor``.
 
     Parameters
@@ -96,12 +114,20 @@ def evaluate(result: TuningResult, motor: SPMSM, settings: TuningSettings) -> Tu
     result : TuningResult
         The self-tuning result.
     motor : SPMSM
-        The true motor.
+        The true motor (nameplate values).
     settings : TuningSettings
         The settings the result was learned with.
+    drive : DriveSettings, optional
+        The realistic drive it was learned on (its delay and temperature); None for the
+        ideal drive.
     """
+    if result.target == "digital":
+        from ._digital_evaluation import evaluate_digital
+
+        return evaluate_digital(result, motor, settings, drive)
+    weight = learner_integral_weight(motor, settings) if result.law.K_i is not None else None
     optimum = solve_optimal_regulation(
-        motor.regulation_problem(settings.speed), settings.Q, settings.R
+        motor.regulation_problem(settings.speed), settings.Q, settings.R, integral_weight=weight
     )
     theta_star = optimum.theta
     x_bar0 = -result.X @ result.w
@@ -124,15 +150,51 @@ def evaluate(result: TuningResult, motor: SPMSM, settings: TuningSettings) -> Tu
                 )
             )
     norm = float(np.linalg.norm(theta_star))
+    optimal_cost = float(x_bar0 @ optimum.P[:2, :2] @ x_bar0)
+    excess = float("nan")
+    if weight is None and optimal_cost > 0.0:
+        learned = policy_true_cost(motor, settings, result.K, result.X, result.U, result.w)
+        excess = learned / optimal_cost - 1.0
+    best = gains(optimum.law(settings.sampling))
     return TuningEvaluation(
         optimum=optimum,
         theta_error=np.array(theta_error),
         learned_cost=np.array(learned_cost),
         true_cost=np.array(true_cost),
-        final_theta_error=float(np.linalg.norm(result.theta - theta_star)) / norm,
-        K_error=float(np.linalg.norm(result.K - optimum.K)) / float(np.linalg.norm(optimum.K)),
+        final_theta_error=float("nan")
+        if result.theta is None
+        else float(np.linalg.norm(result.theta - theta_star)) / norm,
+        K_error=float(np.linalg.norm(gains(result.law) - best)) / float(np.linalg.norm(best)),
         U_error=float(np.linalg.norm(result.U - optimum.U)) / float(np.linalg.norm(optimum.U)),
+        excess_cost=excess,
     )
+
+
+def gains(law: ControlLaw) -> Array:
+    """``[K, K_i]`` of a law (``K`` without integral action).
+
+    Parameters
+    ----------
+    law : ControlLaw
+        The controller.
+    """
+    return law.K if law.K_i is None else np.hstack([law.K, law.K_i])
+
+
+def learner_integral_weight(motor: SPMSM, settings: TuningSettings) -> Array | None:
+    """The integral weight a session's learner uses (the default of
+    :class:`selftune.learn.LearningProblem`), so the optimum compared is of the same cost.
+
+    Parameters
+    ----------
+    motor : SPMSM
+        The motor (its pole pairs and flux give F).
+    settings : TuningSettings
+        Cost weights and K0.
+    """
+    C, _, F, _ = known_flux_form(motor.p, settings.speed, settings.torque, motor.phi_pm)
+    problem = LearningProblem(settings.Q, settings.R, settings.K0, C=C, F=F, integral_action=True)
+    return problem.integral_weight
 
 
 def closed_loop_response(

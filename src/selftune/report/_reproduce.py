@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..core import Array, finite_or_null, fixed, scientific, to_jsonable, write_json
+from ..core._atomic import output_directory
 from ..learn import Trajectory
 from ..model import SPMSM, ModelBasedSolution
 from ..tuning import TuningResult, TuningSettings, run_algorithm
@@ -123,6 +124,7 @@ def reproduce(
         results[key] = run_algorithm(key, motor, settings)  # type: ignore[arg-type]
         evaluations[key] = evaluate(results[key], motor, settings)
     optimum = evaluations["2"].optimum
+    assert isinstance(optimum, ModelBasedSolution), "the paper's algorithms are continuous"
     announce("torque steps")
     partial = Reproduction(motor, settings, optimum, results, evaluations, {}, 0.0)
     responses = {}
@@ -130,6 +132,12 @@ def reproduce(
         K, X, U, w = partial.controller(name)
         responses[name] = closed_loop_response(motor, settings, K, X, U, w, RESPONSE_DURATION)
     return replace(partial, responses=responses, wall_seconds=time.perf_counter() - start)
+
+
+def _theta(result: TuningResult) -> Array:
+    """The result's Theta (the paper's algorithms always learn the continuous one)."""
+    assert result.theta is not None, "the reproduction learns the continuous target"
+    return result.theta
 
 
 def _cell(value: float, width: int) -> str:
@@ -188,7 +196,7 @@ def report(reproduction: Reproduction) -> str:
     ]
     for index, label in enumerate(THETA_LABELS):
         row = f"{label:>16}{_cell(reproduction.optimum.theta[index], 10)}"
-        row += "".join(f"{_cell(results[key].theta[index], 12)}" for key in keys)
+        row += "".join(f"{_cell(_theta(results[key])[index], 12)}" for key in keys)
         lines.append(row)
     lines.append("")
 
@@ -211,14 +219,13 @@ def report(reproduction: Reproduction) -> str:
         "  relative error",
         ["-", "-", scientific(identified["phi_pm"] / motor.phi_pm - 1, 12), "-"],
     )
-    summary("identified L_s, H", ["-", "-", f"{identified['L_s']:.8f}", "-"])
-    summary("  relative error", ["-", "-", scientific(identified["L_s"] / motor.L_s - 1, 12), "-"])
+    summary("  standard error, Wb", ["-", "-", scientific(identified["phi_pm_se"], 12), "-"])
     lines.append("")
     lines.append(
         f"K* = {reproduction.optimum.K[0, 0]:.4f} I,  U* = "
         f"[[{reproduction.optimum.U[0, 0]:.4f}, {reproduction.optimum.U[0, 1]:.4f}], "
         f"[{reproduction.optimum.U[1, 0]:.4f}, {reproduction.optimum.U[1, 1]:.4f}]]; true "
-        f"phi_pm = {reproduction.motor.phi_pm} Wb, L_s = {reproduction.motor.L_s} H"
+        f"phi_pm = {reproduction.motor.phi_pm} Wb"
     )
     for key, label in ALGORITHMS:
         for note in results[key].notes:
@@ -264,7 +271,7 @@ def results_document(reproduction: Reproduction) -> dict[str, Any]:
             "unknowns": result.unknowns,
             "iterations": 1 + result.history[-1].iteration,
             "data_seconds": result.data_seconds,
-            "converged": result.converged,
+            "quality": result.quality,
             "feedforward_learned": result.feedforward_learned,
             "identified": result.identified,
             "notes": list(result.notes),
@@ -276,20 +283,23 @@ def results_document(reproduction: Reproduction) -> dict[str, Any]:
 def write_outputs(reproduction: Reproduction, out: str | os.PathLike[str]) -> list[Path]:
     """Write ``results.json`` and fig1..fig5 (PNG and SVG) into ``out``; return the paths.
 
-    Every file is written atomically.
+    The files are written as one set (:func:`~selftune.core._atomic.output_directory`):
+    into a temporary directory beside ``out``, then put in place together, so a failure
+    or an interrupt leaves ``out`` as it was, and an earlier set there is replaced as a
+    whole (no stale figure of another run stays).
 
     Parameters
     ----------
     reproduction : Reproduction
         What :func:`reproduce` computed.
     out : str or os.PathLike
-        Output directory (created if absent).
+        Output directory: absent (created, with its parents), empty, or holding only an
+        earlier output of this function.
     """
     from ._figures import save_all
 
     directory = Path(out)
-    directory.mkdir(parents=True, exist_ok=True)
-    paths = save_all(reproduction, directory)
-    results_path = directory / "results.json"
-    write_json(results_path, results_document(reproduction))
-    return [*paths, results_path]
+    with output_directory(out, (), "selftune reproduce output") as temporary:
+        paths = save_all(reproduction, temporary)
+        write_json(temporary / "results.json", results_document(reproduction))
+    return [directory / path.name for path in [*paths, temporary / "results.json"]]

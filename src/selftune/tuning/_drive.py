@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from ..core import Array
+from ..core import ControlLaw
 from ..learn import Trajectory
 from ..sim import ExogenousSignal, Exploration
 
@@ -16,7 +16,14 @@ __all__ = ["Drive"]
 
 
 class Drive(Protocol):
-    """A drive in torque-control mode that runs episodes and returns what it measured."""
+    """A drive in torque-control mode that runs episodes and returns what it logged.
+
+    The session hands it a :class:`~selftune.core.ControlLaw` (the controller to run,
+    ``u_k = U w_k - K [...] + rho_k``) and reads back a log. The drive says how its log
+    is aligned: its computation delay (the voltage computed at sample k acts over
+    ``[t_(k+d), t_(k+d+1))``) and whether row k of the log holds the voltage applied
+    during sample k or the one computed at it.
+    """
 
     @property
     def pole_pairs(self) -> int:
@@ -28,11 +35,25 @@ class Drive(Protocol):
         """Sampling period, s."""
         ...
 
+    @property
+    def input_delay(self) -> int:
+        """d, the computation delay, samples."""
+        ...
+
+    @property
+    def logged_input(self) -> str:
+        """``"applied"`` or ``"commanded"``: what row k of the log's voltages holds."""
+        ...
+
+    @property
+    def voltage_hold(self) -> str:
+        """``"stationary"`` (a PWM inverter holds the stationary-frame vector) or
+        ``"rotor"`` (the dq voltage is held: an ideal zero-order hold)."""
+        ...
+
     def run(
         self,
-        K: Array,
-        X: Array,
-        U: Array,
+        law: ControlLaw,
         reference: ExogenousSignal,
         *,
         num_samples: int,
@@ -40,16 +61,12 @@ class Drive(Protocol):
         seed: int,
         assumed_flux: float | None = None,
     ) -> Trajectory:
-        """One episode from rest under ``u = -K (x - X w) + U w + rho`` (known-flux form).
+        """One episode from rest under ``law`` plus exploration (known-flux form).
 
         Parameters
         ----------
-        K : ndarray, shape (2, 2)
-            Feedback gain, V/A.
-        X : ndarray, shape (2, 2)
-            Steady-state map, ``x_ss = X w``.
-        U : ndarray, shape (2, 2)
-            Feedforward, ``u_ss = U w``.
+        law : ControlLaw
+            The controller, on ``w = [p speed phi, T*]``.
         reference : ExogenousSignal
             The controller's ``w = [p speed phi, T*]`` (held).
         num_samples : int
@@ -57,36 +74,41 @@ class Drive(Protocol):
         exploration : Exploration or None
             Exploration ``rho`` added to the input; None for none.
         seed : int
-            Seed of the exploration.
+            Seed of the exploration (and of the drive's noise).
         assumed_flux : float, optional
             Flux linkage the controller's ``w`` assumes, Wb (default: the true one).
 
         Returns
         -------
         Trajectory
-            The measured currents, inputs and ``w`` at the sample times.
+            The measured currents, the logged voltages and ``w`` at the sample times.
         """
         ...
 
     def run_no_load(
-        self, K: Array, *, num_samples: int, exploration: Exploration | None, seed: int
+        self,
+        law: ControlLaw,
+        *,
+        num_samples: int,
+        exploration: Exploration | None,
+        seed: int,
     ) -> Trajectory:
-        """One episode at no load (``T* = 0``), ``u = -K x + rho``, ``w = [p speed]``.
+        """One episode at no load (``T* = 0``), ``w = [p speed]``, ``X = 0``.
 
         Parameters
         ----------
-        K : ndarray, shape (2, 2)
-            Feedback gain, V/A.
+        law : ControlLaw
+            The controller, on ``w = [p speed]``.
         num_samples : int
             Length of the episode, samples.
         exploration : Exploration or None
             Exploration ``rho`` added to the input; None for none.
         seed : int
-            Seed of the exploration.
+            Seed of the exploration (and of the drive's noise).
 
         Returns
         -------
         Trajectory
-            The measured currents, inputs and ``w`` at the sample times.
+            The measured currents, the logged voltages and ``w`` at the sample times.
         """
         ...

@@ -8,26 +8,50 @@ import numpy as np
 from ..core import Array, finite_float, positive_finite, positive_integer
 from ._settings import Perturbation
 
-__all__ = ["PAPER_PERTURBATION", "known_flux_form", "reference_perturbation"]
+__all__ = [
+    "PAPER_PERTURBATION",
+    "STEP_DWELL",
+    "STEP_LEVELS",
+    "known_flux_form",
+    "reference_perturbation",
+]
 
 #: The paper's reference perturbation (Sec. V), w_d(t) = [sin(1000 t), 0.1 cos(3000 t)].
 PAPER_PERTURBATION = ((1.0, 1000.0, 0.0), (0.1, 3000.0, 0.5 * np.pi))
 
+#: The ``"steps"`` torque reference, in units of T*: it reverses the current, so that an
+#: inverter's dead-time voltage (which follows the current's sign) cannot pass for
+#: back-EMF (which does not), and visits four levels, so that it cannot pass for a
+#: resistance either.
+STEP_LEVELS = (1.0, 1.0 / 3.0, -1.0 / 3.0, -1.0)
 
-def reference_perturbation(t: Array, kind: Perturbation) -> Array:
+#: Time at each level of the ``"steps"`` reference, s.
+STEP_DWELL = 0.01
+
+
+def reference_perturbation(t: Array, kind: Perturbation, torque: float = 1.0) -> Array:
     """``w_d(t)``, shape (len(t), 2): the paper's on both channels, or on the torque only.
 
     ``"paper"``: ``[sin(1000 t), 0.1 cos(3000 t)]``. ``"torque"``: ``[0, 0.1 cos(3000 t)]``
     -- a drive can move its torque reference but not the back-EMF ``p speed phi_pm``.
+    ``"steps"``: the torque reference walks through :data:`STEP_LEVELS` times T*, each
+    held :data:`STEP_DWELL`, i.e. ``[0, (level(t) - 1) T*]``: what a drive with an
+    inverter needs (see :data:`STEP_LEVELS`).
 
     Parameters
     ----------
     t : ndarray, shape (N,)
         Times, s.
-    kind : {"paper", "torque"}
-        Which channels are perturbed.
+    kind : {"paper", "torque", "steps"}
+        Which channels are perturbed, and how.
+    torque : float
+        T*, N m (``"steps"`` only).
     """
     t = np.asarray(t, dtype=float)
+    if kind == "steps":
+        index = np.floor(t / STEP_DWELL).astype(int) % len(STEP_LEVELS)
+        level = np.asarray(STEP_LEVELS)[index]
+        return np.column_stack([np.zeros_like(t), (level - 1.0) * torque])
     columns = [
         amplitude * np.sin(frequency * t + phase)
         for amplitude, frequency, phase in PAPER_PERTURBATION

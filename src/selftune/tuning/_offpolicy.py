@@ -4,24 +4,40 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core import Array, unpack_theta
-from ..learn import IterationRecord, feedforward, learn_output_regulation
+from ..core import Array, ControlLaw
+from ..learn import learn_controller
 from ..sim import held, uniform
 from ._drive import Drive
-from ._episodes import checked, iteration_record, known_form
-from ._knowledge import known_flux_form, reference_perturbation
-from ._results import TuningIteration, TuningResult
+from ._episodes import checked, known_form
+from ._knowledge import reference_perturbation
+from ._learning import check_drive, from_learned, learning_options, learning_problem
+from ._results import TuningResult
 from ._settings import TuningSettings
 
-__all__ = ["offpolicy"]
+__all__ = ["BACK_EMF_FEEDFORWARD", "offpolicy"]
+
+#: The feedforward of the batch's controller: ``u_q += w_1``, the assumed back-EMF.
+BACK_EMF_FEEDFORWARD = np.array([[0.0, 0.0], [1.0, 0.0]])
+BACK_EMF_FEEDFORWARD.setflags(write=False)
 
 
-def offpolicy(drive: Drive, settings: TuningSettings, phi_pm: float) -> TuningResult:
+def offpolicy(
+    drive: Drive,
+    settings: TuningSettings,
+    phi_pm: float,
+    *,
+    identified: dict[str, float] | None = None,
+    algorithm: str = "offpolicy",
+) -> TuningResult:
     """The off-policy variant: one batch of ``episode_length`` seconds, reused throughout.
 
-    The batch is run once under ``K0`` with exploration on the inputs and the perturbed
-    reference together; :func:`~selftune.learn.learn_output_regulation` (customized)
-    then iterates on it (at least 50 steps allowed) to its 1e-9 relative tolerance.
+    The batch is run once under ``K0`` with the assumed back-EMF fed forward
+    (``u_q += w_1``, what a drive with a known flux does; without it a low-resistance
+    motor's currents are driven far by the back-EMF), with exploration on the inputs and
+    the perturbed reference together; :func:`~selftune.learn.learn_controller` then learns the
+    controller of ``settings.target`` from it (with integral action if asked), with its
+    verdict: the log's alignment with the drive's delay, noise handled by output error,
+    the consistency test, standard errors and a stability margin.
 
     Parameters
     ----------
@@ -30,23 +46,30 @@ def offpolicy(drive: Drive, settings: TuningSettings, phi_pm: float) -> TuningRe
     settings : TuningSettings
         The session's settings.
     phi_pm : float
-        The known magnet flux, Wb.
+        The magnet flux the controller assumes (known, or identified), Wb.
+    identified : dict, optional
+        What an earlier step identified (Algorithm 3), kept in the result.
+    algorithm : str
+        The result's algorithm name.
 
     Returns
     -------
     TuningResult
+
+    Raises
+    ------
+    ConsistencyError, ExcitationError, ConvergenceError
+        When the data do not support a controller (the message says why).
     """
+    check_drive(drive, settings)
     X, w = known_form(drive, settings, phi_pm)
-    C, E, F, _ = known_flux_form(drive.pole_pairs, settings.speed, settings.torque, phi_pm)
     kind = settings.perturbation
 
     def perturbed(t: Array) -> Array:
-        return w + reference_perturbation(t, kind)
+        return w + reference_perturbation(t, kind, settings.torque)
 
     batch = drive.run(
-        settings.K0,
-        X,
-        np.zeros((2, 2)),
+        ControlLaw.regulator(settings.K0, X, BACK_EMF_FEEDFORWARD),
         held(perturbed),
         num_samples=settings.samples_per_episode,
         exploration=uniform(settings.exploration),
@@ -54,56 +77,7 @@ def offpolicy(drive: Drive, settings: TuningSettings, phi_pm: float) -> TuningRe
         assumed_flux=phi_pm,
     )
     checked(batch, settings.K0, settings)
-    learned = learn_output_regulation(
-        batch,
-        C,
-        E,
-        F,
-        settings.Q,
-        settings.R,
-        settings.K0,
-        interval=settings.regression_interval(),
-        max_iterations=max(settings.max_iterations, 50),
-        method="customized",
+    learned = learn_controller(
+        batch, learning_problem(drive, settings, phi_pm), learning_options(drive, settings)
     )
-    return TuningResult(
-        algorithm="offpolicy",
-        K=learned.K,
-        P=learned.P,
-        X=learned.X,
-        U=learned.U,
-        theta=learned.theta,
-        B=learned.B,
-        w=w,
-        history=_history(learned.history, settings, batch.duration),
-        data_seconds=batch.duration,
-        converged=learned.converged,
-        feedforward_learned=True,
-    )
-
-
-def _history(
-    records: tuple[IterationRecord, ...], settings: TuningSettings, seconds: float
-) -> tuple[TuningIteration, ...]:
-    """The policy-iteration steps as iterations, with the policy each step improved on."""
-    history: list[TuningIteration] = []
-    previous_theta: Array | None = None
-    K_applied = settings.K0
-    U_applied = np.zeros((2, 2))
-    for record in records:
-        P, K_next, M = unpack_theta(record.theta, 2, 2, 2)
-        U = feedforward(P, K_next, M, settings.R)
-        history.append(
-            iteration_record(
-                record,
-                step="off-policy",
-                K_applied=K_applied,
-                U_applied=U_applied,
-                U=U,
-                previous_theta=previous_theta,
-                data_seconds=seconds,
-            )
-        )
-        previous_theta = record.theta
-        K_applied, U_applied = K_next, U
-    return tuple(history)
+    return from_learned(algorithm, learned, w, batch.duration, settings, identified)

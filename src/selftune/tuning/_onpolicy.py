@@ -10,9 +10,14 @@ the customized data equation has 11 unknowns ``Theta = [vecs(P); vec(K); vec((D+
 - :func:`algorithm2` -- two steps: as Algorithm 1 until ``Theta_1 = [vecs(P); vec(K)]``
   settles, then episodes with the reference perturbed by ``w_d(t)``, solving eq. 13 for
   ``Theta_2 = vec((D + AX*)'P)`` with ``Theta_1`` known.
-- :func:`algorithm3` -- unknown flux: a no-load step (``T* = 0``, ``w = [p speed]``)
-  learns P, K, B and ``D'P``, hence ``L_s = 1/B_ii`` and ``phi_pm = -D_2 L_s``; then
-  Algorithm 2 with the identified F.
+- :func:`algorithm3` -- unknown flux: the flux is identified first (:mod:`._flux`; the
+  paper's no-load step confounds an inverter's dead time with back-EMF), then Algorithm 2
+  (or, for the digital target or integral action, the off-policy learner) with it.
+
+Algorithms 1 and 2 learn the paper's controller: the continuous target, without integral
+action. Each episode is read with the drive's delay (:func:`._learning.aligned`); the
+result is judged on all the session's episodes (:func:`selftune.learn.assess`), and a
+session that does not settle raises instead of returning.
 """
 
 from __future__ import annotations
@@ -21,13 +26,16 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..core import Array, theta_sizes, unpack_theta, vec, vecs
-from ..errors import ConvergenceError
-from ..learn import IterationRecord, estimated_B, feedforward
-from ..sim import constant, held, prbs, uniform
+from ..core import Array, ControlLaw, theta_sizes, unpack_theta, vec, vecs
+from ..errors import ConvergenceError, InputError
+from ..learn import IterationRecord, Trajectory, assess, estimated_B, feedforward
+from ..sim import constant, held, uniform
 from ._drive import Drive
 from ._episodes import iteration_record, known_form, learning_step, relative_change, settled
+from ._flux import identify_flux
 from ._knowledge import reference_perturbation
+from ._learning import aligned, check_drive, learning_options, learning_problem, replace_F
+from ._offpolicy import offpolicy
 from ._results import TuningIteration, TuningResult
 from ._settings import Perturbation, TuningSettings
 
@@ -40,6 +48,16 @@ _RANK_NOTE = (
     "the feedforward U is not (U keeps its initial value); Algorithm 2 perturbs the "
     "reference to learn it"
 )
+
+
+def _paper_controller_only(settings: TuningSettings, algorithm: str) -> None:
+    """Algorithms 1 and 2 learn the paper's controller; say what learns the others."""
+    if settings.target != "continuous" or settings.integral_action:
+        what = "integral action" if settings.integral_action else "the digital target"
+        raise InputError(
+            f"algorithm: Algorithm {algorithm} learns the paper's controller (continuous "
+            f"target, no integral action); {what} is learned by algorithm 'offpolicy' or '3'"
+        )
 
 
 @dataclass
@@ -57,6 +75,7 @@ class _Session:
     previous_change: float = float("inf")
     previous_theta1: Array | None = None
     previous_change1: float = float("inf")
+    episodes: list[Trajectory] = field(default_factory=list)
     X: Array = field(init=False)
     w: Array = field(init=False)
     U: Array = field(init=False)
@@ -72,16 +91,14 @@ class _Session:
         """
         settings = self.settings
         episode = self.drive.run(
-            self.K,
-            self.X,
-            self.U,
+            ControlLaw.regulator(self.K, self.X, self.U),
             constant(self.w),
             num_samples=settings.samples_per_episode,
             exploration=uniform(settings.exploration),
             seed=settings.seed + j,
             assumed_flux=self.phi_pm,
         )
-        self.seconds += episode.duration
+        episode = self.collected(episode)
         record = learning_step(
             episode, self.K, settings, self.X, allow_deficient=("M",), iteration=j
         )
@@ -101,21 +118,26 @@ class _Session:
         last = self.history[-1]
 
         def perturbed(t: Array) -> Array:
-            return w + reference_perturbation(t, kind)
+            return w + reference_perturbation(t, kind, settings.torque)
 
         episode = self.drive.run(
-            self.K,
-            self.X,
-            self.U,
+            ControlLaw.regulator(self.K, self.X, self.U),
             held(perturbed),
             num_samples=settings.samples_per_episode,
             exploration=uniform(settings.exploration) if settings.feedforward_exploration else None,
             seed=settings.seed + j,
             assumed_flux=self.phi_pm,
         )
-        self.seconds += episode.duration
+        episode = self.collected(episode)
         known = {"P": vecs(last.P), "K": vec(last.K)}
         return learning_step(episode, self.K, settings, self.X, known=known, iteration=j)
+
+    def collected(self, episode: Trajectory) -> Trajectory:
+        """The episode aligned with the drive's delay, and kept for the verdict."""
+        episode = aligned(episode, self.drive)
+        self.seconds += episode.duration
+        self.episodes.append(episode)
+        return episode
 
     def record(
         self, record: IterationRecord, step: str, U: Array, previous_theta: Array | None
@@ -132,27 +154,50 @@ class _Session:
             data_seconds=self.seconds,
         )
 
-    def result(self, algorithm: str, converged: bool, feedforward_learned: bool) -> TuningResult:
-        """The session's result from its last iteration."""
+    def result(self, algorithm: str, feedforward_learned: bool) -> TuningResult:
+        """The session's result from its last iteration, judged on all its episodes."""
         last = self.history[-1]
         notes: tuple[str, ...] = ()
         deficient = [h for h in self.history if h.step == "feedback" and h.rank < h.unknowns]
         if algorithm == "1" and not feedforward_learned and deficient:
             notes = (_RANK_NOTE.format(rank=deficient[-1].rank, unknowns=deficient[-1].unknowns),)
+        law = ControlLaw.regulator(last.K, self.X, last.U)
+        problem = learning_problem(self.drive, self.settings, self.phi_pm)
+        options = replace(
+            learning_options(self.drive, self.settings, target="continuous"),
+            logged_input="applied",  # the episodes are aligned already
+        )
+        if feedforward_learned:
+            judged = assess(law, self.episodes, problem, options, P=last.P)
+        else:  # a constant reference: judge K on the back-EMF channel alone
+            judged = assess(
+                ControlLaw.regulator(last.K, self.X[:, :1], last.U[:, :1]),
+                [Trajectory(e.t, e.x, e.u, e.w[:, :1]) for e in self.episodes if e.w is not None],
+                replace_F(problem, problem.F[:, :1] if problem.F is not None else None),
+                options, P=last.P, feedforward=False,
+            )  # fmt: skip
         return TuningResult(
             algorithm=algorithm,
-            K=last.K,
+            law=law,
             P=last.P,
-            X=self.X,
-            U=last.U,
-            theta=last.theta,
             B=estimated_B(last.P, last.K, self.settings.R),
             w=self.w,
             history=tuple(self.history),
             data_seconds=self.seconds,
-            converged=converged,
             feedforward_learned=feedforward_learned,
+            quality=judged.quality,
+            theta=last.theta,
             notes=notes,
+        )
+
+    def unsettled(self, algorithm: str) -> ConvergenceError:
+        """The error of a session that did not settle within its iterations."""
+        change = self.history[-1].change if self.history else float("inf")
+        return ConvergenceError(
+            f"Algorithm {algorithm}: Theta did not settle in {self.settings.max_iterations} "
+            f"iterations (last relative change {change:.3g}, tolerance "
+            f"{self.settings.tolerance:g}); each episode's data may be too noisy or too short "
+            "for the tolerance: use longer episodes, more exploration, or algorithm 'offpolicy'"
         )
 
 
@@ -164,7 +209,7 @@ def algorithm1(drive: Drive, settings: TuningSettings, phi_pm: float) -> TuningR
     drive : Drive
         The drive (e.g. :class:`selftune.sim.SimulatedDrive`).
     settings : TuningSettings
-        The session's settings.
+        The session's settings (continuous target, no integral action).
     phi_pm : float
         The known magnet flux, Wb.
 
@@ -173,9 +218,21 @@ def algorithm1(drive: Drive, settings: TuningSettings, phi_pm: float) -> TuningR
     TuningResult
         K and P converge to the optimum; U does not (``feedforward_learned`` is False and
         ``notes`` says why: rank 9 of 11 with a constant reference).
+
+    Raises
+    ------
+    InputError
+        For the digital target or integral action.
+    ConvergenceError
+        If Theta does not settle within ``settings.max_iterations``, or the result does
+        not stabilize every plant the data allow.
+    ConsistencyError, ExcitationError
+        When the episodes do not support the result (:func:`selftune.learn.assess`).
     """
+    _paper_controller_only(settings, "1")
+    check_drive(drive, settings)
     session = _Session(drive, settings, phi_pm, K=settings.K0)
-    converged = feedforward_learned = False
+    feedforward_learned = False
     for j in range(settings.max_iterations):
         record, feedback_settled = session.feedback_episode(j)
         P, K_next, M = unpack_theta(record.theta, 2, 2, 2)
@@ -189,10 +246,9 @@ def algorithm1(drive: Drive, settings: TuningSettings, phi_pm: float) -> TuningR
         session.history.append(item)
         session.previous_theta, session.U = record.theta, U_next
         if settled(item.change, session.previous_change, settings.tolerance, settings):
-            converged = True
-            break
+            return session.result("1", feedforward_learned)
         session.previous_change, session.K = item.change, K_next
-    return session.result("1", converged, feedforward_learned)
+    raise session.unsettled("1")
 
 
 def algorithm2(drive: Drive, settings: TuningSettings, phi_pm: float) -> TuningResult:
@@ -203,14 +259,21 @@ def algorithm2(drive: Drive, settings: TuningSettings, phi_pm: float) -> TuningR
     drive : Drive
         The drive (e.g. :class:`selftune.sim.SimulatedDrive`).
     settings : TuningSettings
-        The session's settings.
+        The session's settings (continuous target, no integral action).
     phi_pm : float
         The known magnet flux, Wb.
 
     Returns
     -------
     TuningResult
+
+    Raises
+    ------
+    InputError, ConvergenceError, ConsistencyError, ExcitationError
+        As :func:`algorithm1`.
     """
+    _paper_controller_only(settings, "2")
+    check_drive(drive, settings)
     session = _Session(drive, settings, phi_pm, K=settings.K0)
     return _two_step(session, settings.perturbation, "2")
 
@@ -219,7 +282,6 @@ def _two_step(session: _Session, kind: Perturbation, algorithm: str) -> TuningRe
     """Algorithm 2's iterations from the session's state: feedback episodes until
     ``Theta_1`` settles, then a feedforward episode after each feedback episode."""
     settings = session.settings
-    converged = feedforward_learned = False
     start = len(session.history)
     for j in range(start, start + settings.max_iterations):
         record, feedback_settled = session.feedback_episode(j)
@@ -232,29 +294,31 @@ def _two_step(session: _Session, kind: Perturbation, algorithm: str) -> TuningRe
         record2 = session.feedforward_episode(j, kind)
         _, _, M2 = unpack_theta(record2.theta, 2, 2, 2)
         U_next = feedforward(P, K_next, M2, settings.R)
-        feedforward_learned = True
         first = record.theta if previous is None else previous
         session.history.append(session.record(record2, "feedforward", U_next, first))
         change = relative_change(record2.theta, previous)
         session.previous_theta, session.U = record2.theta, U_next
         if settled(change, session.previous_change, settings.tolerance, settings):
-            converged = True
-            break
+            return session.result(algorithm, feedforward_learned=True)
         session.previous_change, session.K = change, K_next
-    return session.result(algorithm, converged, feedforward_learned)
+    raise session.unsettled(algorithm)
 
 
-def algorithm3(drive: Drive, settings: TuningSettings) -> TuningResult:
-    """The paper's Algorithm 3: unknown flux.
+def algorithm3(drive: Drive, settings: TuningSettings, phi_guess: float) -> TuningResult:
+    """Algorithm 3: unknown flux, identified first and told apart from the inverter's
+    voltage error.
 
-    Step 1, at no load (``T* = 0``, ``w = [p speed]``, ``X = 0``): on-policy iterations
-    learn P, K, ``B`` and ``D'P`` (9 unknowns, full rank with a constant ``w``), hence
-    ``L_s = 2 / trace(B)`` and ``phi_pm = -D_2 L_s`` with ``D = P^-1 (D'P)'``. It explores
-    with a held PRBS (``settings.no_load_hold``) and stops when Theta changes by less
-    than ``settings.feedback_tolerance``: it only has to identify the flux.
-    Step 2: Algorithm 2 with the identified flux in F and w, starting from the learned K,
-    perturbing the torque reference only (the back-EMF channel is what the drive cannot
-    move).
+    Step 1 (:func:`._flux.identify_flux`): one episode of ``settings.flux_length`` seconds
+    with the torque reference stepping through positive and negative levels; the exact
+    discrete model of the log (output error, with the dead time modelled when
+    ``settings.dead_time``) gives the back-EMF per unit of the assumed one, hence
+    ``phi_pm``. The paper's no-load step learns ``D`` by ADP instead; on an inverter its
+    dead-time voltage passes for back-EMF there (-4% to -7.5% in flux), which is why it is
+    replaced (PAPER_NOTES.md).
+    Step 2: with the identified flux in F and w, Algorithm 2 from K0 (the paper's
+    controller), perturbing the torque reference only (the back-EMF channel is what the
+    drive cannot move); or, for the digital target or integral action, the off-policy
+    learner.
 
     Parameters
     ----------
@@ -262,63 +326,34 @@ def algorithm3(drive: Drive, settings: TuningSettings) -> TuningResult:
         The drive (e.g. :class:`selftune.sim.SimulatedDrive`).
     settings : TuningSettings
         The session's settings.
+    phi_guess : float
+        A rough flux (the nameplate's), Wb: it sets the test currents and the assumed
+        back-EMF of step 1, nothing else.
 
     Returns
     -------
     TuningResult
-        With ``identified = {"phi_pm": ..., "L_s": ...}`` (Wb, H).
+        With ``identified = {"phi_pm", "phi_pm_se"}`` (Wb) and, with the dead time
+        modelled, ``"dead_time_voltage"`` (V per phase).
+
+    Raises
+    ------
+    ExcitationError
+        If step 1 cannot pin the flux down to :data:`._flux.FLUX_PRECISION` (it says how
+        much longer it should be), or as the second step raises.
+    ConsistencyError, ConvergenceError
+        As the steps raise them.
     """
-    history, seconds, record = _no_load_step(drive, settings)
-    P, K_next, DP = unpack_theta(record.theta, 2, 2, 1)
-    B = estimated_B(P, K_next, settings.R)
-    D = np.linalg.solve(P, DP.T)
-    L_s = 2.0 / float(np.trace(B))
-    phi_pm = -float(D[1, 0]) * L_s
-    if not (np.isfinite(phi_pm) and phi_pm > 0 and np.isfinite(L_s) and L_s > 0):
-        raise ConvergenceError(
-            f"Algorithm 3: identified a non-physical phi_pm = {phi_pm:.4g} Wb, "
-            f"L_s = {L_s:.4g} H; check the speed and the data"
-        )
-    session = _Session(drive, settings, phi_pm, K=K_next, history=history, seconds=seconds)
-    second = _two_step(session, "torque", "3")
-    return replace(second, identified={"phi_pm": phi_pm, "L_s": L_s})
-
-
-def _no_load_step(
-    drive: Drive, settings: TuningSettings
-) -> tuple[list[TuningIteration], float, IterationRecord]:
-    """Algorithm 3's first step: no-load episodes until Theta settles."""
-    n, m, q = 2, 2, 1
-    K = settings.K0
-    history: list[TuningIteration] = []
-    seconds = 0.0
-    previous_theta: Array | None = None
-    previous_change = float("inf")
-    hold = max(1, settings.no_load_hold // settings.input_hold)
-    for j in range(settings.max_iterations):
-        episode = drive.run_no_load(
-            K,
-            num_samples=settings.samples_per_episode,
-            exploration=prbs(settings.exploration, hold),
-            seed=settings.seed + j,
-        )
-        seconds += episode.duration
-        record = learning_step(episode, K, settings, np.zeros((n, q)), iteration=j)
-        item = iteration_record(
-            record,
-            step="no-load",
-            K_applied=K,
-            U_applied=np.zeros((m, q)),
-            U=np.zeros((m, q)),
-            previous_theta=previous_theta,
-            data_seconds=seconds,
-        )
-        history.append(item)
-        previous_theta, K = record.theta, record.K
-        if settled(item.change, previous_change, settings.feedback_tolerance, settings):
-            return history, seconds, record
-        previous_change = item.change
-    raise ConvergenceError(
-        f"Algorithm 3, no-load step: Theta did not settle in {settings.max_iterations} "
-        f"iterations (last relative change {history[-1].change:.3g})"
-    )
+    check_drive(drive, settings)
+    flux = identify_flux(drive, settings, phi_guess)
+    identified = flux.as_dict()
+    kind: Perturbation = "torque" if settings.perturbation == "paper" else settings.perturbation
+    if settings.target == "continuous" and not settings.integral_action:
+        session = _Session(drive, settings, flux.phi_pm, K=settings.K0, seconds=flux.seconds)
+        second = _two_step(session, kind, "3")
+        return replace(second, identified=identified)
+    result = offpolicy(
+        drive, replace(settings, perturbation=kind), flux.phi_pm, identified=identified,
+        algorithm="3",
+    )  # fmt: skip
+    return replace(result, data_seconds=result.data_seconds + flux.seconds)

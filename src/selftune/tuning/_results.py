@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..core import Array
+from ..core import Array, ControlLaw, WithLaw
+from ..learn import Quality
 
 __all__ = ["TuningIteration", "TuningResult"]
 
@@ -56,46 +57,58 @@ class TuningIteration:
 
 
 @dataclass(frozen=True)
-class TuningResult:
+class TuningResult(WithLaw):
     """The outcome of a self-tuning session (learned quantities only; no model used).
+
+    A session either returns a result the data support, with its :attr:`quality`, or
+    raises an error that says why not; there is no "not converged" result.
 
     Attributes
     ----------
     algorithm : str
         ``"1"``, ``"2"``, ``"3"`` or ``"offpolicy"``.
-    K, P, X, U : ndarray
-        The learned controller ``u = -K (x - X w) + U w`` and value matrix.
-    theta : ndarray
-        Final Theta.
+    law : ControlLaw
+        The learned controller, as a drive runs it (``law.equations()`` says which).
+    P : ndarray
+        Its learned value matrix.
     B : ndarray
-        Estimated input matrix.
+        Estimated input matrix (B, or Bd of the exact discrete model for the digital
+        target).
     w : ndarray
         The operating point's ``w = [p speed phi, T*]`` (with the identified flux for
         Algorithm 3).
     history : tuple of TuningIteration
+        The policy-iteration steps.
     data_seconds : float
         Motor data used in all, s.
-    converged : bool
     feedforward_learned : bool
         False when the data could not determine the feedforward (Algorithm 1).
+    quality : Quality
+        The verdict on the result from all the session's data
+        (:class:`selftune.learn.Quality`).
+    target : str
+        ``"continuous"`` (the paper's controller) or ``"digital"`` (the optimum of the
+        sampled loop with the drive's delay).
+    theta : ndarray or None
+        Final Theta of the continuous data equation (None for the digital target).
     identified : dict
-        Algorithm 3: ``{"phi_pm": ..., "L_s": ...}`` (Wb, H); empty otherwise.
+        Algorithm 3: ``{"phi_pm": ..., "phi_pm_se": ...}`` (Wb) and, with the dead time
+        modelled, ``"dead_time_voltage"`` (V per phase); empty otherwise.
     notes : tuple of str
         What the user should know about the result (e.g. why U is not learned).
     """
 
     algorithm: str
-    K: Array
+    law: ControlLaw
     P: Array
-    X: Array
-    U: Array
-    theta: Array
     B: Array
     w: Array
     history: tuple[TuningIteration, ...]
     data_seconds: float
-    converged: bool
     feedforward_learned: bool
+    quality: Quality
+    target: str = "continuous"
+    theta: Array | None = None
     identified: dict[str, float] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
 
@@ -107,5 +120,6 @@ class TuningResult:
 
     @property
     def unknowns(self) -> int:
-        """Unknowns of the full regression (11 for the motor)."""
-        return int(self.theta.shape[0])
+        """Unknowns of the last feedback regression (11 for the motor's Theta)."""
+        feedback = [item for item in self.history if item.step != "feedforward"]
+        return (feedback or list(self.history))[-1].unknowns

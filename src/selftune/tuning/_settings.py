@@ -5,7 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
+import numpy as np
+
 from ..config import ConfigTable, MotorConfig
+from ..config._motor_file import LEARNING_KEYS
 from ..core import (
     PAPER_EPISODE_LENGTH,
     PAPER_EXPLORATION,
@@ -22,13 +25,24 @@ from ..core import (
     positive_finite,
     positive_integer,
 )
+from ..core._validation import LIMITS, check_entries, check_range
 from ..errors import DataFileError, InputError
 
-__all__ = ["TUNING_KEYS", "Perturbation", "TuningSettings", "tuning_settings"]
+__all__ = [
+    "DRIVE_DEFAULTS",
+    "TUNING_KEYS",
+    "Perturbation",
+    "Target",
+    "TuningSettings",
+    "tuning_settings",
+]
 
-#: Which channels of the reference Algorithm 2 and off-policy perturb (see
+#: Which channels of the reference Algorithm 2 and off-policy perturb, and how (see
 #: :func:`~selftune.tuning.reference_perturbation`).
-Perturbation = Literal["paper", "torque"]
+Perturbation = Literal["paper", "torque", "steps"]
+
+#: Which controller a session learns: the paper's (continuous) or the sampled loop's.
+Target = Literal["continuous", "digital"]
 
 
 @dataclass(frozen=True)
@@ -53,9 +67,10 @@ class TuningSettings:
         Initial stabilizing feedback (``20 pi I``, V/A).
     exploration : float
         Amplitude of the uniform exploration on each input, V (1 V).
-    perturbation : {"paper", "torque"}
-        Reference perturbation of Algorithm 2 and off-policy (Algorithm 3 always uses
-        ``"torque"``, see :func:`reference_perturbation`).
+    perturbation : {"paper", "torque", "steps"}
+        Reference perturbation of Algorithm 2 and off-policy (Algorithm 3 uses
+        ``"torque"`` instead of ``"paper"``, see :func:`reference_perturbation`);
+        ``"steps"`` reverses the torque, which a drive with an inverter needs.
     input_hold : int
         The drive's controller updates u every ``input_hold`` samples (2; the paper's
         experiment, :meth:`paper`, is 1: every sample). With 2 or more the learner
@@ -84,6 +99,20 @@ class TuningSettings:
         epsilon_2: relative change of Theta at which the algorithms stop.
     seed : int
         Seed of the exploration (episode j uses ``seed + j``).
+    target : {"continuous", "digital"}
+        The controller learned: the paper's continuous-time optimum, or the optimum of
+        the sampled loop the drive runs, with its computation delay (needs
+        ``input_hold = 1``; Algorithms 1 and 2 learn the continuous one only).
+    integral_action : bool
+        Learn the optimal servo controller: the state augmented with the integral of
+        the current error (zero steady error under a constant voltage error or a drifted
+        resistance; needs ``input_hold = 1``; off-policy and Algorithm 3).
+    dead_time : bool
+        Model an inverter's dead time in the learners' evidence
+        (:class:`selftune.learn.LearningOptions`), so that it is neither refused nor
+        mistaken for back-EMF; on by default for a realistic drive (MOTOR.toml [drive]).
+    flux_length : float
+        Length of Algorithm 3's flux step, s (0.2).
     """
 
     speed: float = PAPER_SPEED
@@ -103,23 +132,36 @@ class TuningSettings:
     feedback_tolerance: float = 1e-4
     tolerance: float = 1e-6
     seed: int = 0
+    target: Target = "continuous"
+    integral_action: bool = False
+    dead_time: bool = False
+    flux_length: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("sampling", "episode_length", "exploration"):
-            object.__setattr__(self, name, positive_finite(getattr(self, name), name))
+            value = check_range(positive_finite(getattr(self, name), name), name)
+            object.__setattr__(self, name, value)
         for name in ("feedback_tolerance", "tolerance"):
             object.__setattr__(self, name, positive_finite(getattr(self, name), name))
-        object.__setattr__(self, "speed", float(as_vector(self.speed, "speed", 1)[0]))
-        object.__setattr__(self, "torque", float(as_vector(self.torque, "torque", 1)[0]))
-        Q = check_positive_definite(as_matrix(self.Q, "Q", (2, 2)), "Q")
-        R = check_positive_definite(as_matrix(self.R, "R", (2, 2)), "R")
-        object.__setattr__(self, "Q", Q)
-        object.__setattr__(self, "R", R)
-        object.__setattr__(self, "K0", as_matrix(self.K0, "K0", (2, 2)))
-        if self.perturbation not in ("paper", "torque"):
+        for name in ("speed", "torque"):
+            value = check_range(float(as_vector(getattr(self, name), name, 1)[0]), name)
+            object.__setattr__(self, name, value)
+        for name in ("Q", "R"):
+            matrix = check_entries(as_matrix(getattr(self, name), name, (2, 2)), name)
+            object.__setattr__(self, name, check_positive_definite(matrix, name))
+        object.__setattr__(self, "K0", check_entries(as_matrix(self.K0, "K0", (2, 2)), "K0"))
+        if self.perturbation not in ("paper", "torque", "steps"):
             raise InputError(
-                f"perturbation: must be 'paper' or 'torque', got {self.perturbation!r}"
+                f"perturbation: must be 'paper', 'torque' or 'steps', got {self.perturbation!r}"
             )
+        if self.target not in ("continuous", "digital"):
+            raise InputError(f"target: must be 'continuous' or 'digital', got {self.target!r}")
+        for name in ("integral_action", "dead_time"):
+            if not isinstance(getattr(self, name), bool):
+                raise InputError(f"{name}: must be True or False, got {getattr(self, name)!r}")
+        length = positive_finite(self.flux_length, "flux_length")
+        length = check_range(length, "flux_length", "episode_length")
+        object.__setattr__(self, "flux_length", length)
         for name in ("input_hold", "no_load_hold", "interval", "max_iterations"):
             object.__setattr__(self, name, positive_integer(getattr(self, name), name))
         object.__setattr__(self, "seed", positive_integer(self.seed, "seed", minimum=0))
@@ -127,6 +169,27 @@ class TuningSettings:
             raise InputError(
                 f"episode_length: {self.episode_length} s is less than two samples of "
                 f"{self.sampling} s"
+            )
+        self._check_sizes()
+
+    def _check_sizes(self) -> None:
+        """Bound the samples per episode, the holds and intervals by an episode, and the
+        iterations (:data:`~selftune.core._validation.LIMITS`)."""
+        samples = self.samples_per_episode
+        if samples > LIMITS["episode_samples"]:
+            raise InputError(
+                f"episode_length: {self.episode_length:g} s of samples of {self.sampling:g} s"
+                f" is {samples} samples per episode; at most {LIMITS['episode_samples']}"
+            )
+        for name in ("input_hold", "no_load_hold", "interval"):
+            if getattr(self, name) > samples:
+                raise InputError(
+                    f"{name}: {getattr(self, name)} samples is longer than an episode"
+                    f" ({samples} samples of {self.sampling:g} s)"
+                )
+        if self.max_iterations > LIMITS["iterations"]:
+            raise InputError(
+                f"max_iterations: at most {LIMITS['iterations']}, got {self.max_iterations}"
             )
 
     @classmethod
@@ -166,15 +229,57 @@ class TuningSettings:
 
 
 #: Keys of MOTOR.toml's optional [learning] table (``selftune tune``).
-TUNING_KEYS = (
-    "sampling",
-    "episode_length",
-    "K0",
-    "exploration",
-    "input_hold",
-    "interval",
-    "max_iterations",
-)
+TUNING_KEYS = LEARNING_KEYS
+
+
+#: With a [drive] table: K0's default as a fraction of the nameplate's deadbeat gain
+#: ``L_s / h`` (gentle enough for a delay of up to two samples), the exploration's as a
+#: fraction of the DC-bus voltage, and the batch length, s.
+DRIVE_DEFAULTS = {"K0_fraction": 0.0125, "exploration_fraction": 0.02, "episode_length": 0.1}
+
+
+@dataclass(frozen=True)
+class _Defaults:
+    """The defaults of a motor file's [learning] keys (not validated: the settings are)."""
+
+    sampling: float
+    K0: Array
+    exploration: float
+    episode_length: float = PAPER_EPISODE_LENGTH
+    input_hold: int = 2
+    target: str = "continuous"
+    dead_time: bool = False
+    perturbation: str = "paper"
+
+
+def _drive_defaults(config: MotorConfig, table: ConfigTable) -> _Defaults:
+    """The defaults of this file: the paper's, or a realistic drive's (the paper's are for
+    its ideal drive)."""
+    sampling = table.ranged("sampling", PAPER_SAMPLING)
+    drive = config.drive
+    if drive is None:
+        return _Defaults(sampling, paper_K0(), PAPER_EXPLORATION)
+    if config.drive_sampling is not None:
+        if "sampling" in table and abs(sampling - config.drive_sampling) > 1e-9 * sampling:
+            raise table.error(
+                "sampling",
+                f"{sampling:g} s disagrees with the [drive] switching_frequency "
+                f"({1.0 / config.drive_sampling:g} Hz: one PWM period per sample)",
+            )
+        sampling = config.drive_sampling
+    exploration = PAPER_EXPLORATION
+    if drive.dc_voltage is not None:
+        exploration = DRIVE_DEFAULTS["exploration_fraction"] * drive.dc_voltage
+    return _Defaults(
+        sampling=sampling,
+        K0=DRIVE_DEFAULTS["K0_fraction"] * config.motor.L_s / sampling * np.eye(2),
+        exploration=exploration,
+        episode_length=DRIVE_DEFAULTS["episode_length"],
+        input_hold=1,
+        target="digital",
+        dead_time=True,
+        perturbation="steps",
+    )
 
 
 def tuning_settings(config: MotorConfig, seed: int = 0) -> TuningSettings:
@@ -182,9 +287,15 @@ def tuning_settings(config: MotorConfig, seed: int = 0) -> TuningSettings:
 
     ``[learning]`` may set ``sampling`` (s), ``episode_length`` (s), ``K0`` (2x2, V/A),
     ``exploration`` (V), ``input_hold`` (samples per controller update), ``interval``
-    (samples) and ``max_iterations``; absent keys take the defaults of
+    (samples), ``max_iterations``, ``target``, ``integral_action``, ``dead_time``,
+    ``perturbation`` and ``flux_length`` (s). Absent keys take the defaults of
     :class:`TuningSettings` (the paper's values, but ``input_hold = 2``: the controller at
     half the sampling rate, which lets the learner integrate the data to fourth order).
+    With a ``[drive]`` table (a realistic drive) the defaults are a drive's instead: the
+    sampling period of its switching frequency, ``input_hold = 1``, the digital target,
+    the dead time modelled, the ``"steps"`` perturbation, a 0.1 s batch, K0 at 1.25% of
+    the nameplate's deadbeat gain ``L_s / h`` and exploration at 2% of the DC-bus voltage
+    (:data:`DRIVE_DEFAULTS`).
 
     Parameters
     ----------
@@ -202,24 +313,42 @@ def tuning_settings(config: MotorConfig, seed: int = 0) -> TuningSettings:
     DataFileError
         Naming the file and the key, for an unknown key or a bad value.
     """
-    defaults = TuningSettings()
     table = ConfigTable(config.source, "learning", config.learning, TUNING_KEYS)
+    defaults = _drive_defaults(config, table)
     try:
         return TuningSettings(
             speed=config.speed,
             torque=config.torque,
             Q=config.Q,
             R=config.R,
-            sampling=table.positive("sampling", defaults.sampling),
-            episode_length=table.positive("episode_length", defaults.episode_length),
+            sampling=defaults.sampling,
+            episode_length=table.ranged("episode_length", defaults.episode_length),
             K0=table.matrix("K0", (2, 2), defaults.K0),
-            exploration=table.positive("exploration", defaults.exploration),
+            exploration=table.ranged("exploration", defaults.exploration),
             input_hold=table.positive_integer("input_hold", defaults.input_hold),
-            interval=table.positive_integer("interval", defaults.interval),
-            max_iterations=table.positive_integer("max_iterations", defaults.max_iterations),
+            interval=table.positive_integer("interval", TuningSettings.interval),
+            max_iterations=table.positive_integer("max_iterations", TuningSettings.max_iterations),
             seed=seed,
+            target=_target(table.choice("target", ("continuous", "digital"), defaults.target)),
+            integral_action=table.flag("integral_action", False),
+            dead_time=table.flag("dead_time", defaults.dead_time),
+            perturbation=_perturbation(
+                table.choice("perturbation", ("paper", "torque", "steps"), defaults.perturbation)
+            ),
+            flux_length=table.ranged("flux_length", TuningSettings.flux_length, "episode_length"),
         )
     except DataFileError:
         raise
-    except InputError as exc:
+    except InputError as exc:  # a rule across keys: name the key it is about
+        key, _, reason = str(exc).partition(": ")
+        if key in TUNING_KEYS:
+            raise table.error(key, reason) from None
         raise table.error(None, str(exc)) from None
+
+
+def _target(value: str) -> Target:
+    return "digital" if value == "digital" else "continuous"
+
+
+def _perturbation(value: str) -> Perturbation:
+    return "steps" if value == "steps" else ("torque" if value == "torque" else "paper")

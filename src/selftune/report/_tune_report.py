@@ -1,0 +1,252 @@
+"""What ``selftune tune`` prints and writes: the controller a drive can run, how good the
+data say it is, and what it does on the simulated drive (evaluation only).
+
+Every number comes from the typed results (:class:`~selftune.tuning.TuningResult`, its
+:class:`~selftune.learn.Quality`, :class:`TuningEvaluation`); nothing is recomputed here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from ..core import ControlLaw, matrix_block
+from ..learn import Quality
+from ..model import SPMSM, DigitalSolution
+from ..sim import DriveSettings
+from ..tuning import TuningResult, TuningSettings
+from ._documents import history_document
+from ._drive_check import steady_torque_error
+from ._evaluate import TuningEvaluation
+
+__all__ = [
+    "HOT_RESISTANCE",
+    "TorqueCheck",
+    "drive_text",
+    "law_document",
+    "torque_check",
+    "tune_document",
+    "tune_lines",
+]
+
+#: The resistance after tuning against which the torque error is checked again: +40%,
+#: a winding about 100 K hotter (copper +0.39 %/K).
+HOT_RESISTANCE = 1.4
+
+_NAMES = {"1": "Algorithm 1", "2": "Algorithm 2", "3": "Algorithm 3", "offpolicy": "Off-policy"}
+
+
+@dataclass(frozen=True)
+class TorqueCheck:
+    """The learned controller on the simulated drive (evaluation only).
+
+    Attributes
+    ----------
+    steady_error : float
+        ``(mean torque - T*) / T*`` in steady state, at the tuning temperature.
+    hot_error : float
+        The same after R_s rose by :data:`HOT_RESISTANCE` without re-tuning.
+    """
+
+    steady_error: float
+    hot_error: float
+
+
+def torque_check(
+    motor: SPMSM, settings: TuningSettings, result: TuningResult, drive: DriveSettings | None
+) -> TorqueCheck:
+    """Run the learned controller on the simulated drive: steady torque error, cold and
+    with R_s +40% (:func:`~._drive_check.steady_torque_error`).
+
+    Parameters
+    ----------
+    motor : SPMSM
+        The motor (nameplate values).
+    settings : TuningSettings
+        Speed, torque and sampling period.
+    result : TuningResult
+        The session's result (its law and its ``w``).
+    drive : DriveSettings or None
+        The drive it was tuned on (None: the ideal drive).
+    """
+    arguments = (motor, settings.speed, settings.sampling, result.law, result.w)
+    return TorqueCheck(
+        steady_error=steady_torque_error(*arguments, settings=drive, seed=settings.seed),
+        hot_error=steady_torque_error(
+            *arguments, settings=drive, resistance_factor=HOT_RESISTANCE, seed=settings.seed
+        ),
+    )
+
+
+def law_document(law: ControlLaw) -> dict[str, Any]:
+    """The controller as a drive engineer puts it on a drive: its equations in words and
+    symbols, the names of K's columns, and every matrix they name (SI units: V/A, V/V,
+    V/(A s)).
+
+    Parameters
+    ----------
+    law : ControlLaw
+        The controller.
+    """
+    document: dict[str, Any] = {
+        "equations": law.equations(),
+        "state": list(law.state),
+        "K": law.K,
+        "X": law.X,
+        "U": law.U,
+        "input_delay_compensated": law.history,
+    }
+    if law.K_i is not None:
+        document.update({"K_i": law.K_i, "C": law.C, "F": law.F, "h": law.h})
+    return document
+
+
+def drive_text(drive: DriveSettings | None) -> str:
+    """The simulated drive in a few words.
+
+    Parameters
+    ----------
+    drive : DriveSettings or None
+        The drive (None: the ideal one).
+    """
+    if drive is None:
+        return "the ideal drive (exact dq model, no delay)"
+    parts = [f"{drive.input_delay}-sample delay", f"{drive.pwm} PWM"]
+    if drive.dead_time:
+        parts.append(f"{drive.dead_time * 1e6:g} us dead time")
+    if drive.current_noise:
+        parts.append(f"{drive.current_noise * 1e3:g} mA noise")
+    if drive.adc_bits is not None:
+        parts.append(f"{drive.adc_bits}-bit ADC")
+    if drive.temperature_rise:
+        parts.append(f"{drive.temperature_rise:g} K warmer")
+    return "a realistic drive (" + ", ".join(parts) + ")"
+
+
+def _quality_lines(quality: Quality) -> list[str]:
+    noise = (
+        "none estimated"
+        if quality.noise_rms is None
+        else ", ".join(f"{value * 1e3:.3g} mA" for value in quality.noise_rms)
+    )
+    lines = [
+        "quality (from the data alone):",
+        f"  K within +-{quality.K_relative_se:.2%}, U within +-{quality.U_relative_se:.2%} "
+        "(one standard error, relative)",
+        f"  measurement noise {noise}; consistency statistic {quality.consistency_statistic:.3g}"
+        f" (refused above {quality.consistency_threshold:.3g})",
+        f"  log alignment: the voltage applied during sample k is in row k - {quality.shift}"
+        f" (the data show {quality.detected_shift}); stability margin "
+        f"{quality.stability_margin:.3g}",
+    ]
+    if quality.voltage_error is not None:
+        lines.append(f"  inverter dead-time voltage {quality.voltage_error:.3g} V per phase")
+    lines += [f"  note: {note}" for note in quality.notes]
+    return lines
+
+
+def tune_lines(
+    source: str,
+    result: TuningResult,
+    evaluation: TuningEvaluation,
+    torque: TorqueCheck,
+    drive: DriveSettings | None,
+) -> list[str]:
+    """The report ``selftune tune`` prints.
+
+    Parameters
+    ----------
+    source : str
+        The motor file's name.
+    result : TuningResult
+        The session's result.
+    evaluation : TuningEvaluation
+        Its comparison with the model-based optimum.
+    torque : TorqueCheck
+        Its steady torque on the simulated drive.
+    drive : DriveSettings or None
+        The drive it was tuned on.
+    """
+    law = result.law
+    target = "digital" if result.target == "digital" else "continuous (the paper's)"
+    servo = " with integral action" if law.K_i is not None else ""
+    lines = [
+        f"{_NAMES[result.algorithm]} on {source}, {drive_text(drive)}: {target} "
+        f"controller{servo}, from {result.data_seconds * 1e3:.3g} ms of motor data",
+        "",
+        "the controller (K's columns: " + ", ".join(law.state) + "):",
+        f"  {law.equations()}",
+        *matrix_block("K", law.K, ["u_d", "u_q"], list(law.state[: law.K.shape[1]])),
+    ]
+    if law.K_i is not None:
+        lines += matrix_block("K_i", law.K_i, ["u_d", "u_q"], ["z_d", "z_q"])
+    lines += matrix_block("U", law.U, ["u_d", "u_q"], ["w1", "w2"])
+    lines += ["", *_quality_lines(result.quality), ""]
+    lines.append(
+        f"on the simulated drive: steady torque error {torque.steady_error:+.3%}; after R_s "
+        f"+{HOT_RESISTANCE - 1:.0%} without re-tuning {torque.hot_error:+.3%}"
+    )
+    lines.append(
+        f"against the model-based optimum of the same loop: ||K - K*|| / ||K*|| = "
+        f"{evaluation.K_error:.2e}, ||U - U*|| / ||U*|| = {evaluation.U_error:.2e}, "
+        f"excess cost {evaluation.excess_cost:.2e}"
+    )
+    if result.identified:
+        identified = result.identified
+        lines.append(
+            f"identified phi_pm = {identified['phi_pm']:.6g} +- {identified['phi_pm_se']:.2g} Wb"
+            + (
+                f", dead-time voltage {identified['dead_time_voltage']:.3g} V per phase"
+                if "dead_time_voltage" in identified
+                else ""
+            )
+        )
+    return lines + list(result.notes)
+
+
+def tune_document(
+    motor: SPMSM,
+    settings: TuningSettings,
+    result: TuningResult,
+    evaluation: TuningEvaluation,
+    torque: TorqueCheck,
+) -> dict[str, Any]:
+    """The JSON ``selftune tune --json`` writes (every number of the report and more).
+
+    Parameters
+    ----------
+    motor : SPMSM
+        The motor (nameplate values).
+    settings : TuningSettings
+        The session's settings.
+    result : TuningResult
+        The session's result.
+    evaluation : TuningEvaluation
+        Its comparison with the model-based optimum.
+    torque : TorqueCheck
+        Its steady torque on the simulated drive.
+    """
+    optimum = evaluation.optimum
+    best = optimum.law if isinstance(optimum, DigitalSolution) else optimum.law(settings.sampling)
+    return {
+        "algorithm": result.algorithm,
+        "target": result.target,
+        "integral_action": result.law.K_i is not None,
+        "control_law": law_document(result.law),
+        "learned": {"P": result.P, "B": result.B, "theta": result.theta, "w": result.w},
+        "quality": result.quality,
+        "identified": result.identified,
+        "data_seconds": result.data_seconds,
+        "model_based": law_document(best),
+        "K_relative_error": evaluation.K_error,
+        "U_relative_error": evaluation.U_error,
+        "theta_relative_error": evaluation.final_theta_error,
+        "excess_cost": evaluation.excess_cost,
+        "steady_torque_error": torque.steady_error,
+        "steady_torque_error_hot": torque.hot_error,
+        "hot_resistance_factor": HOT_RESISTANCE,
+        "motor": motor,
+        "settings": settings,
+        "notes": list(result.notes),
+        "history": history_document(result, evaluation),
+    }

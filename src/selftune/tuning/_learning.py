@@ -1,0 +1,209 @@
+"""What a session hands the learners: the problem a drive engineer knows, the options the
+drive and the settings imply, and the result read back as a :class:`TuningResult`.
+
+Every session learns through :func:`selftune.learn.learn_controller` (off-policy, and
+Algorithm 3's second step on a realistic drive) or has its on-policy result judged by
+:func:`selftune.learn.assess` on all its episodes, so that every result carries the same
+verdict: alignment of the log with the drive's delay, measurement noise, consistency,
+standard errors and a stability margin; or an error that says why the data do not
+support a controller.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..core import Array, unpack_theta
+from ..errors import InputError
+from ..learn import (
+    IterationRecord,
+    LearnedController,
+    LearningOptions,
+    LearningProblem,
+    Trajectory,
+    aligned_trajectory,
+    feedforward,
+    stated_shift,
+)
+from ._drive import Drive
+from ._episodes import iteration_record
+from ._knowledge import known_flux_form
+from ._results import TuningIteration, TuningResult
+from ._settings import TuningSettings
+
+__all__ = [
+    "aligned",
+    "check_drive",
+    "from_learned",
+    "learning_options",
+    "learning_problem",
+    "replace_F",
+]
+
+#: The relative agreement of the drive's sampling period with the settings' required.
+SAMPLING_AGREEMENT = 1e-9
+
+
+def check_drive(drive: Drive, settings: TuningSettings) -> None:
+    """Raise unless the drive and the settings describe the same loop.
+
+    Raises
+    ------
+    InputError
+        If the sampling periods differ, or the settings ask for what the drive cannot do
+        (the digital target or integral action on a controller updated every
+        ``input_hold > 1`` samples).
+    """
+    sampling = float(drive.sampling)
+    if abs(sampling - settings.sampling) > SAMPLING_AGREEMENT * settings.sampling:
+        raise InputError(
+            f"sampling: the settings say {settings.sampling:g} s but the drive samples every "
+            f"{sampling:g} s"
+        )
+    if settings.input_hold != 1 and (settings.target == "digital" or settings.integral_action):
+        what = "the digital target" if settings.target == "digital" else "integral action"
+        raise InputError(
+            f"input_hold: {what} is the controller of a loop that updates every sample; "
+            f"set input_hold = 1 (got {settings.input_hold})"
+        )
+
+
+def learning_problem(drive: Drive, settings: TuningSettings, phi_pm: float) -> LearningProblem:
+    """The known-flux problem (C = I, E = 0, F from p and the flux) with the settings' cost,
+    K0 and integral action.
+
+    Parameters
+    ----------
+    drive : Drive
+        The drive (for its pole pairs).
+    settings : TuningSettings
+        Operating point, cost, K0, integral action.
+    phi_pm : float
+        The flux the controller assumes, Wb.
+    """
+    C, _, F, _ = known_flux_form(drive.pole_pairs, settings.speed, settings.torque, phi_pm)
+    return LearningProblem(
+        settings.Q, settings.R, settings.K0, C=C, F=F, integral_action=settings.integral_action
+    )
+
+
+def replace_F(problem: LearningProblem, F: Array | None) -> LearningProblem:
+    """``problem`` with another F (and the matching E = 0).
+
+    Parameters
+    ----------
+    problem : LearningProblem
+        The problem.
+    F : ndarray or None
+        The new F.
+    """
+    return LearningProblem(
+        problem.Q,
+        problem.R,
+        problem.K0,
+        C=problem.C,
+        F=F,
+        integral_action=problem.integral_weight is not None,
+        integral_weight=problem.integral_weight,
+    )
+
+
+def learning_options(
+    drive: Drive, settings: TuningSettings, *, target: str | None = None
+) -> LearningOptions:
+    """The options of the drive's alignment and the settings' target and dead time.
+
+    Parameters
+    ----------
+    drive : Drive
+        Its computation delay and what its log holds.
+    settings : TuningSettings
+        Target, dead-time model, iterations, regression interval.
+    target : str, optional
+        Overrides ``settings.target``.
+    """
+    return LearningOptions(
+        target=settings.target if target is None else target,  # type: ignore[arg-type]
+        method="adp",
+        input_delay=drive.input_delay,
+        logged_input=drive.logged_input,  # type: ignore[arg-type]
+        interval=settings.regression_interval(),
+        max_iterations=max(settings.max_iterations, 50),
+        dead_time=settings.dead_time,
+        electrical_speed=drive.pole_pairs * settings.speed,
+        voltage_hold=drive.voltage_hold,  # type: ignore[arg-type]
+    )
+
+
+def aligned(episode: Trajectory, drive: Drive) -> Trajectory:
+    """The episode with row k of ``u`` the voltage applied during sample k (a drive that
+    logs commanded voltages is read with its delay)."""
+    shift = stated_shift(drive.logged_input, drive.input_delay)  # type: ignore[arg-type]
+    return episode if not shift else aligned_trajectory(episode, shift)
+
+
+def from_learned(
+    algorithm: str,
+    learned: LearnedController,
+    w: Array,
+    seconds: float,
+    settings: TuningSettings,
+    identified: dict[str, float] | None = None,
+) -> TuningResult:
+    """A :class:`TuningResult` of a controller learned off-policy from ``seconds`` of data."""
+    history = _history(learned.history, learned, settings, seconds)
+    theta = history[-1].theta if learned.target == "continuous" and history else None
+    return TuningResult(
+        algorithm=algorithm,
+        law=learned.law,
+        P=learned.P,
+        B=learned.B,
+        w=w,
+        history=history,
+        data_seconds=seconds,
+        feedforward_learned=True,
+        quality=learned.quality,
+        target=learned.target,
+        theta=theta,
+        identified={} if identified is None else identified,
+    )
+
+
+def _history(
+    records: Sequence[IterationRecord],
+    learned: LearnedController,
+    settings: TuningSettings,
+    seconds: float,
+) -> tuple[TuningIteration, ...]:
+    """The policy-iteration steps as iterations, with the policy each step improved on.
+
+    For the continuous target each step's feedforward follows from its Theta; the digital
+    learner computes U once, from the last step, so every step carries the final U."""
+    history: list[TuningIteration] = []
+    previous_theta: Array | None = None
+    m = learned.law.U.shape[0]
+    K_applied = np.zeros((m, records[0].K.shape[1])) if records else np.zeros((m, 0))
+    K_applied[:, : settings.K0.shape[1]] = settings.K0
+    U_applied = np.zeros_like(learned.law.U)
+    for record in records:
+        if learned.target == "continuous" and learned.law.K_i is None:
+            P, K_next, M = unpack_theta(record.theta, 2, 2, learned.law.U.shape[1])
+            U = feedforward(P, K_next, M, settings.R)
+        else:
+            U = learned.law.U
+        history.append(
+            iteration_record(
+                record,
+                step="off-policy",
+                K_applied=K_applied,
+                U_applied=U_applied,
+                U=U,
+                previous_theta=previous_theta,
+                data_seconds=seconds,
+            )
+        )
+        previous_theta = record.theta
+        K_applied, U_applied = record.K, U
+    return tuple(history)
