@@ -1247,7 +1247,7 @@ def test_json_to_standard_output_is_the_json_alone(tmp_path: Path) -> None:
     argv = ["learn", str(tmp_path / "data.csv"), "--config", str(tmp_path / "config.toml")]
     code, out, err = run_in_process([*argv, "--json", "-"])
     assert (code, err) == (0, "")
-    assert set(json.loads(out)) >= {"K", "P", "B", "X", "U", "L", "iterations"}
+    assert set(json.loads(out)) >= {"K", "P", "B", "X", "U", "control_law", "quality", "iterations"}
     assert sorted(path.name for path in tmp_path.iterdir()) == ["config.toml", "data.csv"]
 
 

@@ -224,9 +224,11 @@ def _add_tune(subparsers: _Subparsers) -> None:
         help="run a self-tuning session on the motor in a file and compare with the optimum",
         description=(
             "Self-tune the torque controller of the (simulated) motor in MOTOR.toml with one"
-            " of the paper's algorithms or the off-policy variant, then print the learned"
-            " controller against the model-based one. The learner is told only the pole"
-            " pairs, the speed, the torque reference and (except Algorithm 3) the flux."
+            " of the paper's algorithms or the off-policy variant, on the ideal drive or the"
+            " realistic one of its [drive] table; print the controller a drive can run, its"
+            " quality, its steady torque on the simulated drive and how it compares with the"
+            " model-based optimum. The learner is told only the pole pairs, the speed, the"
+            " torque reference and the nameplate flux (Algorithm 3 identifies the flux)."
         ),
     )
     parser.add_argument("--motor", metavar="MOTOR.toml", required=True, help="the motor file")
@@ -235,6 +237,16 @@ def _add_tune(subparsers: _Subparsers) -> None:
         choices=["1", "2", "3", "offpolicy"],
         default="offpolicy",
         help="which algorithm (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--target",
+        choices=["continuous", "digital"],
+        default=None,
+        help=(
+            "the controller to learn: the paper's continuous one, or the optimum of the"
+            " sampled loop with the drive's delay (default: the motor file's [learning]"
+            " target; continuous, or digital with a [drive] table)"
+        ),
     )
     parser.add_argument("--seed", type=_seed, default=0, help="exploration seed (default: 0)")
     _add_json_option(parser)
@@ -245,7 +257,9 @@ def _run_tune(args: argparse.Namespace) -> int:
     from .commands import tune_command
     from .config import load_motor_config
 
-    return tune_command(load_motor_config(args.motor), args.algorithm, args.seed, args.json)
+    return tune_command(
+        load_motor_config(args.motor), args.algorithm, args.seed, args.json, target=args.target
+    )
 
 
 def _add_bench(subparsers: _Subparsers) -> None:

@@ -250,23 +250,20 @@ def solve_command(config: MotorConfig, json_path: str | None) -> int:
 
 
 def _learn(data: Any, config: LearnConfig, source: str) -> Any:
-    """The learner's result for ``config`` on ``data``; any failure names ``source``."""
-    from .learn import learn_lqr, learn_output_regulation
+    """The learned controller for ``config`` on ``data``; any failure names ``source``."""
+    from .learn import LearningOptions, LearningProblem, learn_controller
 
-    interval, iterations, tolerance = config.interval, config.max_iterations, config.tolerance
+    problem = LearningProblem(
+        config.Q, config.R, config.K0, C=config.C, E=config.E, F=config.F,
+        integral_action=config.integral_action,
+    )  # fmt: skip
+    options = LearningOptions(
+        interval=config.interval, max_iterations=config.max_iterations,
+        tolerance=config.tolerance, **config.options,  # type: ignore[arg-type]
+    )  # fmt: skip
     with _numerics(source) as caught:
-        if config.C is not None and config.E is not None and config.F is not None:
-            result: Any = learn_output_regulation(
-                data, config.C, config.E, config.F, config.Q, config.R, config.K0,
-                interval=interval, max_iterations=iterations, tolerance=tolerance,
-            )  # fmt: skip
-        else:
-            result = learn_lqr(
-                data, config.Q, config.R, config.K0,
-                interval=interval, max_iterations=iterations, tolerance=tolerance,
-            )  # fmt: skip
-    numbers = [result.P, result.K, result.B] + ([result.L] if config.regulation else [])
-    _check_numerics(source, caught, *numbers)
+        result = learn_controller(data, problem, options)
+    _check_numerics(source, caught, result.P, result.K, result.U)
     return result
 
 
@@ -274,7 +271,8 @@ def learn_command(data_path: str, config_path: str, json_path: str | None) -> in
     """``selftune learn``: the learned controller from a CSV or NPZ log and a config.
 
     The data file's header gives n, m, q; the configuration is read and checked against
-    them completely before the rows are loaded.
+    them completely before the rows are loaded. The controller comes with its quality;
+    data that do not support one give an error that says why.
 
     Parameters
     ----------
@@ -292,35 +290,69 @@ def learn_command(data_path: str, config_path: str, json_path: str | None) -> in
     config = load_learn_config(config_path, *trajectory_dimensions(data_path))
     data = load_trajectory(data_path)
     result = _learn(data, config, data_path)
+    law = result.law
     states, inputs = labels("x", data.n), labels("u", data.m)
+    servo = " with integral action" if law.K_i is not None else ""
     lines = [
         f"learned from {data_path}: {data.num_samples} samples, {data.duration:.6g} s",
-        f"policy iteration: {result.iterations} steps, converged, regression rank "
-        f"{result.rank} of {result.unknowns} unknowns"
-        + (f" ({result.rows} intervals, {result.method} method)" if config.regulation else ""),
+        f"{result.target} controller{servo} by {result.method} "
+        f"({len(result.history)} policy-iteration steps)"
+        if result.method == "adp"
+        else f"{result.target} controller{servo} by identify-then-design",
         "",
-        *matrix_block("K  optimal feedback gain, u = -K x", result.K, inputs, states),
-        *matrix_block("P  value matrix", result.P, states, states),
-        *matrix_block("B  estimated input matrix", result.B, states, inputs),
+        "the controller (K's columns: " + ", ".join(law.state) + "):",
+        f"  {law.equations()}",
+        *matrix_block("K", law.K, inputs, list(law.state[: law.K.shape[1]])),
     ]
-    output: dict[str, Any] = {"P": result.P, "K": result.K, "B": result.B}
+    if law.K_i is not None:
+        lines += matrix_block("K_i", law.K_i, inputs, labels("z", law.K_i.shape[1]))
     if config.regulation:
         exogenous = labels("w", data.q)
-        lines += [
-            *matrix_block("X  steady-state map, x_ss = X w", result.X, states, exogenous),
-            *matrix_block("U  feedforward map, u_ss = U w", result.U, inputs, exogenous),
-            *matrix_block("L  = U + K X, u = -K x + L w", result.L, inputs, exogenous),
-        ]
-        output.update({"X": result.X, "U": result.U, "L": result.L})
-    for name in ("iterations", "converged", "rank", "unknowns"):
-        output[name] = getattr(result, name)
+        lines += matrix_block("X  steady-state map, x_e = X w", law.X, states, exogenous)
+        lines += matrix_block("U  feedforward map, u_e = U w", law.U, inputs, exogenous)
+    lines += matrix_block("B  estimated input matrix", result.B, states, inputs)
+    lines += ["", *result.quality.lines()]
     if json_path is not None:
-        _write_json(json_path, output)
+        _write_json(json_path, _learn_document(result))
     _print_report(lines, json_path)
     return 0
 
 
-def tune_command(config: MotorConfig, algorithm: str, seed: int, json_path: str | None) -> int:
+def _learn_document(result: Any) -> dict[str, Any]:
+    """The JSON of ``selftune learn``: the law, its quality, how it was learned."""
+    law = result.law
+    alignment = result.alignment
+    return {
+        "target": result.target,
+        "method": result.method,
+        "sampling_period": result.sampling_period,
+        "input_delay": result.input_delay,
+        "state": list(law.state),
+        "control_law": law.document(),
+        "K": law.K,
+        "K_i": law.K_i,
+        "X": law.X,
+        "U": law.U,
+        "P": result.P,
+        "B": result.B,
+        "quality": result.quality,
+        "alignment": {
+            "logged_input": alignment.logged_input,
+            "shift": alignment.shift,
+            "detected_shift": alignment.detected_shift,
+            "residuals": {str(shift): value for shift, value in alignment.residuals.items()},
+        },
+        "iterations": len(result.history),
+    }
+
+
+def tune_command(
+    config: MotorConfig,
+    algorithm: str,
+    seed: int,
+    json_path: str | None,
+    target: str | None = None,
+) -> int:
     """``selftune tune``: a self-tuning session on the simulated drive of ``config``.
 
     The drive is the ideal one, or the realistic one of the file's ``[drive]`` table; the
@@ -337,12 +369,14 @@ def tune_command(config: MotorConfig, algorithm: str, seed: int, json_path: str 
         Exploration seed.
     json_path : str or None
         Where to write the JSON (``-``: standard output, without the report).
+    target : {"continuous", "digital"}, optional
+        Overrides the motor file's target.
     """
     from .report import evaluate, torque_check, tune_document, tune_lines
     from .tuning import run_algorithm, tuning_settings
 
     _check_json_target(json_path)
-    settings = tuning_settings(config, seed)
+    settings = tuning_settings(config, seed, target)
     with _numerics(config.source) as caught:
         result = run_algorithm(algorithm, config.motor, settings, drive=config.drive)  # type: ignore[arg-type]
         evaluation = evaluate(result, config.motor, settings, config.drive)

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import MappingProxyType
 
 from ..core import Array
 from ..core._validation import LIMITS, check_weight_ratio
 from ..errors import InputError
-from ._toml import ConfigFile
+from ._toml import ConfigFile, ConfigTable
 
 __all__ = ["LEARN_TABLES", "LearnConfig", "load_learn_config"]
 
@@ -21,7 +21,22 @@ LEARN_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
         "cost": ("Q", "R"),
         "policy": ("K0",),
         "regulation": ("C", "E", "F"),
-        "learning": ("interval", "max_iterations", "tolerance"),
+        "learning": (
+            "interval",
+            "max_iterations",
+            "tolerance",
+            "target",
+            "method",
+            "input_delay",
+            "logged_input",
+            "integral_action",
+            "dead_time",
+            "noise",
+            "structure",
+            "electrical_speed",
+            "voltage_hold",
+            "max_relative_error",
+        ),
     }
 )
 
@@ -46,6 +61,13 @@ class LearnConfig:
         Relative change of P at which iteration stops.
     source : str
         The file name, for messages.
+    options : mapping
+        The other ``[learning]`` keys as given (validated), the keyword arguments of
+        :class:`selftune.learn.LearningOptions`: target, method, input_delay,
+        logged_input, dead_time, noise, structure, electrical_speed, voltage_hold,
+        max_relative_error.
+    integral_action : bool
+        Learn the optimal servo controller (integral action on ``e = C x + F w``).
     """
 
     Q: Array
@@ -58,6 +80,8 @@ class LearnConfig:
     max_iterations: int = 50
     tolerance: float = 1e-9
     source: str = ""
+    options: Mapping[str, object] = field(default_factory=dict)
+    integral_action: bool = False
 
     @property
     def regulation(self) -> bool:
@@ -83,6 +107,17 @@ def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> L
         interval = 10         # samples per regression interval (at most 1,000,000)
         max_iterations = 50   # at most 1000
         tolerance = 1e-9      # in (0, 1e-3], as the learners require
+        target = "digital"    # or "continuous" (the paper's, the default)
+        method = "adp"        # or "identify" (identify-then-design)
+        input_delay = 1       # the drive's computation delay, samples (0, 1, 2)
+        logged_input = "applied"  # or "commanded", or "auto" (read off the data)
+        integral_action = false   # true: the optimal servo controller
+        dead_time = false     # true: model the inverter's dead time (n = m = 2)
+        noise = "smoothed"    # or "instruments", "none"
+        structure = "none"    # or "spmsm" (identify only, needs electrical_speed)
+        electrical_speed = 150.0  # p speed, rad/s (structure; dead time without angle)
+        voltage_hold = "stationary"  # or "rotor": what the drive holds over a sample
+        max_relative_error = 0.05    # refuse results with larger standard errors
 
     Parameters
     ----------
@@ -131,4 +166,44 @@ def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> L
     except InputError as exc:
         key, _, reason = str(exc).partition(": ")
         raise learning.error(key, reason) from None
-    return LearnConfig(Q, R, K0, C, E, F, interval, iterations, tolerance, source=config.file)
+    options = _options(learning, (interval, iterations, tolerance))
+    integral = learning.flag("integral_action", False)
+    if integral and C is None:
+        raise learning.error("integral_action", "needs a [regulation] table (C, E, F)")
+    return LearnConfig(
+        Q, R, K0, C, E, F, interval, iterations, tolerance, config.file, options, integral
+    )
+
+
+def _options(learning: ConfigTable, iteration: tuple[int, int, float]) -> Mapping[str, object]:
+    """The [learning] keys of :class:`selftune.learn.LearningOptions`, checked by it."""
+    from ..learn import LearningOptions  # here: selftune solve loads no learner
+
+    values: dict[str, object] = {
+        "target": learning.choice("target", ("continuous", "digital"), "continuous"),
+        "method": learning.choice("method", ("adp", "identify"), "adp"),
+        "logged_input": learning.choice(
+            "logged_input", ("applied", "commanded", "auto"), "applied"
+        ),
+        "dead_time": learning.flag("dead_time", False),
+        "noise": learning.choice("noise", ("smoothed", "instruments", "none"), "smoothed"),
+        "structure": learning.choice("structure", ("none", "spmsm"), "none"),
+        "voltage_hold": learning.choice("voltage_hold", ("stationary", "rotor"), "stationary"),
+        "max_relative_error": learning.positive("max_relative_error", 0.05),
+    }
+    if "input_delay" in learning:
+        delay = learning.number("input_delay")
+        if not (delay.is_integer() and 0 <= delay <= 2):
+            raise learning.error("input_delay", f"must be 0, 1 or 2 samples, got {delay:g}")
+        values["input_delay"] = int(delay)
+    if "electrical_speed" in learning:
+        values["electrical_speed"] = learning.number("electrical_speed")
+    try:
+        LearningOptions(
+            interval=iteration[0], max_iterations=iteration[1], tolerance=iteration[2],
+            **values,  # type: ignore[arg-type]
+        )  # fmt: skip
+    except InputError as exc:
+        key, _, reason = str(exc).partition(": ")
+        raise learning.error(key if key in LEARN_TABLES["learning"] else None, reason) from None
+    return MappingProxyType(values)

@@ -37,6 +37,8 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from ..core import (
     PAPER_SPEED,
     PAPER_TORQUE,
@@ -63,7 +65,13 @@ from ._toml import ConfigFile, ConfigTable
 if TYPE_CHECKING:
     from ..sim import DriveSettings
 
-__all__ = ["LEARNING_KEYS", "MOTOR_TABLES", "MotorConfig", "load_motor_config"]
+__all__ = [
+    "LEARNING_KEYS",
+    "MOTOR_TABLES",
+    "VOLTAGE_HEADROOM",
+    "MotorConfig",
+    "load_motor_config",
+]
 
 #: Keys of MOTOR.toml's optional [learning] table (``selftune tune``'s settings).
 LEARNING_KEYS = (
@@ -85,6 +93,10 @@ LEARNING_KEYS = (
 LEARNING_CHOICES: Mapping[str, tuple[str, ...]] = MappingProxyType(
     {"target": ("continuous", "digital"), "perturbation": ("paper", "torque", "steps")}
 )
+
+#: The share of the linear voltage range ``V_dc / sqrt(3)`` an operating point may need:
+#: the rest is the controller's and the exploration's.
+VOLTAGE_HEADROOM = 0.9
 
 #: The tables of MOTOR.toml and the keys each may hold.
 MOTOR_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
@@ -141,8 +153,10 @@ class MotorConfig:
     ------
     InputError
         Naming the field, if a value is not finite or outside its plausible range, the
-        speed is too fast for the motor (``(p speed)^2 L_s`` above 1e7), or Q, R are not
-        2x2 symmetric positive definite with entries at most 1e12.
+        speed is too fast for the motor (``(p speed)^2 L_s`` above 1e7), Q, R are not
+        2x2 symmetric positive definite with entries at most 1e12, or (with a DC bus) the
+        operating point needs more than :data:`VOLTAGE_HEADROOM` of the linear voltage
+        range.
     """
 
     motor: SPMSM
@@ -169,6 +183,26 @@ class MotorConfig:
             object.__setattr__(self, name, matrix)
         check_weight_ratio(self.Q, self.R)
         object.__setattr__(self, "learning", MappingProxyType(dict(self.learning)))
+        self._check_voltage()
+
+    def _check_voltage(self) -> None:
+        """With a DC bus, the operating point must lie within the drive's linear voltage
+        range (reversed torque included: the self-tuning session reverses it)."""
+        if self.drive is None or self.drive.dc_voltage is None:
+            return
+        limit = VOLTAGE_HEADROOM * self.drive.dc_voltage / np.sqrt(3.0)
+        needed = max(
+            float(np.linalg.norm(self.motor.equilibrium(self.speed, torque)[1]))
+            for torque in (self.torque, -self.torque)
+        )
+        if needed > limit:
+            raise InputError(
+                f"speed: the operating point needs a voltage of {needed:.4g} V (back-EMF "
+                f"{self.motor.p * self.speed * self.motor.phi_pm:.4g} V), beyond "
+                f"{VOLTAGE_HEADROOM:.0%} of the drive's linear range V_dc / sqrt(3) = "
+                f"{self.drive.dc_voltage / np.sqrt(3.0):.4g} V; lower the speed or the "
+                "torque, or raise [drive] dc_voltage (field weakening is not modelled)"
+            )
 
     @classmethod
     def default(cls) -> MotorConfig:

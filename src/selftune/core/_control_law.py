@@ -209,6 +209,22 @@ class ControlLaw:
             u = u - z @ self.K_i.T
         return np.asarray(u, dtype=float)
 
+    def document(self) -> dict[str, object]:
+        """The law as a drive engineer puts it on a drive: its equations in words and
+        symbols, the names of K's columns, and every matrix they name (SI units: V/A on
+        currents, V/V on past voltages, V/(A s) on the integrator, s for h)."""
+        document: dict[str, object] = {
+            "equations": self.equations(),
+            "state": list(self.state),
+            "K": self.K,
+            "X": self.X,
+            "U": self.U,
+            "history": self.history,
+        }
+        if self.K_i is not None:
+            document.update({"K_i": self.K_i, "C": self.C, "F": self.F, "h": self.h})
+        return document
+
     def equations(self) -> str:
         """The law in words and symbols, for a report or a JSON document."""
         blocks = ["xbar_k"] + [f"ubar_(k-{lag})" for lag in range(self.history, 0, -1)]

@@ -9,7 +9,14 @@ The data flow: :class:`Trajectory` -> :func:`interval_moments` (the quadrature o
 data equation, :mod:`._moments`) -> :func:`regression` and :func:`solve_regression`
 (the rows and their excitation check, :mod:`._regression`) -> :func:`policy_step` and
 :func:`policy_iteration` (:mod:`._policy_iteration`) -> :func:`learn_lqr` and
-:func:`learn_output_regulation` (:mod:`._continuous`).
+:func:`learn_output_regulation` (:mod:`._continuous`), :func:`learn_servo` (integral
+action, :mod:`._servo`), the discrete-time learner (:mod:`._digital`).
+
+For a drive's log, :func:`learn_controller` runs them all behind one pipeline: the
+evidence of the log (alignment, output-error model, consistency, :mod:`._evidence`),
+the learner of the options' target and method, and the verdict (:class:`Quality`,
+:mod:`._quality`); :func:`assess` gives the same verdict to a controller learned
+elsewhere.
 """
 
 from __future__ import annotations
@@ -60,6 +67,7 @@ from ._regression import (
     regression,
     solve_regression,
 )
+from ._servo import DiscountStage, LearnedServo, learn_servo, servo_from_moments
 from ._trajectory import Trajectory, as_trajectories
 from ._verdict import dead_time_voltage
 
@@ -71,12 +79,14 @@ __all__ = [
     "ConsistencyTest",
     "Design",
     "DigitalTransitions",
+    "DiscountStage",
     "DiscreteModel",
     "Evidence",
     "IntervalMoments",
     "IterationRecord",
     "LQRLearningResult",
     "LearnedController",
+    "LearnedServo",
     "LearnedSolution",
     "LearningOptions",
     "LearningProblem",
@@ -115,6 +125,7 @@ __all__ = [
     "learn_digital_adp",
     "learn_lqr",
     "learn_output_regulation",
+    "learn_servo",
     "load_csv",
     "load_npz",
     "load_trajectory",
@@ -127,6 +138,7 @@ __all__ = [
     "save_csv",
     "save_npz",
     "save_trajectory",
+    "servo_from_moments",
     "simulated_trajectories",
     "solutions_of_output_equation",
     "solve_regression",

@@ -95,7 +95,7 @@ def direction_signs(x: Array, floor: float) -> Array:
 
 def _appended(episode: Trajectory, signs: Array) -> Trajectory:
     w = signs if episode.w is None else np.hstack([episode.w, signs[: episode.w.shape[0]]])
-    return Trajectory(t=episode.t, x=episode.x, u=episode.u, w=w)
+    return Trajectory(t=episode.t, x=episode.x, u=episode.u, w=w, angle=episode.angle)
 
 
 def _residual(episode: Trajectory, signs: Array, shift: int) -> float:
@@ -149,9 +149,7 @@ def with_dead_time(
         How the signs were computed: ``"phase signs"``, ``"speed"`` or ``"current
         direction"`` (see the module docstring).
     """
-    angles: list[Array] = [
-        angle for angle in (getattr(e, "angle", None) for e in episodes) if angle is not None
-    ]
+    angles = [episode.angle for episode in episodes if episode.angle is not None]
     if len(angles) == len(episodes):
         signs = [phase_signs(e.x, a) for e, a in zip(episodes, angles, strict=True)]
         return [_appended(e, s) for e, s in zip(episodes, signs, strict=True)], "phase signs"

@@ -123,7 +123,8 @@ def aligned_trajectory(episode: Trajectory, shift: int) -> Trajectory:
     a, first = applied_inputs(episode, shift)
     stop = first + a.shape[0] + 1
     w = None if episode.w is None else episode.w[first : min(stop, episode.w.shape[0])]
-    return Trajectory(t=episode.t[first:stop], x=episode.x[first:stop], u=a, w=w)
+    angle = None if episode.angle is None else episode.angle[first:stop]
+    return Trajectory(t=episode.t[first:stop], x=episode.x[first:stop], u=a, w=w, angle=angle)
 
 
 def _check_data(episodes: Sequence[Trajectory], problem: LearningProblem) -> None:
@@ -182,6 +183,7 @@ def learn_controller(
         (relative_size(errors.K_se, errors.K), relative_size(errors.U_se, errors.U)),
         evidence,
         options.max_relative_error,
+        servo=problem.integral_weight is not None,
     )
     if options.method == "identify":
         model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
@@ -279,7 +281,9 @@ def _judged(
     """The learned ``(law, P, B, history)`` with its verdict, or the error that refuses it."""
     law, P, B, history = learned
     quality, radii = verdict(law, errors, evidence, options)
-    check_safety(quality, evidence, history, options.max_relative_error, radii)
+    check_safety(
+        quality, evidence, history, options.max_relative_error, radii, servo=law.K_i is not None
+    )
     return LearnedController(
         law=law,
         P=P,
@@ -298,8 +302,10 @@ _Logs = tuple[Sequence[Trajectory], Sequence[Trajectory] | None]
 
 
 def _regression_data(evidence: Evidence, options: LearningOptions) -> _Logs:
-    """The logs an ADP learner regresses on, and its instruments (see ``noise``)."""
-    if evidence.fit is None or options.noise == "none":
+    """The logs an ADP learner regresses on, and its instruments (see ``noise``). Logs the
+    model explains to rounding (noise-free) are used as they are: a smoothed copy could
+    only add the fit's own rounding."""
+    if evidence.fit is None or options.noise == "none" or evidence.consistency.exact:
         return evidence.episodes, None
     simulated = simulated_trajectories(evidence.episodes, evidence.alignment.shift, evidence.fit)
     if options.noise == "smoothed":

@@ -132,6 +132,11 @@ class OutputErrorFit:
         Gauss-Newton iterations.
     structure : SpmsmStructure or None
         The structure fitted (None: every entry of ``[Ad, Bd, Ed]``).
+    correlation_inflation : float
+        How much larger the robust variances are than white output errors would give
+        (the largest ratio of the diagonals): about 1 when the model explains the data
+        up to white noise; well above it when the output errors are correlated in time,
+        i.e. the model misses an effect.
     """
 
     model: DiscreteModel
@@ -142,6 +147,7 @@ class OutputErrorFit:
     residuals: tuple[Array, ...]
     iterations: int
     structure: SpmsmStructure | None = None
+    correlation_inflation: float = 1.0
 
     def matrices(self, parameters: Array) -> tuple[Array, Array, Array]:
         """``(Ad, Bd, Ed)`` of parameters of this fit's kind.
@@ -509,6 +515,8 @@ def _finish(
     robust, fisher = _robust_covariance(
         _whitened(residuals, jacobians, _noise_root(stacked, floor), p)
     )
+    white = np.diag(np.linalg.pinv(fisher))[:p]
+    ratios = np.diag(robust)[:p] / np.maximum(white, 1e-300)
     changes = np.concatenate([log.x[1:] - log.x[:-1] for log in logs])
     model = DiscreteModel(
         Ad=mats[0],
@@ -529,6 +537,7 @@ def _finish(
         simulated=tuple(simulated),
         residuals=tuple(residuals),
         iterations=iterations,
+        correlation_inflation=float(np.max(ratios)) if ratios.size else 1.0,
     )
 
 

@@ -230,7 +230,8 @@ class LearningOptions:
     max_relative_error : float
         The largest relative standard error of K and of U a result may have; beyond it
         the data are too short for their noise and the learner says how much longer they
-        must be.
+        must be. With integral action U may reach 25% (it only shapes the transient:
+        the integrator removes its steady error).
     """
 
     target: Target = "continuous"

@@ -31,10 +31,11 @@ import numpy as np
 from ..core import RANK_TOLERANCE, Array, ControlLaw, delay_augmented
 from ..errors import ConvergenceError, ExcitationError
 from ._discrete_model import DiscreteModel
-from ._evidence import Evidence
+from ._evidence import INFLATION_LIMIT, Evidence
 from ._policy_iteration import IterationRecord
 
 __all__ = [
+    "SERVO_FEEDFORWARD_LIMIT",
     "STABILITY_MARGIN",
     "Quality",
     "check_precision",
@@ -76,7 +77,7 @@ class Quality:
     noise_handling : str
         ``"smoothed"``, ``"instruments"`` or ``"none"`` (see LearningOptions).
     K_se : ndarray
-        Standard errors of K's entries.
+        Standard errors of the entries of ``[K, K_i]`` (columns as the law's ``state``).
     U_se : ndarray
         Standard errors of U's entries.
     P_se : ndarray
@@ -113,6 +114,32 @@ class Quality:
     voltage_error: float | None
     log_precision: str
     notes: tuple[str, ...]
+
+    def lines(self) -> list[str]:
+        """The verdict as report lines (what the command line prints)."""
+        noise = (
+            "none estimated"
+            if self.noise_rms is None
+            else ", ".join(f"{value:.3g}" for value in self.noise_rms)
+        )
+        lines = [
+            "quality (from the data alone):",
+            f"  K within +-{_relative(self.K_relative_se)}, U within "
+            f"+-{_relative(self.U_relative_se)} (one standard error, relative)",
+            f"  measurement noise {noise} (the states' unit); consistency statistic "
+            f"{self.consistency_statistic:.3g} (refused above {self.consistency_threshold:.3g})",
+            f"  log alignment: the voltage applied during sample k is in row k - {self.shift}"
+            f" (the data show {self.detected_shift}); stability margin "
+            f"{self.stability_margin:.3g}; logged as {self.log_precision}",
+        ]
+        if self.voltage_error is not None:
+            lines.append(f"  inverter dead-time voltage {self.voltage_error:.3g} V per phase")
+        return lines + [f"  note: {note}" for note in self.notes]
+
+
+def _relative(value: float) -> str:
+    """A relative error as a percentage, or in scientific notation when tiny."""
+    return f"{value:.2%}" if value >= 1e-4 else f"{value:.1e}"
 
 
 def closed_loop_radius(model: DiscreteModel, law: ControlLaw, delay: int) -> float:
@@ -208,8 +235,12 @@ def _monotone(history: tuple[IterationRecord, ...]) -> int | None:
         before, after = history[index - 1].P, history[index].P
         if before.shape != after.shape or history[index].iteration == 0:
             continue
-        rise = float(np.max(np.linalg.eigvalsh(after - before)))
-        if rise > 1e3 * RANK_TOLERANCE * float(np.max(np.abs(before))):
+        # scaled by P's diagonal, so that a large block (an integrator's) does not hide
+        # or fake a rise in a small one (the currents')
+        diagonal = np.abs(np.diag(before))
+        scale = 1.0 / np.sqrt(np.maximum(diagonal, 1e-12 * float(np.max(diagonal))))
+        rise = float(np.max(np.linalg.eigvalsh(scale[:, None] * (after - before) * scale)))
+        if rise > 1e3 * RANK_TOLERANCE:
             return index
     return None
 
@@ -220,6 +251,7 @@ def check_safety(
     history: tuple[IterationRecord, ...],
     limit: float,
     radii: Array,
+    servo: bool = False,
 ) -> None:
     """Raise unless the data support the controller (see the module docstring).
 
@@ -235,6 +267,8 @@ def check_safety(
         The largest relative standard error of K and U accepted.
     radii : ndarray
         Spectral radii of the learned loop on plausible models (the fitted one first).
+    servo : bool
+        The controller has integral action (:func:`check_precision`).
 
     Raises
     ------
@@ -251,6 +285,8 @@ def check_safety(
             f"{int(np.sum(radii > 1.0 - STABILITY_MARGIN))} of {radii.size} plausible models "
             "(1 is the stability limit); use longer or better-excited data, or a gentler cost"
         )
+    # the precision first: a result too noisy to keep fails both, and this says why
+    check_precision((quality.K_relative_se, quality.U_relative_se), evidence, limit, servo=servo)
     step = _monotone(history)
     if step is not None:
         raise ConvergenceError(
@@ -259,11 +295,18 @@ def check_safety(
             "do not support the controller (too noisy, too short, or a plant that is not "
             "linear)"
         )
-    check_precision((quality.K_relative_se, quality.U_relative_se), evidence, limit)
 
 
-def check_precision(relative: tuple[float, float], evidence: Evidence, limit: float) -> None:
-    """Raise unless the relative standard errors of K and U are within ``limit``.
+#: With integral action the feedforward U only shapes the transient (the integrator
+#: removes its steady error), so its relative standard error may reach this.
+SERVO_FEEDFORWARD_LIMIT = 0.25
+
+
+def check_precision(
+    relative: tuple[float, float], evidence: Evidence, limit: float, servo: bool = False
+) -> None:
+    """Raise unless the relative standard errors of K and U are within ``limit`` (U within
+    :data:`SERVO_FEEDFORWARD_LIMIT` for a servo controller, ``servo``).
 
     Parameters
     ----------
@@ -273,24 +316,43 @@ def check_precision(relative: tuple[float, float], evidence: Evidence, limit: fl
         The data's model and noise.
     limit : float
         The largest accepted.
+    servo : bool
+        The controller has integral action.
 
     Raises
     ------
     ExcitationError
-        "too little data for this noise level", with the length that would do.
+        "too little data for this noise level", with the length that would do; when the
+        output errors are correlated in time far beyond white noise, it says the model
+        misses part of the data too.
     """
-    worst = max(relative)
-    if not worst > limit:
+    U_limit = max(limit, SERVO_FEEDFORWARD_LIMIT) if servo else limit
+    worst = max(relative[0] / limit, relative[1] / U_limit)
+    if not worst > 1.0:
         return
     duration = sum(float(e.duration) for e in evidence.episodes)
-    needed = duration * (worst / limit) ** 2
+    needed = duration * worst**2
+    inflation = 1.0 if evidence.fit is None else evidence.fit.correlation_inflation
+    cause = ""
+    if inflation > INFLATION_LIMIT:
+        missing = (
+            "the dead-time model (which is on) near zero current, a nonlinearity"
+            if evidence.extra
+            else "an input error the log does not show (inverter dead time: set dead_time "
+            "= true), a nonlinearity"
+        )
+        cause = (
+            f"; the model misses part of the data (its output errors are correlated in time,"
+            f" {inflation:.3g} times the variance white noise gives): likely {missing} (a "
+            "saturated sensor or ADC, the voltage limit) or a misaligned voltage log"
+        )
     raise ExcitationError(
-        f"too little data for this noise level: the standard error of K is "
-        f"{relative[0]:.2%} and of U {relative[1]:.2%} of their size (the limit is "
-        f"{limit:.2%}) from {duration:.4g} s of data with about {_noise_text(evidence)} of "
+        f"too little data for this noise level: the standard error of K is {relative[0]:.2%} "
+        f"and of U {relative[1]:.2%} of their size (the limits are {limit:.2%} and "
+        f"{U_limit:.2%}) from {duration:.4g} s of data with about {_noise_text(evidence)} of "
         f"noise; about {needed:.3g} s of the same kind of data would bring them within the "
-        "limit (or richer excitation: more exploration, reference changes, another "
-        "operating point)"
+        f"limits (or richer excitation: more exploration, reference changes, another "
+        f"operating point){cause}"
     )
 
 

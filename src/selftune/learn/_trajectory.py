@@ -7,7 +7,10 @@ A :class:`Trajectory` holds N samples (N + 1 sample times) of a plant
   (``t[0] = 0``: the learners use only differences, and a clock's offset is dropped);
 - ``x`` (N + 1, n): the state at each sample time;
 - ``u`` (N, m): the input, ``u[k]`` held over ``[t[k], t[k+1])`` (zero-order hold);
-- ``w`` (N + 1, q) or (N, q), optional: the exogenous signal.
+- ``w`` (N + 1, q) or (N, q), optional: the exogenous signal;
+- ``angle`` (N + 1,), optional: the electrical rotor angle at each sample time, rad
+  (a drive knows it; the learners use it to model an inverter's dead time from the phase
+  currents' signs, :mod:`selftune.learn._dead_time`).
 
 What ``w`` means depends on the exosystem matrix E that the learner is given:
 
@@ -72,6 +75,9 @@ class Trajectory:
         Input held over each sample; a last row (N + 1 rows) is dropped.
     w : array_like, shape (N + 1, q) or (N, q), optional
         Exogenous signal at each sample time (see the module docstring).
+    angle : array_like, shape (N + 1,), optional
+        Electrical rotor angle at each sample time, rad (for a dq log: what turns dq
+        currents into phase currents).
 
     Raises
     ------
@@ -85,14 +91,22 @@ class Trajectory:
     x: Array
     u: Array
     w: Array | None
+    angle: Array | None
 
     def __init__(
-        self, t: ArrayLike, x: ArrayLike, u: ArrayLike, w: ArrayLike | None = None
+        self,
+        t: ArrayLike,
+        x: ArrayLike,
+        u: ArrayLike,
+        w: ArrayLike | None = None,
+        *,
+        angle: ArrayLike | None = None,
     ) -> None:
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "x", x)
         object.__setattr__(self, "u", u)
         object.__setattr__(self, "w", w)
+        object.__setattr__(self, "angle", angle)
         self._validate()
 
     def _validate(self) -> None:
@@ -147,10 +161,27 @@ class Trajectory:
                     raise InputError(f"Trajectory.{name}: has no channels")
                 array.setflags(write=False)
         t.setflags(write=False)
+        object.__setattr__(self, "angle", self._angle(count))
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "x", x)
         object.__setattr__(self, "u", u)
         object.__setattr__(self, "w", w)
+
+    def _angle(self, count: int) -> Array | None:
+        if self.angle is None:
+            return None
+        try:
+            angle = np.array(self.angle, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"Trajectory.angle: not numeric ({exc})") from None
+        if angle.shape != (count,):
+            raise InputError(
+                f"Trajectory.angle: expected {count} values (one per sample time), got "
+                f"shape {angle.shape}"
+            )
+        _check_finite(angle.reshape(-1, 1), "angle")
+        angle.setflags(write=False)
+        return angle
 
     @property
     def num_samples(self) -> int:
@@ -192,7 +223,10 @@ class Trajectory:
             )
         stop = num_samples + 1
         w = None if self.w is None else self.w[: min(stop, self.w.shape[0])]
-        return Trajectory(t=self.t[:stop], x=self.x[:stop], u=self.u[:num_samples], w=w)
+        angle = None if self.angle is None else self.angle[:stop]
+        return Trajectory(
+            t=self.t[:stop], x=self.x[:stop], u=self.u[:num_samples], w=w, angle=angle
+        )
 
 
 def as_trajectories(data: Trajectory | Sequence[Trajectory]) -> list[Trajectory]:

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..core import Array, ControlLaw
 from ._discrete_model import DiscreteModel
-from ._evidence import Evidence
+from ._evidence import INFLATION_LIMIT, Evidence
 from ._identify import design_continuous, design_digital
 from ._problem import LearningOptions, LearningProblem
 from ._quality import PLAUSIBLE_MODELS, Quality, closed_loop_radius, standard_errors
@@ -112,6 +112,12 @@ def verdict(
     """The quality of ``law`` and the spectral radii of its loop on plausible models."""
     model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
     notes = list(errors.notes)
+    if evidence.fit is not None and evidence.fit.correlation_inflation > INFLATION_LIMIT:
+        notes.append(
+            f"the model misses part of the data: its output errors are correlated in time "
+            f"({evidence.fit.correlation_inflation:.3g} times the variance white noise "
+            "gives); the standard errors include that, a bias it may cause they cannot show"
+        )
     K_learned = _outputs(law, errors.P)[0]
     K_se, U_se = errors.K_se, errors.U_se
     if options.method == "adp" and options.target == "continuous":
@@ -136,7 +142,7 @@ def verdict(
         consistency_statistic=evidence.consistency.statistic,
         consistency_threshold=evidence.consistency.threshold,
         noise_handling=options.noise if options.method == "adp" else "output error",
-        K_se=K_se[:, : law.K.shape[1]],
+        K_se=K_se,
         U_se=U_se,
         P_se=errors.P_se if options.method == "identify" else np.full_like(errors.P, np.nan),
         K_relative_se=relative_size(K_se, K_learned),

@@ -2,8 +2,9 @@
 
 :func:`reproduce` runs every algorithm with the paper's settings (PAPER_NOTES.md
 section 6) on :meth:`SPMSM.paper`, compares each with the model-based optimum, and
-simulates the torque step under the LQR, the initial, the Algorithm 1 and the Algorithm
-2 controllers (the paper's Figs. 1-3). :func:`report` renders the table the command
+simulates the torque step under the LQR, the initial and every algorithm's controller
+(the paper's Figs. 1-3 show the LQR, the initial, Algorithm 1 and 2; the figures here
+show all). :func:`report` renders the table the command
 prints; :func:`results_document` every printed number as JSON; :func:`write_outputs`
 writes ``results.json`` and the five figures (:mod:`._figures`).
 """
@@ -63,7 +64,8 @@ class Reproduction:
     evaluations : dict of str to TuningEvaluation
         The same keys.
     responses : dict of str to Trajectory
-        Torque steps from rest under ``"lqr"``, ``"initial"``, ``"1"`` and ``"2"``.
+        Torque steps from rest under ``"lqr"``, ``"initial"`` and every algorithm's
+        controller (Algorithm 3's with its identified flux).
     wall_seconds : float
         How long the learning and the simulations took.
     """
@@ -128,7 +130,7 @@ def reproduce(
     announce("torque steps")
     partial = Reproduction(motor, settings, optimum, results, evaluations, {}, 0.0)
     responses = {}
-    for name in ("lqr", "initial", "1", "2"):
+    for name in ("lqr", "initial", "1", "2", "3", "offpolicy"):
         K, X, U, w = partial.controller(name)
         responses[name] = closed_loop_response(motor, settings, K, X, U, w, RESPONSE_DURATION)
     return replace(partial, responses=responses, wall_seconds=time.perf_counter() - start)

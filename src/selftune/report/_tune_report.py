@@ -10,8 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..core import ControlLaw, matrix_block
-from ..learn import Quality
+from ..core import matrix_block
 from ..model import SPMSM, DigitalSolution
 from ..sim import DriveSettings
 from ..tuning import TuningResult, TuningSettings
@@ -23,7 +22,6 @@ __all__ = [
     "HOT_RESISTANCE",
     "TorqueCheck",
     "drive_text",
-    "law_document",
     "torque_check",
     "tune_document",
     "tune_lines",
@@ -78,29 +76,6 @@ def torque_check(
     )
 
 
-def law_document(law: ControlLaw) -> dict[str, Any]:
-    """The controller as a drive engineer puts it on a drive: its equations in words and
-    symbols, the names of K's columns, and every matrix they name (SI units: V/A, V/V,
-    V/(A s)).
-
-    Parameters
-    ----------
-    law : ControlLaw
-        The controller.
-    """
-    document: dict[str, Any] = {
-        "equations": law.equations(),
-        "state": list(law.state),
-        "K": law.K,
-        "X": law.X,
-        "U": law.U,
-        "input_delay_compensated": law.history,
-    }
-    if law.K_i is not None:
-        document.update({"K_i": law.K_i, "C": law.C, "F": law.F, "h": law.h})
-    return document
-
-
 def drive_text(drive: DriveSettings | None) -> str:
     """The simulated drive in a few words.
 
@@ -121,28 +96,6 @@ def drive_text(drive: DriveSettings | None) -> str:
     if drive.temperature_rise:
         parts.append(f"{drive.temperature_rise:g} K warmer")
     return "a realistic drive (" + ", ".join(parts) + ")"
-
-
-def _quality_lines(quality: Quality) -> list[str]:
-    noise = (
-        "none estimated"
-        if quality.noise_rms is None
-        else ", ".join(f"{value * 1e3:.3g} mA" for value in quality.noise_rms)
-    )
-    lines = [
-        "quality (from the data alone):",
-        f"  K within +-{quality.K_relative_se:.2%}, U within +-{quality.U_relative_se:.2%} "
-        "(one standard error, relative)",
-        f"  measurement noise {noise}; consistency statistic {quality.consistency_statistic:.3g}"
-        f" (refused above {quality.consistency_threshold:.3g})",
-        f"  log alignment: the voltage applied during sample k is in row k - {quality.shift}"
-        f" (the data show {quality.detected_shift}); stability margin "
-        f"{quality.stability_margin:.3g}",
-    ]
-    if quality.voltage_error is not None:
-        lines.append(f"  inverter dead-time voltage {quality.voltage_error:.3g} V per phase")
-    lines += [f"  note: {note}" for note in quality.notes]
-    return lines
 
 
 def tune_lines(
@@ -181,7 +134,7 @@ def tune_lines(
     if law.K_i is not None:
         lines += matrix_block("K_i", law.K_i, ["u_d", "u_q"], ["z_d", "z_q"])
     lines += matrix_block("U", law.U, ["u_d", "u_q"], ["w1", "w2"])
-    lines += ["", *_quality_lines(result.quality), ""]
+    lines += ["", *result.quality.lines(), ""]
     lines.append(
         f"on the simulated drive: steady torque error {torque.steady_error:+.3%}; after R_s "
         f"+{HOT_RESISTANCE - 1:.0%} without re-tuning {torque.hot_error:+.3%}"
@@ -232,12 +185,12 @@ def tune_document(
         "algorithm": result.algorithm,
         "target": result.target,
         "integral_action": result.law.K_i is not None,
-        "control_law": law_document(result.law),
+        "control_law": result.law.document(),
         "learned": {"P": result.P, "B": result.B, "theta": result.theta, "w": result.w},
         "quality": result.quality,
         "identified": result.identified,
         "data_seconds": result.data_seconds,
-        "model_based": law_document(best),
+        "model_based": best.document(),
         "K_relative_error": evaluation.K_error,
         "U_relative_error": evaluation.U_error,
         "theta_relative_error": evaluation.final_theta_error,

@@ -344,18 +344,21 @@ class GemDrive:
         pad = max(history, delay)
         commands = np.zeros((pad + count, 2))  # computed commands; zeros before the first
         x, u = np.empty((count + 1, 2)), np.empty((count, 2))
+        angles = np.empty(count + 1)
         z = np.zeros(law.r)
         with _quiet() as caught, self._plant() as plant:
             x[0], angle = plant.reset()
+            angles[0] = angle
             for k in range(count):
                 past = commands[pad + k - history : pad + k]
                 commands[pad + k] = law.command(x[k], w[k], past, z) + rho[k]
                 if law.K_i is not None and law.C is not None and law.F is not None and law.h:
                     z = z + law.h * (law.C @ x[k] + law.F @ w[k])
                 x[k + 1], u[k], angle = plant.step(commands[pad + k - delay], angle, k)
+                angles[k + 1] = angle
                 if caught:
                     _check_solver(caught, self.ode_solver, k)
-        return Trajectory(t=t, x=x, u=u, w=w)
+        return Trajectory(t=t, x=x, u=u, w=w, angle=angles)
 
     @contextmanager
     def _plant(self) -> Iterator[_Plant]:

@@ -363,9 +363,12 @@ def _records(
     measured, true_pairs = _as_pairs(outputs.measured), _as_pairs(true_dq)
     applied, torque = _as_pairs(outputs.applied), inputs.motor.torque(true_dq.imag)
     w = np.broadcast_to(inputs.w, (true_dq.shape[0], *inputs.w.shape[1:]))
+    angles = np.angle(inputs.rotor)  # the rotor angle at each sample, in (-pi, pi]
     records = []
     for index in range(true_dq.shape[0]):
-        trajectory = Trajectory(t=t, x=measured[index], u=logged[index], w=w[index])
+        trajectory = Trajectory(
+            t=t, x=measured[index], u=logged[index], w=w[index], angle=angles[index]
+        )
         records.append(
             DriveRecord(
                 trajectory=trajectory,

@@ -172,7 +172,11 @@ class _Session:
         else:  # a constant reference: judge K on the back-EMF channel alone
             judged = assess(
                 ControlLaw.regulator(last.K, self.X[:, :1], last.U[:, :1]),
-                [Trajectory(e.t, e.x, e.u, e.w[:, :1]) for e in self.episodes if e.w is not None],
+                [
+                    Trajectory(e.t, e.x, e.u, e.w[:, :1], angle=e.angle)
+                    for e in self.episodes
+                    if e.w is not None
+                ],
                 replace_F(problem, problem.F[:, :1] if problem.F is not None else None),
                 options, P=last.P, feedforward=False,
             )  # fmt: skip

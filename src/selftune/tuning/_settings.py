@@ -282,7 +282,9 @@ def _drive_defaults(config: MotorConfig, table: ConfigTable) -> _Defaults:
     )
 
 
-def tuning_settings(config: MotorConfig, seed: int = 0) -> TuningSettings:
+def tuning_settings(
+    config: MotorConfig, seed: int = 0, target: str | None = None
+) -> TuningSettings:
     """The self-tuning settings of a motor file: its operating point, cost and [learning].
 
     ``[learning]`` may set ``sampling`` (s), ``episode_length`` (s), ``K0`` (2x2, V/A),
@@ -303,6 +305,9 @@ def tuning_settings(config: MotorConfig, seed: int = 0) -> TuningSettings:
         The motor file's content.
     seed : int
         Seed of the exploration.
+    target : {"continuous", "digital"}, optional
+        Overrides the file's ``target`` (the command line's ``--target``); the digital
+        target's controller updates every sample, so ``input_hold`` then defaults to 1.
 
     Returns
     -------
@@ -312,9 +317,18 @@ def tuning_settings(config: MotorConfig, seed: int = 0) -> TuningSettings:
     ------
     DataFileError
         Naming the file and the key, for an unknown key or a bad value.
+    InputError
+        If ``target`` is not one of the two.
     """
     table = ConfigTable(config.source, "learning", config.learning, TUNING_KEYS)
     defaults = _drive_defaults(config, table)
+    if target is not None:
+        if target not in ("continuous", "digital"):
+            raise InputError(f"target: must be 'continuous' or 'digital', got {target!r}")
+        hold = 1 if target == "digital" else defaults.input_hold
+        defaults = replace(defaults, target=target, input_hold=hold)
+    elif table.choice("target", ("continuous", "digital"), defaults.target) == "digital":
+        defaults = replace(defaults, input_hold=1)
     try:
         return TuningSettings(
             speed=config.speed,
@@ -329,7 +343,11 @@ def tuning_settings(config: MotorConfig, seed: int = 0) -> TuningSettings:
             interval=table.positive_integer("interval", TuningSettings.interval),
             max_iterations=table.positive_integer("max_iterations", TuningSettings.max_iterations),
             seed=seed,
-            target=_target(table.choice("target", ("continuous", "digital"), defaults.target)),
+            target=_target(
+                defaults.target
+                if target is not None
+                else table.choice("target", ("continuous", "digital"), defaults.target)
+            ),
             integral_action=table.flag("integral_action", False),
             dead_time=table.flag("dead_time", defaults.dead_time),
             perturbation=_perturbation(
