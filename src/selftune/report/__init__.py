@@ -22,7 +22,13 @@ from ._digital_evaluation import (
 )
 from ._documents import history_document, regulator_document
 from ._drive_check import STEADY_SECONDS, steady_torque_error
-from ._evaluate import TuningEvaluation, closed_loop_response, evaluate, policy_true_cost
+from ._evaluate import (
+    TuningEvaluation,
+    closed_loop_response,
+    evaluate,
+    feedback_value,
+    steady_state,
+)
 from ._reproduce import (
     ALGORITHMS,
     Reproduction,
@@ -53,12 +59,13 @@ __all__ = [
     "evaluate",
     "evaluate_digital",
     "feedback_excess_cost",
+    "feedback_value",
     "history_document",
-    "policy_true_cost",
     "regulator_document",
     "report",
     "reproduce",
     "results_document",
+    "steady_state",
     "steady_torque_error",
     "torque_check",
     "true_motor",

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import Array, ControlLaw, policy_value
+from ..errors import UnsolvableError
 from ..learn import LearningProblem, Trajectory
 from ..model import SPMSM, DigitalSolution, ModelBasedSolution, solve_optimal_regulation
 from ..sim import DriveSettings, constant, simulate
@@ -21,9 +22,10 @@ __all__ = [
     "TuningEvaluation",
     "closed_loop_response",
     "evaluate",
+    "feedback_value",
     "gains",
     "learner_integral_weight",
-    "policy_true_cost",
+    "steady_state",
 ]
 
 
@@ -39,15 +41,17 @@ class TuningEvaluation:
     learned_cost : ndarray, shape (iterations,)
         ``xbar(0)' P_j xbar(0)``, the learned cost-to-go of ``K_j`` from ``x(0) = 0``.
     true_cost : ndarray, shape (iterations,)
-        The true cost of the applied policy ``(K_j, U_j)`` from ``x(0) = 0``: the cost
-        (5) of its transient to its own steady state (equal to (5) when the policy
-        regulates, i.e. ``U_j = U*``); ``inf`` if it does not stabilize.
+        The true value of the applied feedback ``K_j`` for the same step
+        (:func:`feedback_value`): what ``P_j`` estimates; never below the optimum's;
+        ``inf`` if ``K_j`` does not stabilize. A wrong feedforward ``U_j`` shifts the
+        steady state instead (:func:`steady_state`), which an infinite-horizon cost
+        cannot weigh.
     final_theta_error : float
         ``||Theta - Theta*|| / ||Theta*||`` of the result (NaN for the digital target).
     K_error, U_error : float
         ``||K - K*|| / ||K*||`` and ``||U - U*|| / ||U*||`` (K with K_i beside it).
     excess_cost : float
-        The true cost of the result's controller over the optimum's, minus 1, for the
+        The true cost of the result's feedback over the optimum's, minus 1, for the
         torque step from rest: on the continuous loop (continuous target, NaN with
         integral action) or on the sampled loop with the drive's delay and the same
         integral weight (digital target, :mod:`._digital_evaluation`).
@@ -63,10 +67,46 @@ class TuningEvaluation:
     excess_cost: float = float("nan")
 
 
-def policy_true_cost(
+def steady_state(
     motor: SPMSM, settings: TuningSettings, K: Array, X: Array, U: Array, w: Array
-) -> float:
-    """Cost (5) of the policy ``u = -K (x - X w) + U w`` from rest, to its own steady state.
+) -> Array | None:
+    """The currents where ``u = -K (x - X w) + U w`` settles on the true motor, A.
+
+    The controller acts on its own ``w`` (its flux may differ from the true one); the
+    motor's back-EMF is its own: ``0 = (A - B K) x + B (U + K X) w + D w_true``.
+
+    Parameters
+    ----------
+    motor : SPMSM
+        The true motor.
+    settings : TuningSettings
+        Speed and torque reference.
+    K : ndarray, shape (2, 2)
+        Feedback gain, V/A.
+    X, U : ndarray, shape (2, 2)
+        Steady-state map and feedforward of the controller.
+    w : ndarray, shape (2,)
+        The controller's ``w``.
+
+    Returns
+    -------
+    ndarray, shape (2,), or None
+        None if ``A - B K`` is not Hurwitz (no steady state).
+    """
+    problem = motor.regulation_problem(settings.speed)
+    A, B, D = problem.A, problem.B, problem.D
+    closed_loop = A - B @ K
+    if np.max(np.linalg.eigvals(closed_loop).real) >= 0:
+        return None
+    w_true = motor.exogenous(settings.speed, settings.torque)
+    return np.asarray(np.linalg.solve(closed_loop, -(B @ (U + K @ X) @ w + D @ w_true)))
+
+
+def feedback_value(motor: SPMSM, settings: TuningSettings, K: Array) -> float:
+    """The true cost (5) of the feedback ``u - U* w = -K (x - X* w)`` for the torque step
+    from rest: ``xbar_0' P_K xbar_0`` with ``xbar_0 = -X* w_true`` (about the true
+    operating point) and ``P_K`` the value of K on the true motor; ``inf`` if K does not
+    stabilize it. It is what a learned ``P_j`` estimates, and never below the optimum.
 
     Parameters
     ----------
@@ -76,28 +116,13 @@ def policy_true_cost(
         Speed, torque reference and cost weights.
     K : ndarray, shape (2, 2)
         Feedback gain, V/A.
-    X : ndarray, shape (2, 2)
-        Steady-state map of the controller.
-    U : ndarray, shape (2, 2)
-        Feedforward of the controller.
-    w : ndarray, shape (2,)
-        The controller's ``w`` (its flux may differ from the true one).
-
-    Returns
-    -------
-    float
-        The cost; ``inf`` if the policy does not stabilize the motor.
     """
     problem = motor.regulation_problem(settings.speed)
-    A, B, D = problem.A, problem.B, problem.D
-    w_true = motor.exogenous(settings.speed, settings.torque)
-    closed_loop = A - B @ K
-    if np.max(np.linalg.eigvals(closed_loop).real) >= 0:
+    try:
+        value = policy_value(problem.A, problem.B, K, settings.Q, settings.R)
+    except UnsolvableError:
         return float("inf")
-    # The controller acts on its own w (identified flux for Algorithm 3); the motor on w_true.
-    steady = np.linalg.solve(closed_loop, -(B @ (U + K @ X) @ w + D @ w_true))
-    value = policy_value(A, B, K, settings.Q, settings.R)
-    start = -steady
+    start = -motor.current_reference(settings.torque)  # -X* w_true: x_e = [0, i_q*]
     return float(start @ value @ start)
 
 
@@ -130,31 +155,26 @@ def evaluate(
         motor.regulation_problem(settings.speed), settings.Q, settings.R, integral_weight=weight
     )
     theta_star = optimum.theta
-    x_bar0 = -result.X @ result.w
-    theta_error = []
-    learned_cost = []
-    true_cost = []
+    x_bar0 = -result.X @ result.w  # the learner's own start: what its P_j are about
+    theta_error, learned_cost, true_cost = [], [], []
     for item in result.history:
         if item.theta.shape == theta_star.shape:
             theta_error.append(float(np.linalg.norm(item.theta - theta_star)))
         else:
-            theta_error.append(float("nan"))  # Algorithm 3's no-load step has 9 unknowns
-        x0 = x_bar0 if item.step != "no-load" else np.zeros(2)
-        learned_cost.append(float(x0 @ item.P @ x0) if item.step != "no-load" else float("nan"))
-        if item.step == "no-load":
-            true_cost.append(float("nan"))
-        else:
-            true_cost.append(
-                policy_true_cost(
-                    motor, settings, item.K_applied, result.X, item.U_applied, result.w
-                )
-            )
+            theta_error.append(float("nan"))
+        learned_cost.append(
+            float(x_bar0 @ item.P @ x_bar0) if item.P.shape == (2, 2) else float("nan")
+        )
+        true_cost.append(
+            feedback_value(motor, settings, item.K_applied)
+            if item.K_applied.shape == (2, 2)
+            else float("nan")
+        )
     norm = float(np.linalg.norm(theta_star))
-    optimal_cost = float(x_bar0 @ optimum.P[:2, :2] @ x_bar0)
+    optimal_cost = feedback_value(motor, settings, optimum.K)
     excess = float("nan")
-    if weight is None and optimal_cost > 0.0:
-        learned = policy_true_cost(motor, settings, result.K, result.X, result.U, result.w)
-        excess = learned / optimal_cost - 1.0
+    if weight is None and 0.0 < optimal_cost < float("inf"):
+        excess = feedback_value(motor, settings, result.K) / optimal_cost - 1.0
     best = gains(optimum.law(settings.sampling))
     return TuningEvaluation(
         optimum=optimum,

@@ -24,10 +24,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..core import Array, policy_value
-from ..errors import UnsolvableError
+from ..core import Array
 from ..learn import Trajectory
-from ._evaluate import closed_loop_response
+from ._evaluate import closed_loop_response, feedback_value, steady_state
 
 if TYPE_CHECKING:
     from ._reproduce import Reproduction
@@ -92,18 +91,6 @@ def torque_steps(reproduction: Reproduction) -> dict[str, Trajectory]:
     return {name: responses[name] for name in CONTROLLERS if name in responses}
 
 
-def _true_plant(reproduction: Reproduction) -> tuple[Array, Array, Array, Array]:
-    """``A, B, D`` of the true motor at the reproduction's speed, and ``w_true``."""
-    settings = reproduction.settings
-    problem = reproduction.motor.regulation_problem(settings.speed)
-    return (
-        problem.A,
-        problem.B,
-        problem.D,
-        reproduction.motor.exogenous(settings.speed, settings.torque),
-    )
-
-
 def steady_torque_offset(
     reproduction: Reproduction, K: Array, X: Array, U: Array, w: Array
 ) -> float:
@@ -128,30 +115,15 @@ def steady_torque_offset(
     float
         The offset, N m; NaN if ``A - B K`` is not Hurwitz (no steady state).
     """
-    A, B, D, w_true = _true_plant(reproduction)
-    closed_loop = A - B @ K
-    if np.max(np.linalg.eigvals(closed_loop).real) >= 0:
+    steady = steady_state(reproduction.motor, reproduction.settings, K, X, U, w)
+    if steady is None:
         return float("nan")
-    steady = np.linalg.solve(closed_loop, -(B @ (U + K @ X) @ w + D @ w_true))
-    torque = float(reproduction.motor.torque(steady[1]))
-    return torque - reproduction.settings.torque
-
-
-def _start(reproduction: Reproduction) -> Array:
-    """``x_bar0 = -X* w_true``: the motor at rest, from the true operating point, A."""
-    _, _, _, w_true = _true_plant(reproduction)
-    return np.asarray(-reproduction.optimum.X @ w_true)
+    return float(reproduction.motor.torque(steady[1])) - reproduction.settings.torque
 
 
 def _feedback_value(reproduction: Reproduction, K: Array) -> float:
     """``x_bar0' P_K x_bar0``, the true value of ``u - U* w = -K (x - X* w)`` from rest."""
-    A, B, _, _ = _true_plant(reproduction)
-    try:
-        value = policy_value(A, B, K, reproduction.settings.Q, reproduction.settings.R)
-    except UnsolvableError:  # not stabilizing: the cost is infinite
-        return float("inf")
-    start = _start(reproduction)
-    return float(start @ value @ start)
+    return feedback_value(reproduction.motor, reproduction.settings, K)
 
 
 def optimal_value(reproduction: Reproduction) -> float:
@@ -162,9 +134,7 @@ def optimal_value(reproduction: Reproduction) -> float:
     reproduction : Reproduction
         What :func:`~selftune.report.reproduce` computed.
     """
-    start = _start(reproduction)
-    P = reproduction.optimum.P[: start.size, : start.size]
-    return float(start @ P @ start)
+    return feedback_value(reproduction.motor, reproduction.settings, reproduction.optimum.K)
 
 
 @dataclass(frozen=True)
