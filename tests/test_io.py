@@ -27,7 +27,11 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from numpy.typing import ArrayLike
 
+import selftune.learn
+import selftune.learn._csv as selftune_csv
+import selftune.learn._data_file as selftune_data_file
 import selftune.learn._io as selftune_io
+import selftune.learn._npz as selftune_npz
 from selftune.errors import DataFileError, InputError
 from selftune.learn import (
     Trajectory,
@@ -40,7 +44,9 @@ from selftune.learn import (
 )
 from selftune.learn._io import trajectory_dimensions
 
-Arrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]
+#: (t, x, u, w, angle), w and angle optional.
+Arrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]
+FIELDS = ("t", "x", "u", "w", "angle")
 
 
 # --------------------------------------------------------------------------- helpers
@@ -60,16 +66,25 @@ def same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
 
 
 def trajectory_of(
-    t: ArrayLike, x: ArrayLike, u: ArrayLike, w: ArrayLike | None = None
+    t: ArrayLike,
+    x: ArrayLike,
+    u: ArrayLike,
+    w: ArrayLike | None = None,
+    angle: ArrayLike | None = None,
 ) -> Trajectory:
     """A Trajectory from nested lists (the dataclass fields are annotated as arrays)."""
-    array = None if w is None else np.asarray(w, dtype=np.float64)
     return Trajectory(
         t=np.asarray(t, np.float64),
         x=np.asarray(x, np.float64),
         u=np.asarray(u, np.float64),
-        w=array,
+        w=None if w is None else np.asarray(w, dtype=np.float64),
+        angle=None if angle is None else np.asarray(angle, dtype=np.float64),
     )
+
+
+def assert_same_fields(loaded: Trajectory, expected: Trajectory) -> None:
+    for name in FIELDS:
+        assert same(getattr(loaded, name), getattr(expected, name)), name
 
 
 def assert_clear(error: DataFileError, path: Path) -> None:
@@ -127,7 +142,8 @@ def trajectory_arrays(
     u_rows: tuple[int, ...] = (0,),
     w_rows: tuple[int, ...] = (0, 1),
 ) -> Arrays:
-    """Valid (t, x, u, w): u with N + one of ``u_rows`` rows, w with N + one of ``w_rows``."""
+    """Valid (t, x, u, w, angle): u with N + one of ``u_rows`` rows, w with N + one of
+    ``w_rows``; w and the angle present or not."""
     N = draw(st.integers(1, 6))
     n, m, q = draw(st.integers(1, 3)), draw(st.integers(1, 3)), draw(st.integers(0, 2))
     t = draw(sample_times(N + 1))
@@ -136,7 +152,10 @@ def trajectory_arrays(
     w = None
     if q:
         w = draw(hnp.arrays(np.float64, (N + draw(st.sampled_from(w_rows)), q), elements=elements))
-    return t, x, u, w
+    angle = None
+    if draw(st.booleans()):
+        angle = draw(hnp.arrays(np.float64, N + 1, elements=elements))
+    return t, x, u, w, angle
 
 
 # --------------------------------------------------------------------------- round trips
@@ -144,15 +163,19 @@ def trajectory_arrays(
 
 @given(arrays=trajectory_arrays())
 def test_csv_round_trip_is_bit_exact(workdir: Path, arrays: Arrays) -> None:
-    t, x, u, w = arrays
-    original = Trajectory(t=t, x=x, u=u, w=w)
+    t, x, u, w, angle = arrays
+    event("with angle" if angle is not None else "without angle")
+    original = Trajectory(t=t, x=x, u=u, w=w, angle=angle)
     assert same(original.t, t - t[0])  # stored relative to the first sample
+    assert same(original.angle, angle)  # kept as given
     path = workdir / "round.csv"
     save_csv(original, path)
+    assert path.read_text().split("\n")[0].endswith(",theta") == (angle is not None)
     loaded = load_csv(path)
     assert same(loaded.t, original.t)
     assert same(loaded.x, original.x)
     assert same(loaded.u, original.u)
+    assert same(loaded.angle, original.angle)
     if w is None:
         assert loaded.w is None
     else:
@@ -161,26 +184,54 @@ def test_csv_round_trip_is_bit_exact(workdir: Path, arrays: Arrays) -> None:
         assert same(loaded.w[: w.shape[0]], original.w)
         assert same(loaded.w[-1], w[-1])
     save_csv(loaded, path)
-    assert same(load_csv(path).w, loaded.w)
+    again = load_csv(path)
+    assert same(again.w, loaded.w) and same(again.angle, loaded.angle)
 
 
 @given(arrays=trajectory_arrays(u_rows=(0, 1)))
 def test_npz_round_trip_is_exact_including_row_counts(workdir: Path, arrays: Arrays) -> None:
-    t, x, u, w = arrays
-    original = Trajectory(t=t, x=x, u=u, w=w)
+    t, x, u, w, angle = arrays
+    event("with angle" if angle is not None else "without angle")
+    original = Trajectory(t=t, x=x, u=u, w=w, angle=angle)
     path = workdir / "round.npz"
     save_npz(original, path)
-    loaded = load_npz(path)
-    for name in ("t", "x", "u", "w"):
-        assert same(getattr(loaded, name), getattr(original, name)), name
+    with zipfile.ZipFile(path) as archive:
+        assert ("angle.npy" in archive.namelist()) == (angle is not None)
+    assert_same_fields(load_npz(path), original)
     # The same arrays written by numpy directly (u possibly with N + 1 rows) load too.
-    stored: dict[str, Any] = {"t": t, "x": x, "u": u}
-    if w is not None:
-        stored["w"] = w
-    np.savez(path, **stored)
-    direct = load_npz(path)
-    for name in ("t", "x", "u", "w"):
-        assert same(getattr(direct, name), getattr(original, name)), name
+    np.savez(path, **stored_arrays(arrays))
+    assert_same_fields(load_npz(path), original)
+
+
+def stored_arrays(arrays: Arrays) -> dict[str, np.ndarray]:
+    """The arrays of an NPZ file holding ``arrays`` (the optional ones if present)."""
+    return {name: array for name, array in zip(FIELDS, arrays, strict=True) if array is not None}
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+@pytest.mark.parametrize("angle", [None, [0.0, -0.0, 3.141592653589793, -12.566370614359172]])
+def test_round_trip_with_and_without_angle(
+    tmp_path: Path, suffix: str, angle: list[float] | None
+) -> None:
+    """The angle is saved and loaded (bit-exact: -0.0 stays -0.0) and is not a channel."""
+    original = trajectory_of(
+        t=[0.0, 1e-4, 2e-4, 3e-4],
+        x=[[1.0, 0.1], [2.0, 0.2], [3.0, 0.3], [4.0, 0.4]],
+        u=[[0.5], [-0.5], [0.25]],
+        w=[[1.0], [2.0], [3.0]],
+        angle=angle,
+    )
+    path = tmp_path / f"log{suffix}"
+    save_trajectory(original, path)
+    loaded = load_trajectory(path)
+    assert same(loaded.angle, original.angle)
+    assert same(loaded.x, original.x) and same(loaded.u, original.u)
+    assert trajectory_dimensions(path) == (2, 1, 1)
+    if suffix == ".csv":
+        header = path.read_text().splitlines()[0]
+        assert header == "t,x1,x2,u1,w1" + (",theta" if angle is not None else "")
+    save_trajectory(loaded, path)
+    assert_same_fields(load_trajectory(path), loaded)
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".npz", ".CSV", ".Npz"])
@@ -229,6 +280,17 @@ def test_csv_layout(tmp_path: Path) -> None:
     )
 
 
+def test_csv_layout_with_angle(tmp_path: Path) -> None:
+    original = trajectory_of(t=[0.0, 0.5, 1.0], x=[1, 3, 5], u=[[0.1], [0.2]], angle=[0, 2.5, -1])
+    path = tmp_path / "layout.csv"
+    save_csv(original, path)
+    assert path.read_text() == (
+        "t,x1,u1,theta\n0.0,1.0,0.1,0.0\n0.5,3.0,0.2,2.5\n1.0,5.0,0.2,-1.0\n"
+    )
+    path.write_bytes(b"t,x1,u1, theta\t\r\n0,1,0.1,0\r\n0.5,3,0.2,2.5\r\n1,5,0.2,-1e0\r\n")
+    assert same(load_csv(path).angle, original.angle)  # the usual reading conventions
+
+
 def test_csv_reading_conventions(tmp_path: Path) -> None:
     """CRLF, a byte-order mark, blank trailing lines and spaces around fields are fine."""
     path = tmp_path / "lenient.csv"
@@ -251,7 +313,7 @@ def test_save_refuses_a_non_trajectory(tmp_path: Path) -> None:
 
 def _trajectory() -> Trajectory:
     t = np.linspace(0.0, 1.0, 6)
-    return Trajectory(t=t, x=np.c_[t, t**2], u=t[:-1], w=np.ones(6))
+    return Trajectory(t=t, x=np.c_[t, t**2], u=t[:-1], w=np.ones(6), angle=3 * t)
 
 
 @pytest.mark.parametrize("existing", [False, True])
@@ -262,7 +324,7 @@ def test_failed_csv_save_leaves_no_partial_file(
     if existing:
         path.write_text("old content")
     calls = []
-    format_rows = selftune_io._format_rows
+    format_rows = selftune_csv._format_rows
 
     def fail_on_second_chunk(rows: np.ndarray) -> str:
         calls.append(rows.shape[0])
@@ -270,8 +332,8 @@ def test_failed_csv_save_leaves_no_partial_file(
             raise RuntimeError("disk full")
         return format_rows(rows)
 
-    monkeypatch.setattr(selftune_io, "_CSV_CHUNK_ROWS", 2)
-    monkeypatch.setattr(selftune_io, "_format_rows", fail_on_second_chunk)
+    monkeypatch.setattr(selftune_csv, "_CSV_CHUNK_ROWS", 2)
+    monkeypatch.setattr(selftune_csv, "_format_rows", fail_on_second_chunk)
     with pytest.raises(RuntimeError, match="disk full"):
         save_csv(_trajectory(), path)
     assert calls == [2, 2]  # the first chunk was written before the failure
@@ -373,6 +435,24 @@ GOOD_ROWS = "0,1,2\n1,2,3\n2,3,4\n"
         ("t,x1,u1\n0,1,2\n0,2,3\n", ["line 3, column 1 (t)", "strictly increasing"]),
         ("t,x1,u1\n0,1,2\n1,2,3\n0.5,2,3\n", ["line 4, column 1 (t)", "strictly increasing"]),
         ("t,x1,u1\n0,1,2\n-0,2,3\n", ["line 3", "time -0.0 is not greater than 0.0 on line 2"]),
+        # the angle column 'theta': last, after the inputs, with a finite number per row
+        ("t,x1,theta,u1\n0,1,2,3\n1,2,3,4\n", ["line 1, column 3", "'x2' or 'u1', got 'theta'"]),
+        ("t,theta,x1,u1\n0,1,2,3\n1,2,3,4\n", ["line 1, column 2", "the last column"]),
+        ("t,x1,theta\n0,1,2\n1,2,3\n", ["line 1, column 3", "got 'theta'"]),
+        ("t,x1,u1,theta,w1\n0,1,2,3,4\n1,2,3,4,5\n", ["column 5", "'w1' after 'theta'"]),
+        ("t,x1,u1,theta,u2\n0,1,2,3,4\n1,2,3,4,5\n", ["column 5", "must be the last column"]),
+        ("t,x1,u1,theta,theta\n0,1,2,3,4\n1,2,3,4,5\n", ["column 5", "'theta' (a duplicate)"]),
+        ("t,x1,u1,theta,\n0,1,2,3,4\n1,2,3,4,5\n", ["line 1, column 5", "'' after 'theta'"]),
+        ("t,x1,u1,Theta\n" + GOOD_ROWS, ["column 4", "'u2', 'w1' or 'theta', got 'Theta'"]),
+        ("t,x1,u1,w1,theta1\n0,1,2,3,4\n1,2,3,4,5\n", ["column 5", "'w2' or 'theta'"]),
+        ("t,x1,u1,angle\n0,1,2,3\n1,2,3,4\n", ["line 1, column 4", "got 'angle'"]),
+        ("t,x1,u1,theta\n0,1,2,3\n1,2,3\n", ["line 3", "expected 4 fields, got 3"]),
+        ("t,x1,u1,theta\n0,1,2\n1,2,3,4\n", ["line 2", "expected 4 fields, got 3"]),
+        ("t,x1,u1,theta\n0,1,2,3\n1,2,3,nan\n", ["line 3, column 4 (theta)", "not a finite"]),
+        ("t,x1,u1,theta\n0,1,2,3\n1,2,3,\n", ["line 3, column 4 (theta)", "not a number: ''"]),
+        ("t,x1,u1,theta\n0,1,2,inf\n1,2,3,4\n", ["line 2, column 4 (theta)", "not a finite"]),
+        ("t,x1,u1,theta\n0,1,2,1e60\n1,2,3,4\n", ["line 2, column 4 (theta)", "beyond 1e+50"]),
+        ("t,x1,u1,theta\n0,1,2,1e999\n1,2,3,4\n", ["line 2, column 4 (theta)", "not finite"]),
     ],
 )
 def test_malformed_csv_gives_one_clear_line(tmp_path: Path, text: str, parts: list[str]) -> None:
@@ -405,7 +485,7 @@ _NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 def reference_csv(raw: bytes) -> Arrays | None:
     """What a file says by the format's definition (None if it is not a valid file).
 
-    Returns (t, x, u, w) with u and w as written, one row per sample time.
+    Returns (t, x, u, w, angle) with u and w as written, one row per sample time.
     """
     raw = raw.removeprefix(b"\xef\xbb\xbf")
     try:
@@ -418,9 +498,11 @@ def reference_csv(raw: bytes) -> Arrays | None:
     if len(lines) < 3:
         return None
     names = [name.strip(" \t") for name in lines[0].split(",")]
-    size = {letter: sum(name.startswith(letter) for name in names) for letter in "xuw"}
+    angle = names[-1] == "theta"  # an optional last column, not a channel
+    channels = names[:-1] if angle else names
+    size = {letter: sum(name.startswith(letter) for name in channels) for letter in "xuw"}
     expected = ["t"] + [f"{letter}{i}" for letter in "xuw" for i in range(1, size[letter] + 1)]
-    if names != expected or size["x"] == 0 or size["u"] == 0 or sum(size.values()) > 12:
+    if channels != expected or size["x"] == 0 or size["u"] == 0 or sum(size.values()) > 12:
         return None
     rows = []
     for line in lines[1:]:
@@ -435,9 +517,9 @@ def reference_csv(raw: bytes) -> Arrays | None:
     t = table[:, 0]
     if not all(later > earlier for earlier, later in itertools.pairwise(t)) or not resolves(t):
         return None
-    n, m = size["x"], size["u"]
-    w = table[:, 1 + n + m :] if size["w"] else None
-    return t, table[:, 1 : 1 + n], table[:, 1 + n : 1 + n + m], w
+    n, m, q = size["x"], size["u"], size["w"]
+    w = table[:, 1 + n + m : 1 + n + m + q] if q else None
+    return t, table[:, 1 : 1 + n], table[:, 1 + n : 1 + n + m], w, table[:, -1] if angle else None
 
 
 def check_csv(path: Path, raw: bytes) -> None:
@@ -449,18 +531,19 @@ def check_csv(path: Path, raw: bytes) -> None:
         expect_error(load_csv, path)
         return
     loaded = load_csv(path)
-    t, x, u, w = expected
+    t, x, u, w, angle = expected
     assert same(loaded.t, t - t[0])  # relative to the first sample
     assert same(loaded.x, x)
     assert same(loaded.u, u[:-1])
     assert same(loaded.w, w)
+    assert same(loaded.angle, angle)
 
 
 TOKENS = [
     "nan", "NaN", "inf", "-inf", "Infinity", "1e999", "-1e-999", "a", "e", "E", "x", "-",
     "+", ".", ",", ",,", "\n", "\r", "\r\n", " ", "\t", "", "0", "7", "1e3", '"', "#", "\x00",
     "é", "\ufeff", "x1", "u1", "w1", "w2", "t", "1_0", "0x1", "\u2003", "\x0b", "X1", "T",
-    "U1", "u0", "x01", "x 1",
+    "U1", "u0", "x01", "x 1", "theta", "Theta", "theta1", ",theta", "angle",
 ]  # fmt: skip
 
 
@@ -529,8 +612,8 @@ def test_mutated_csv_is_refused_or_read_as_written(
     workdir: Path, arrays: Arrays, data: st.DataObject
 ) -> None:
     path = workdir / "fuzz.csv"
-    t, x, u, w = arrays
-    save_csv(Trajectory(t=t, x=x, u=u, w=w), path)
+    t, x, u, w, angle = arrays
+    save_csv(Trajectory(t=t, x=x, u=u, w=w, angle=angle), path)
     valid = path.read_text()
     for _ in range(VARIANTS):
         text = valid
@@ -542,8 +625,8 @@ def test_mutated_csv_is_refused_or_read_as_written(
 @given(arrays=trajectory_arrays(elements=moderate), data=st.data())
 def test_truncated_or_byte_edited_csv(workdir: Path, arrays: Arrays, data: st.DataObject) -> None:
     path = workdir / "fuzz.csv"
-    t, x, u, w = arrays
-    save_csv(Trajectory(t=t, x=x, u=u, w=w), path)
+    t, x, u, w, angle = arrays
+    save_csv(Trajectory(t=t, x=x, u=u, w=w, angle=angle), path)
     valid = path.read_bytes()
     for _ in range(VARIANTS):
         raw = bytearray(valid)
@@ -587,10 +670,13 @@ noise = st.text(alphabet="0123456789.-+eE \t", max_size=6)
 number_like = st.integers(0, 19).flatmap(lambda k: noise if k == 0 else decimal_text())
 
 
+HEADERS = ["t,x1,u1", "t,x1,x2,u1,w1", "t,x1,u1,u2", "t,x1,u1,theta", "t,x1,u1,w1,theta"]
+
+
 @st.composite
 def number_like_csv(draw: st.DrawFn) -> str:
     """CSV text whose fields are numbers or number-like noise, rows often well formed."""
-    header = draw(st.sampled_from(["t,x1,u1", "t,x1,x2,u1,w1", "t,x1,u1,u2"]))
+    header = draw(st.sampled_from(HEADERS))
     columns = header.count(",") + 1
     end = draw(st.sampled_from(["\n", "\r\n"]))
     lines = [header]
@@ -611,7 +697,7 @@ def test_number_like_fields_are_read_exactly(workdir: Path, text: str) -> None:
 
 
 @given(
-    header=st.sampled_from(["t,x1,u1", "t,x1,x2,u1,w1", "t,x1,u1,u2"]),
+    header=st.sampled_from(HEADERS),
     body=st.text(alphabet="0123456789.,-+eE \t\n\r", max_size=120),
 )
 def test_number_like_noise_after_a_valid_header(workdir: Path, header: str, body: str) -> None:
@@ -624,6 +710,7 @@ def test_reference_accepts_what_save_writes(tmp_path: Path) -> None:
     save_csv(_trajectory(), path)
     expected = reference_csv(path.read_bytes())
     assert expected is not None and same(expected[1], _trajectory().x)
+    assert same(expected[4], _trajectory().angle)
 
 
 # --------------------------------------------------------------------------- NPZ errors
@@ -663,6 +750,22 @@ U = np.array([[0.1], [0.2]])
         ({"t": T[::-1], "x": X, "u": U}, ["Trajectory.t", "strictly increasing"]),
         ({"t": T, "x": X * np.nan, "u": U}, ["Trajectory.x", "NaN"]),
         ({"t": T, "x": X[:, :0], "u": U}, ["Trajectory.x", "no channels"]),
+        # the angle: one finite number per sample time
+        ({"t": T, "x": X, "u": U, "angle": T[:2]}, ["Trajectory.angle", "3 values", "(2,)"]),
+        ({"t": T, "x": X, "u": U, "angle": np.r_[T, 1.5]}, ["Trajectory.angle", "(4,)"]),
+        ({"t": T, "x": X, "u": U, "angle": T[:0]}, ["Trajectory.angle", "(0,)"]),
+        ({"t": T, "x": X, "u": U, "angle": T * [1, np.nan, 1]}, ["Trajectory.angle", "sample 1"]),
+        (
+            {"t": T, "x": X, "u": U, "angle": T * [1, np.inf, 1]},
+            ["Trajectory.angle", "NaN or infinite"],
+        ),
+        ({"t": T, "x": X, "u": U, "angle": T * 1e60}, ["array 'angle'", "beyond 1e+50"]),
+        ({"t": T, "x": X, "u": U, "angle": T[:, None]}, ["array 'angle'", "1-D", "(3, 1)"]),
+        ({"t": T, "x": X, "u": U, "angle": np.float64(0.0)}, ["array 'angle'", "1-D", "()"]),
+        ({"t": T, "x": X, "u": U, "angle": T.astype(str)}, ["array 'angle'", "dtype"]),
+        ({"t": T, "x": X, "u": U, "angle": T + 0j}, ["array 'angle'", "dtype"]),
+        ({"t": T, "x": X, "u": U, "theta": T}, ["unexpected array 'theta'", "optionally w and"]),
+        ({"t": T, "x": X, "angle": T}, ["missing array 'u'"]),
         ({"t": T[:1], "x": X[:1], "u": U[:1]}, ["Trajectory.t", "at least 2"]),
     ],
 )
@@ -729,8 +832,7 @@ DTYPES = ["<f8", ">f8", "<f4", "<f2", "<i8", "<u1", "?", "<c16", "<U3", "S3", "<
 @st.composite
 def npz_contents(draw: st.DrawFn) -> dict[str, np.ndarray]:
     """A valid archive's arrays with 0 to 2 edits: names, dtypes, shapes, row counts."""
-    t, x, u, w = draw(trajectory_arrays(elements=moderate, u_rows=(0, 1)))
-    contents = {"t": t, "x": x, "u": u} | ({} if w is None else {"w": w})
+    contents = stored_arrays(draw(trajectory_arrays(elements=moderate, u_rows=(0, 1))))
     for _ in range(draw(st.integers(0, 2))):
         edit = draw(
             st.sampled_from(
@@ -744,7 +846,7 @@ def npz_contents(draw: st.DrawFn) -> dict[str, np.ndarray]:
         if edit == "drop":
             del contents[name]
         elif edit == "add":
-            new = draw(st.sampled_from(["t", "x", "u", "w", "y", "T", "t.npy", "x_"]))
+            new = draw(st.sampled_from(["t", "x", "u", "w", "angle", "theta", "y", "t.npy", "x_"]))
             shape = draw(hnp.array_shapes(min_dims=0, max_dims=3, min_side=0, max_side=4))
             contents[new] = draw(hnp.arrays(np.float64, shape, elements=moderate))
         elif edit == "dtype":
@@ -770,10 +872,11 @@ def npz_contents(draw: st.DrawFn) -> dict[str, np.ndarray]:
 
 def reference_npz(contents: dict[str, np.ndarray]) -> Trajectory | None:
     """The trajectory an archive holds by the format's definition (None if invalid)."""
-    if not {"t", "x", "u"} <= set(contents) <= {"t", "x", "u", "w"}:
+    if not {"t", "x", "u"} <= set(contents) <= set(FIELDS):
         return None
     for name, array in contents.items():
-        if array.dtype.kind not in "iuf" or array.ndim not in ((1,) if name == "t" else (1, 2)):
+        vector = name in ("t", "angle")  # one number per sample time
+        if array.dtype.kind not in "iuf" or array.ndim not in ((1,) if vector else (1, 2)):
             return None
     floats = {name: array.astype(np.float64) for name, array in contents.items()}
     if not plausible(*floats.values()):
@@ -795,9 +898,7 @@ def test_generated_npz_is_refused_or_read_exactly(
     if expected is None:
         expect_error(load_npz, path)
         return
-    loaded = load_npz(path)
-    for name in ("t", "x", "u", "w"):
-        assert same(getattr(loaded, name), getattr(expected, name)), name
+    assert_same_fields(load_npz(path), expected)
 
 
 def member_spans(raw: bytes) -> list[tuple[int, int]]:
@@ -817,12 +918,9 @@ def test_corrupted_npz_is_refused_or_unchanged(
     workdir: Path, arrays: Arrays, data: st.DataObject
 ) -> None:
     """No edit of an archive's bytes may load as different data (the CRC must be checked)."""
-    t, x, u, w = arrays
-    stored: dict[str, Any] = {"t": t, "x": x, "u": u}
-    if w is not None:
-        stored["w"] = w
-    path = write_npz(workdir / "corrupt.npz", **stored)
-    original = Trajectory(t=t, x=x, u=u, w=w)
+    t, x, u, w, angle = arrays
+    path = write_npz(workdir / "corrupt.npz", **stored_arrays(arrays))
+    original = Trajectory(t=t, x=x, u=u, w=w, angle=angle)
     raw = bytearray(path.read_bytes())
     start, stop = data.draw(st.sampled_from(member_spans(bytes(raw))))
     where = data.draw(st.sampled_from(["anywhere", "array", "numbers"]))
@@ -851,8 +949,7 @@ def test_corrupted_npz_is_refused_or_unchanged(
         assert_clear(error, path)
         return
     event("loaded unchanged")
-    for name in ("t", "x", "u", "w"):
-        assert same(getattr(loaded, name), getattr(original, name)), name
+    assert_same_fields(loaded, original)
 
 
 @given(raw=st.binary(max_size=300))
@@ -876,6 +973,36 @@ def test_dimensions_are_read_from_the_header_alone(tmp_path: Path) -> None:
         trajectory_dimensions(bad)
 
 
+def test_dimensions_leave_the_angle_out(tmp_path: Path) -> None:
+    csv = tmp_path / "data.csv"
+    csv.write_text("t,x1,x2,u1,w1,theta\n0,1,abc\n")
+    assert trajectory_dimensions(csv) == (2, 1, 1)
+    csv.write_text("t,x1,u1,theta\n")
+    assert trajectory_dimensions(csv) == (1, 1, 0)
+    csv.write_text("t,x1,theta,u1\n")
+    with pytest.raises(DataFileError, match=r"line 1, column 3: .* got 'theta'"):
+        trajectory_dimensions(csv)
+    npz = write_npz(tmp_path / "data.npz", t=T, x=X, u=U, angle=T)
+    assert trajectory_dimensions(npz) == (2, 1, 0)
+    bad = write_npz(tmp_path / "bad.npz", t=T, x=X, u=U, angle=X)
+    with pytest.raises(DataFileError, match=r"array 'angle': expected 1-D"):
+        trajectory_dimensions(bad)
+
+
+def test_the_angle_is_not_a_channel(tmp_path: Path) -> None:
+    """12 channels n + m + q and the angle are read; 13 channels are not, angle or not."""
+    states = ",".join(f"x{i}" for i in range(1, 12))
+    path = tmp_path / "wide.csv"
+    path.write_text(f"t,{states},u1,theta\n" + "".join(f"{k}" + ",0" * 13 + "\n" for k in (0, 1)))
+    assert trajectory_dimensions(path) == (11, 1, 0)
+    assert load_csv(path).angle is not None
+    path.write_text(f"t,{states},u1,w1,theta\n")
+    expect_error(load_csv, path, "line 1: 13 channels (n = 11, m = 1, q = 1); at most 12")
+    npz = write_npz(tmp_path / "wide.npz", t=T, x=np.zeros((3, 11)), u=U, angle=T)
+    assert trajectory_dimensions(npz) == (11, 1, 0)
+    assert load_npz(npz).angle is not None
+
+
 @pytest.mark.parametrize("load", [load_csv, load_npz, trajectory_dimensions])
 def test_only_regular_files_are_read(tmp_path: Path, load: Callable[[Path], Any]) -> None:
     fifo = tmp_path / "fifo.csv"
@@ -891,8 +1018,14 @@ def test_only_regular_files_are_read(tmp_path: Path, load: Callable[[Path], Any]
         load(link)
 
 
+def limit_samples(monkeypatch: pytest.MonkeyPatch, samples: int, **limits: int) -> None:
+    """Lower the bounds in every module that reads a file."""
+    for module in (selftune_csv, selftune_npz, selftune_data_file):
+        monkeypatch.setattr(module, "LIMITS", {**module.LIMITS, "samples": samples, **limits})
+
+
 def test_sizes_are_bounded_before_reading(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(selftune_io, "LIMITS", {**selftune_io.LIMITS, "samples": 2})
+    limit_samples(monkeypatch, 2)
     path = tmp_path / "rows.csv"
     path.write_text("t,x1,u1\n0,1,2\n1,2,3\n2,3,4\n")
     expect_error(load_csv, path, "3 data rows; at most 2 are read")
@@ -901,6 +1034,38 @@ def test_sizes_are_bounded_before_reading(tmp_path: Path, monkeypatch: pytest.Mo
     wide = tmp_path / "wide.csv"
     wide.write_text("t," + ",".join(f"x{i}" for i in range(1, 13)) + ",u1\n")
     expect_error(load_csv, wide, "line 1: 13 channels (n = 12, m = 1, q = 0); at most 12")
+
+
+def test_the_angle_counts_toward_the_size_limits(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    without, with_angle = tmp_path / "plain.csv", tmp_path / "angle.csv"
+    without.write_text("t,x1,u1\n0,1,2\n1,2,3\n")
+    with_angle.write_text("t,x1,u1,theta\n0,1,2,0\n1,2,3,1\n")
+    npz_without = write_npz(tmp_path / "plain.npz", t=T, x=X, u=U)
+    npz_with = write_npz(tmp_path / "angle.npz", t=T, x=X, u=U, angle=T)
+    with zipfile.ZipFile(npz_without) as archive:
+        arrays_bytes = sum(info.file_size for info in archive.infolist())
+    limits = {"csv_bytes": without.stat().st_size, "npz_bytes": arrays_bytes}
+    npz_rows = write_npz(tmp_path / "rows.npz", t=T, x=X, u=U, angle=np.zeros(4))
+    limit_samples(monkeypatch, 3)
+    expect_error(load_npz, npz_rows, "array 'angle': 4 rows; at most 3 are read")
+    limit_samples(monkeypatch, 3, **limits)
+    load_csv(without)
+    load_npz(npz_without)
+    expect_error(load_csv, with_angle, f"more than the {limits['csv_bytes']} bytes")
+    expect_error(load_npz, npz_with, f"at most {arrays_bytes} ")
+
+
+def test_the_entry_points_stay_in_io() -> None:
+    """The formats' split into modules keeps the names that other modules import."""
+    for name in selftune_io.__all__:
+        assert getattr(selftune_io, name) is getattr(
+            selftune.learn, name, getattr(selftune_io, name)
+        )
+    assert selftune_io.trajectory_dimensions is trajectory_dimensions
+    assert selftune_io.load_csv is selftune_csv.load_csv
+    assert selftune_io.load_npz is selftune_npz.load_npz
 
 
 def test_a_zip_bomb_is_refused_by_its_directory(tmp_path: Path) -> None:

@@ -424,7 +424,12 @@ def check_time_resolution(t: ArrayLike, name: str) -> None:
 
 def _narrower(values: NDArray[np.floating]) -> str:
     """The narrowest float type narrower than ``values``' that holds each of them exactly
-    ("" if none): times stored wide but rounded narrow on the way keep the narrow rounding."""
+    ("" if none): times stored wide but rounded narrow on the way keep the narrow rounding.
+
+    Times that are all short decimals (at most 6 significant digits: 0, 1, 3, 0.25) are
+    exact in every type, and say nothing of a rounding: "" for them."""
+    if all(float(f"{value:.6g}") == value for value in values.tolist()):
+        return ""
     for narrow in ("float16", "float32"):
         if np.dtype(narrow).itemsize < values.dtype.itemsize:
             with np.errstate(over="ignore", invalid="ignore"):
