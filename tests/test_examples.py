@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from selftune.cli import main
 
@@ -57,3 +58,59 @@ def test_every_example_script_runs_and_learns() -> None:
         errors = error_figures(printed)
         assert errors, f"{script.name} printed no error figure"
         assert max(errors) < 1e-6, f"{script.name}: {printed}"
+
+
+DATA = EXAMPLES / "data"
+
+
+def test_the_sample_drive_log_is_what_its_script_makes(tmp_path: Path) -> None:
+    import runpy
+    import sys
+
+    out = tmp_path / "log.csv"
+    argv = sys.argv
+    sys.argv = ["make_drive_log.py", str(out)]
+    try:
+        with contextlib_quiet():
+            runpy.run_path(str(DATA / "make_drive_log.py"), run_name="__main__")
+    finally:
+        sys.argv = argv
+    assert out.read_bytes() == (DATA / "drive_log.csv").read_bytes()
+
+
+def contextlib_quiet():  # type: ignore[no-untyped-def]
+    import contextlib
+    import io
+
+    return contextlib.redirect_stdout(io.StringIO())
+
+
+def test_the_sample_drive_log_learns_the_drive_controller_within_its_errors(
+    tmp_path: Path,
+) -> None:
+    """The README's `selftune learn` example: the digital servo controller of the drive in
+    make_drive_log.py, within the standard errors it states."""
+    from selftune import SPMSM
+    from selftune.learn import LearningProblem
+    from selftune.model import solve_digital_regulation
+
+    out = tmp_path / "learned.json"
+    args = ["learn", str(DATA / "drive_log.csv"), "--config", str(DATA / "learn.toml")]
+    with contextlib_quiet():
+        assert main([*args, "--json", str(out)]) == 0
+    result = json.loads(out.read_text())
+    motor = SPMSM(R_s=0.6, L_s=8e-3, phi_pm=0.35, p=3)  # the script's, unknown to the learner
+    problem = motor.regulation_problem(50.0)
+    weight = LearningProblem(
+        1e3 * np.eye(2), np.eye(2), np.eye(2), C=problem.C, F=problem.F, integral_action=True
+    ).integral_weight
+    truth = solve_digital_regulation(
+        problem, 1e3 * np.eye(2), np.eye(2), 1e-4, input_delay=1, integral_weight=weight,
+        plant=motor.sampled_plant(50.0, 1e-4, "stationary"),
+    )  # fmt: skip
+    learned = np.hstack([result["K"], result["K_i"]])
+    best = np.hstack([truth.K, truth.K_i])
+    error = np.linalg.norm(learned - best) / np.linalg.norm(best)
+    assert result["alignment"]["shift"] == 1 and result["target"] == "digital"
+    assert error <= 3 * result["quality"]["K_relative_se"]
+    assert result["quality"]["voltage_error"] == pytest.approx(2.0, rel=0.15)
