@@ -1,7 +1,9 @@
 """selftune: self-tuning optimal torque control of PMSM drives by adaptive dynamic programming.
 
 The library learns the optimal feedback and feedforward of a linear plant from sampled
-data (no model needed), and computes the model-based optimum to compare against.
+data (no model needed), the paper's continuous-time controller or the optimum of the
+sampled loop a drive runs (:func:`learn_controller`, with a verdict on every result),
+and computes the model-based optimum to compare against.
 
 The packages follow the data flow (each uses only those listed before it, and ``learn``
 never uses ``model``; an import contract checks both)::
@@ -30,9 +32,13 @@ from .errors import (
     UnsolvableError,
 )
 from .learn import (
+    LearnedController,
     LearnedSolution,
+    LearningOptions,
+    LearningProblem,
     LQRLearningResult,
     Trajectory,
+    learn_controller,
     learn_lqr,
     learn_output_regulation,
     load_trajectory,
@@ -40,10 +46,12 @@ from .learn import (
 )
 from .model import (
     SPMSM,
+    DigitalSolution,
     ModelBasedSolution,
     RegulationProblem,
     lqr,
     policy_value,
+    solve_digital_regulation,
     solve_optimal_regulation,
 )
 from .sim import simulate, simulate_batch
@@ -55,11 +63,15 @@ __all__ = [
     "ConsistencyError",
     "ConvergenceError",
     "DataFileError",
+    "DigitalSolution",
     "ExcitationError",
     "InputError",
     "LQRLearningResult",
     "LearnConfig",
+    "LearnedController",
     "LearnedSolution",
+    "LearningOptions",
+    "LearningProblem",
     "ModelBasedSolution",
     "MotorConfig",
     "RegulationProblem",
@@ -67,6 +79,7 @@ __all__ = [
     "Trajectory",
     "UnsolvableError",
     "__version__",
+    "learn_controller",
     "learn_lqr",
     "learn_output_regulation",
     "load_learn_config",
@@ -77,5 +90,6 @@ __all__ = [
     "save_trajectory",
     "simulate",
     "simulate_batch",
+    "solve_digital_regulation",
     "solve_optimal_regulation",
 ]

@@ -361,6 +361,10 @@ def _residuals_and_jacobian(
 #: Rounds of re-estimating the noise weight W; Levenberg-Marquardt runs within each.
 WEIGHT_ROUNDS = 3
 
+#: Output errors (rms, per state) within this many times the log's rounding leave a fit
+#: nothing to explain: noise-free data stop there instead of iterating on rounding.
+ROUNDING_RESIDUAL = 2.0
+
 
 def _cost(
     logs: list[_Log],
@@ -417,7 +421,18 @@ def _gauss_newton(
                 break
             chain = _jacobian_map(matrices, theta, structured)
             residuals, jacobians, _ = _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
+            if _at_rounding(residuals, floor):
+                break
+        if _at_rounding(residuals, floor):
+            break
     return _finish(logs, theta, matrices, structured, x0s, h, iterations, floor)
+
+
+def _at_rounding(residuals: list[Array], floor: Array) -> bool:
+    """Whether every state's rms output error is within :data:`ROUNDING_RESIDUAL` times
+    its rounding floor."""
+    rms = np.sqrt(np.mean(np.concatenate(residuals) ** 2, axis=0))
+    return bool(np.all(rms <= ROUNDING_RESIDUAL * floor))
 
 
 def _noise_root(stacked: Array, floor: Array) -> Array:

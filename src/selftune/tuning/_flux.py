@@ -26,12 +26,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..errors import ConvergenceError, ExcitationError
+from ..errors import ConvergenceError, ExcitationError, InputError
 from ..learn import LearningOptions, OutputErrorFit, dead_time_voltage, gather_evidence
 from ..sim import held, uniform
 from ._drive import Drive
 from ._episodes import checked, known_form
-from ._knowledge import reference_perturbation
+from ._knowledge import STEP_DWELL, STEP_LEVELS, reference_perturbation
 from ._learning import learning_options, learning_problem
 from ._offpolicy import BACK_EMF_FEEDFORWARD
 from ._settings import TuningSettings
@@ -121,6 +121,13 @@ def identify_flux(drive: Drive, settings: TuningSettings, phi_guess: float) -> F
     ConvergenceError
         If the identified flux is not physical, or the plant is unstable.
     """
+    cycle = len(STEP_LEVELS) * STEP_DWELL
+    if settings.flux_length < cycle * (1.0 - 1e-9):
+        raise InputError(
+            f"flux_length: {settings.flux_length:g} s is shorter than one cycle of the "
+            f"torque steps ({cycle:g} s): the current would not reverse, and the dead-time "
+            "voltage could not be told from the back-EMF"
+        )
     X, w = known_form(drive, settings, phi_guess)
 
     def stepping(t: Array) -> Array:

@@ -195,15 +195,17 @@ class TuningSettings:
     @classmethod
     def paper(cls, **changes: object) -> TuningSettings:
         """The paper's Section V exactly: the defaults with the input changing every sample
-        (``input_hold = 1``) and the reference perturbed on both channels; ``changes``
-        override fields.
+        (``input_hold = 1``) and the reference perturbed on both channels; Algorithm 3's
+        flux step is one cycle of its reference's steps long (40 ms: the paper's drive is
+        noise-free); ``changes`` override fields.
 
         Parameters
         ----------
         **changes
             Field values that override the paper's.
         """
-        settings: TuningSettings = replace(cls(input_hold=1), **changes)  # type: ignore[arg-type]
+        paper = cls(input_hold=1, flux_length=0.04)
+        settings: TuningSettings = replace(paper, **changes)  # type: ignore[arg-type]
         return settings
 
     @property
