@@ -22,7 +22,16 @@ from selftune.bench import _gem as bench_gem
 from selftune.bench._loop import Loop
 from selftune.cli import build_parser
 
-SECTIONS = ("data_efficiency", "learning_cost", "simulation", "self_tuning_value")
+SECTIONS = (
+    "data_efficiency",
+    "learning_cost",
+    "simulation",
+    "self_tuning_value",
+    "drive_rates",
+    "honesty",
+    "noise",
+    "calibration",
+)
 
 #: A numeric key must name its unit (or say it is a ratio, a count, a relative error...).
 UNIT_TOKENS = (
@@ -43,8 +52,11 @@ UNIT_TOKENS = (
     "rad_per_second",
     "volt2",
     "factor",
-    "seeds",
+    "seed",
     "processes",
+    "hz",
+    "amperes",
+    "volts",
 )
 #: Keys of flags and of text.
 FLAG_KEYS = {"quick", "available", "met"}
@@ -236,6 +248,11 @@ def test_markdown_has_every_table_and_says_which_targets_are_met(report: BenchRe
         "## 2. Cost of learning",
         "## 3. Simulation speed",
         "## 4. The value of self-tuning",
+        "## 5. At drive rates",
+        "## 6. Honesty",
+        "## 7. Measurement noise",
+        "## 8. Calibration",
+        "## 9. On a realistic drive",
     ):
         assert heading in text
     section = text.split("## Targets")[1].split("\n## ")[0]
@@ -246,12 +263,15 @@ def test_markdown_has_every_table_and_says_which_targets_are_met(report: BenchRe
         status = {True: "| met |", False: "| MISSED |", None: "| not measured |"}[target.met]
         assert status in row
     assert "nan" not in text.lower().replace("nanoseconds", "")
+    for target in report.targets():  # a "|" would split the targets table's cells
+        texts = (target.name_text, target.target_text, target.value_text, target.why_text)
+        assert not any("|" in text for text in texts), target
 
 
 def test_arguments() -> None:
     parser = build_parser()
     defaults = parser.parse_args(["bench"])
-    assert defaults.quick is False and defaults.out == "."
+    assert defaults.quick is False and defaults.out == "selftune-bench"
     given = parser.parse_args(["bench", "--quick", "--out", "results"])
     assert given.quick is True and given.out == "results"
 
@@ -267,3 +287,122 @@ def test_the_command_writes_both_files(tmp_path: Path, capsys: pytest.CaptureFix
     captured = capsys.readouterr()
     assert markdown in captured.out
     assert captured.err == ""  # no progress bar when stderr is not a terminal
+
+
+def test_at_drive_rates_the_digital_learners_are_exact_or_refuse_by_name(
+    report: BenchReport,
+) -> None:
+    rates = report.drive_rates
+    assert len({e.motor_text for e in rates.errors}) == 3
+    for e in rates.errors:
+        for value in (
+            e.digital_adp_K_relative_error,
+            e.digital_adp_U_relative_error,
+            e.identify_K_relative_error,
+            e.identify_U_relative_error,
+        ):
+            assert value is not None and value <= 1e-9
+        refused = e.continuous_adp_K_relative_error is None
+        assert refused == ("adp (continuous)" in e.refusals_text)
+        assert "unnamed" not in e.refusals_text
+    for cost in rates.costs:  # the digital optimum costs least on its own loop
+        assert cost.excess_cost_no_delay_percent >= -1e-6
+        delayed = cost.excess_cost_one_sample_delay_percent
+        assert delayed is None or delayed >= -1e-6
+
+
+def test_honesty_classifies_every_log_and_names_every_refusal(report: BenchReport) -> None:
+    honesty = report.honesty
+    hazards = [tally.hazard_text for tally in honesty.tallies[:-1]]
+    assert len(set(hazards)) == len(hazards) == 11 and honesty.overall.hazard_text == "all"
+    assert (
+        len(honesty.outcomes)
+        == honesty.overall.logs_count
+        == sum(tally.logs_count for tally in honesty.tallies[:-1])
+    )
+    for tally in honesty.tallies:
+        assert tally.logs_count == (
+            tally.correct_count
+            + tally.refused_count
+            + tally.silent_wrong_count
+            + tally.destabilizing_count
+        )
+    multiple = honesty.se_multiple_factor
+    for outcome in honesty.outcomes:
+        assert outcome.case.seed >= 100_000  # no test's seed
+        if outcome.outcome_text == "refused":
+            assert outcome.cause_text != "unnamed", outcome.error_text
+            assert outcome.K_relative_error is None
+            continue
+        assert outcome.K_relative_error is not None and outcome.K_relative_se is not None
+        assert outcome.U_relative_error is not None and outcome.U_relative_se is not None
+        assert outcome.true_loop_radius_ratio is not None
+        within = (
+            outcome.K_relative_error <= multiple * outcome.K_relative_se
+            and outcome.U_relative_error <= multiple * outcome.U_relative_se
+        )
+        unstable = outcome.true_loop_radius_ratio >= 1.0
+        expected = "destabilizing" if unstable else "correct" if within else "silent wrong"
+        assert outcome.outcome_text == expected
+        # a log whose voltages act a sample later than stated is never learned
+        assert not outcome.case.hazard_text.startswith("shift"), outcome.case.reproduction_text()
+    assert len(honesty.failures()) == (
+        honesty.overall.silent_wrong_count + honesty.overall.destabilizing_count
+    )
+
+
+def test_the_noise_study_covers_every_method_and_its_ratios_are_of_its_medians(
+    report: BenchReport,
+) -> None:
+    study = report.noise
+    methods = {cell.method_text for cell in study.cells}
+    assert methods == {"continuous_adp", "digital_adp", "identify", "identify_spmsm"}
+    places = {(c.sampling_frequency_hz, c.current_noise_amperes) for c in study.cells}
+    assert len(study.cells) == len(methods) * len(places) * len(study.lengths_seconds)
+    for cell in study.cells:
+        assert cell.runs_count == len(study.seeds)
+        assert 0 <= cell.refused_count <= cell.runs_count
+        assert cell.within_se_count <= cell.runs_count - cell.refused_count
+        assert 0 < cell.learning_min_seconds <= cell.learning_median_seconds
+        assert cell.learning_median_seconds <= cell.learning_max_seconds
+        for median, p90 in (
+            (cell.K_median_relative_error, cell.K_p90_relative_error),
+            (cell.U_median_relative_error, cell.U_p90_relative_error),
+        ):
+            assert p90 is None or (median is not None and median <= p90)
+        if cell.too_little_data_count:  # a refusal for too little data asks for more
+            assert cell.needed_median_seconds is not None
+            assert cell.needed_median_seconds > cell.data_seconds
+    _, middle, long = study.lengths_seconds
+    for ratio in study.ratios:
+        key = (ratio.method_text, ratio.sampling_frequency_hz, ratio.current_noise_amperes)
+        at_middle, at_long = study.cell(*key, middle), study.cell(*key, long)
+        if ratio.K_ratio is not None:
+            assert at_long.K_median_relative_error is not None
+            assert at_middle.K_median_relative_error is not None
+            assert ratio.K_ratio == pytest.approx(
+                at_long.K_median_relative_error / at_middle.K_median_relative_error
+            )
+    names = [target.name_text for target in report.targets()]
+    assert "noise: consistency" in names and "noise: short logs" in names
+    # the quick run's sizes are not the issue's: its noise targets are not judged
+    assert all(
+        target.met is None
+        for target in report.targets()
+        if target.name_text.startswith("noise") and target.name_text != "noise: short logs"
+    )
+
+
+def test_calibration_counts_every_trial_of_every_method(report: BenchReport) -> None:
+    calibration = report.calibration
+    trials = {trial.trial_count for trial in calibration.trials}
+    assert len(calibration.methods) == 4
+    for method in calibration.methods:
+        own = [t for t in calibration.trials if t.method_text == method.method_text]
+        assert method.trials_count == len(own) == len(trials)
+        assert method.refused_count == sum(bool(t.cause_text) for t in own)
+        for coverage in (method.K_norm_coverage_ratio, method.K_entry_coverage_ratio):
+            assert coverage is None or 0.0 <= coverage <= 1.0
+    for trial in calibration.trials:
+        assert trial.K_entries_within_count <= trial.K_entries_count
+        assert (trial.K_error_over_se_ratio is None) == bool(trial.cause_text)

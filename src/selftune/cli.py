@@ -279,9 +279,9 @@ def _add_bench(subparsers: _Subparsers) -> None:
     parser.add_argument(
         "--out",
         metavar="DIR",
-        default=".",
+        default="selftune-bench",
         help="directory for bench.md and bench.json: new, empty, or an earlier output of"
-        " this command, replaced as a whole (default: the current directory)",
+        " this command, replaced as a whole (default: %(default)s)",
     )
     parser.set_defaults(handler=_run_bench)
 

@@ -1,4 +1,4 @@
-"""``selftune bench``: data efficiency, cost of learning, simulation speed, value of self-tuning.
+"""``selftune bench``: data, learning cost, simulation, self-tuning, drive rates, honesty, noise.
 
 One module per study. Every comparison runs in one process on this machine;
 :func:`run_bench` returns a typed :class:`BenchReport` (:mod:`._report`), which
@@ -24,12 +24,26 @@ are the field names.
    self-tuned controllers (off-policy with the flux known; Algorithm 3 with it identified),
    and the true optimum.
 
+5. :func:`measure_drive_rates` (:mod:`._drive_rates`): each learner's error against the
+   sampling rate (5-50 kHz, one-sample delay, noise-free) on three motors, and the cost
+   of running the continuous K* instead of the digital optimum at bandwidths f_s/40 to f_s/8.
+6. :func:`measure_honesty` (:mod:`._honesty`): 220 logs of the realistic drive with the
+   hazards of real logs (misaligned voltages, float32 and 7 digits, clock offsets, ADC,
+   dead time, short logs), each classified correct, refused (by cause), silent wrong or
+   destabilizing.
+7. :func:`measure_noise` (:mod:`._noise_study`): the reference experiment at 10 and 20 kHz,
+   10 and 50 mA, 5 ms to 2 s, 20 seeds, every method: p90 errors, consistency, short logs,
+   learning time.
+8. :func:`measure_calibration` (:mod:`._calibration`): coverage of the stated standard
+   errors on seeded motors no test uses.
+
 The learners never see a model; the model-based optimum and the exact closed-form
 solution are used only to score them.
 """
 
 from __future__ import annotations
 
+from ._calibration import Calibration, CalibrationMethod, CalibrationTrial, measure_calibration
 from ._common import (
     CONTROLLERS,
     COST_HORIZON_SECONDS,
@@ -41,11 +55,15 @@ from ._common import (
     BenchConfig,
 )
 from ._data_efficiency import DataEfficiency, ErrorCurve, measure_data_efficiency
+from ._drive_rates import DelayCost, DriveRates, RateErrors, measure_drive_rates
 from ._gem import GymElectricMotor
+from ._honesty import HazardTally, Honesty, HonestyCase, HonestyOutcome, measure_honesty
 from ._learning_cost import LearningCost, LearningDataset, LearningRun, measure_learning_cost
 from ._loop import SimulatorMeasurement
-from ._report import BenchReport, Environment, TargetOutcome, bench_command, run_bench
+from ._noise_study import ConsistencyRatio, NoiseCell, NoiseConfig, NoiseStudy, measure_noise
+from ._report import BenchReport, DriveStudiesConfig, Environment, bench_command, run_bench
 from ._simulation import BatchMeasurement, Simulation, measure_simulation
+from ._targets import TargetOutcome
 from ._value import ControllerOutcome, MismatchCase, SelfTuningValue, measure_self_tuning_value
 
 __all__ = [
@@ -59,22 +77,41 @@ __all__ = [
     "BatchMeasurement",
     "BenchConfig",
     "BenchReport",
+    "Calibration",
+    "CalibrationMethod",
+    "CalibrationTrial",
+    "ConsistencyRatio",
     "ControllerOutcome",
     "DataEfficiency",
+    "DelayCost",
+    "DriveRates",
+    "DriveStudiesConfig",
     "Environment",
     "ErrorCurve",
     "GymElectricMotor",
+    "HazardTally",
+    "Honesty",
+    "HonestyCase",
+    "HonestyOutcome",
     "LearningCost",
     "LearningDataset",
     "LearningRun",
     "MismatchCase",
+    "NoiseCell",
+    "NoiseConfig",
+    "NoiseStudy",
+    "RateErrors",
     "SelfTuningValue",
     "Simulation",
     "SimulatorMeasurement",
     "TargetOutcome",
     "bench_command",
+    "measure_calibration",
     "measure_data_efficiency",
+    "measure_drive_rates",
+    "measure_honesty",
     "measure_learning_cost",
+    "measure_noise",
     "measure_self_tuning_value",
     "measure_simulation",
     "run_bench",

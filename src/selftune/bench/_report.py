@@ -22,6 +22,12 @@ from ..core import (
     write_text,
 )
 from ..core._atomic import check_output_directory, output_directory
+from ._calibration import (
+    Calibration,
+    calibration_target,
+    markdown_calibration,
+    measure_calibration,
+)
 from ._common import (
     CONTROLLER_TITLES,
     EXACT_RELATIVE_ERROR,
@@ -31,9 +37,24 @@ from ._common import (
     table,
 )
 from ._data_efficiency import DataEfficiency, markdown_data, measure_data_efficiency
+from ._drive_rates import (
+    RATE_FREQUENCIES,
+    DriveRates,
+    drive_rates_target,
+    markdown_drive_rates,
+    measure_drive_rates,
+)
 from ._gem import gem_version
+from ._honesty import Honesty, honesty_target, markdown_honesty, measure_honesty
 from ._learning_cost import LearningCost, markdown_learning, measure_learning_cost
+from ._noise_study import NoiseConfig, NoiseStudy, markdown_noise, measure_noise, noise_targets
+from ._realistic_drive import (
+    RealisticDriveComparison,
+    markdown_realistic_drive,
+    measure_realistic_drive,
+)
 from ._simulation import Simulation, markdown_simulation, measure_simulation
+from ._targets import TargetOutcome
 from ._value import SelfTuningValue, markdown_value, measure_self_tuning_value
 
 
@@ -80,26 +101,39 @@ class Environment:
 
 
 @dataclass(frozen=True)
-class TargetOutcome:
-    """One target of the bench, met or missed.
+class DriveStudiesConfig:
+    """Sizes of studies 5-8 (drive rates, honesty, noise, calibration): :meth:`full` or
+    :meth:`quick`.
 
     Attributes
     ----------
-    name_text : str
-    target_text : str
-        The target, in words.
-    value_text : str
-        What was measured.
-    met : bool or None
-        None when it could not be measured (``why_text`` says why).
-    why_text : str
+    rate_frequencies_hz : tuple of float
+        Sampling frequencies of the drive-rates sweep, Hz.
+    honesty_logs_per_hazard : int
+        Logs of each of the honesty sweep's 11 hazards.
+    honesty_short_logs : bool
+        Honesty logs of 50-100 ms instead of 0.1-0.4 s.
+    noise : NoiseConfig
+        Rates, noise levels, lengths and seeds of the noise study.
+    calibration_trials_count : int
+        Seeded motors of the calibration study.
     """
 
-    name_text: str
-    target_text: str
-    value_text: str
-    met: bool | None
-    why_text: str
+    rate_frequencies_hz: tuple[float, ...]
+    honesty_logs_per_hazard: int
+    honesty_short_logs: bool
+    noise: NoiseConfig
+    calibration_trials_count: int
+
+    @classmethod
+    def full(cls) -> DriveStudiesConfig:
+        """The published run: 5-50 kHz, 220 honesty logs, the issue's noise study, 60 motors."""
+        return cls(RATE_FREQUENCIES, 20, False, NoiseConfig.full(), 60)
+
+    @classmethod
+    def quick(cls) -> DriveStudiesConfig:
+        """CI-sized: 10 kHz, one short log per hazard, 2 seeds, 3 motors."""
+        return cls((1e4,), 1, True, NoiseConfig.quick(), 3)
 
 
 @dataclass(frozen=True)
@@ -117,6 +151,11 @@ class BenchReport:
     learning_cost : LearningCost
     simulation : Simulation
     self_tuning_value : SelfTuningValue
+    drive_rates : DriveRates
+    honesty : Honesty
+    noise : NoiseStudy
+    calibration : Calibration
+    realistic_drive : RealisticDriveComparison
     """
 
     quick: bool
@@ -126,6 +165,11 @@ class BenchReport:
     learning_cost: LearningCost
     simulation: Simulation
     self_tuning_value: SelfTuningValue
+    drive_rates: DriveRates
+    honesty: Honesty
+    noise: NoiseStudy
+    calibration: Calibration
+    realistic_drive: RealisticDriveComparison
 
     def targets(self) -> list[TargetOutcome]:
         """The bench's targets, each met or missed, with why."""
@@ -134,6 +178,11 @@ class BenchReport:
             _speed_target(self.simulation),
             _exact_target(self.simulation),
             _value_target(self.self_tuning_value),
+            drive_rates_target(self.drive_rates),
+            honesty_target(self.honesty, self.quick),
+            *noise_targets(self.noise),
+            calibration_target(self.calibration, self.quick),
+            *self.realistic_drive.targets(),
         ]
 
     def to_json(self) -> dict[str, Any]:
@@ -232,8 +281,9 @@ def run_bench(quick: bool, progress: bool = True) -> BenchReport:
     Parameters
     ----------
     quick : bool
-        The CI-sized run (:meth:`BenchConfig.quick`, well under a minute) instead of the
-        full one (:meth:`BenchConfig.full`, a few minutes on 2 cores).
+        The CI-sized run (:meth:`BenchConfig.quick` and :meth:`DriveStudiesConfig.quick`,
+        under a minute) instead of the full one (:meth:`BenchConfig.full` and
+        :meth:`DriveStudiesConfig.full`, about 7 minutes on 2 cores).
     progress : bool
         Show progress bars on stderr (only when it is a terminal).
 
@@ -242,11 +292,17 @@ def run_bench(quick: bool, progress: bool = True) -> BenchReport:
     BenchReport
     """
     config = BenchConfig.quick() if quick else BenchConfig.full()
+    sizes = DriveStudiesConfig.quick() if quick else DriveStudiesConfig.full()
     started = time.perf_counter()
     data_efficiency = measure_data_efficiency(config, progress)
     learning_cost = measure_learning_cost(config, progress)
     simulation = measure_simulation(config, progress)
     self_tuning_value = measure_self_tuning_value(config, progress)
+    drive_rates = measure_drive_rates(progress, sizes.rate_frequencies_hz)
+    honesty = measure_honesty(sizes.honesty_logs_per_hazard, sizes.honesty_short_logs, progress)
+    noise = measure_noise(sizes.noise, quick, progress)
+    calibration = measure_calibration(sizes.calibration_trials_count, progress)
+    realistic_drive = measure_realistic_drive(quick, progress)
     return BenchReport(
         quick=quick,
         wall_seconds=time.perf_counter() - started,
@@ -255,6 +311,11 @@ def run_bench(quick: bool, progress: bool = True) -> BenchReport:
         learning_cost=learning_cost,
         simulation=simulation,
         self_tuning_value=self_tuning_value,
+        drive_rates=drive_rates,
+        honesty=honesty,
+        noise=noise,
+        calibration=calibration,
+        realistic_drive=realistic_drive,
     )
 
 
@@ -299,6 +360,11 @@ def _markdown(report: BenchReport) -> str:
         markdown_learning(report.learning_cost),
         markdown_simulation(report.simulation),
         markdown_value(report.self_tuning_value),
+        markdown_drive_rates(report.drive_rates),
+        markdown_honesty(report.honesty),
+        markdown_noise(report.noise),
+        markdown_calibration(report.calibration),
+        markdown_realistic_drive(report.realistic_drive),
     ):
         lines += ["", *section]
     return "\n".join(lines) + "\n"

@@ -1,0 +1,198 @@
+"""The experiment of the noise, honesty and calibration studies (issue 11), and their truth.
+
+A motor held at a speed by a load machine, on the library's realistic drive
+(:func:`~selftune.sim.run_drive_batch`), under a gentle initial controller ``K0`` (1.25% of
+the deadbeat gain ``L_s / h``: stable with a computation delay of one or two samples):
+
+- exploration uniform within ``EXPLORATION_FRACTION`` (2%) of a ``DC_VOLTAGE`` (540 V)
+  bus on each axis, a new value every sample;
+- a torque reference with a +-30% square ripple (20 Hz) and a +-10% sine ripple (130 Hz)
+  about ``T*``, so that the feedforward is identifiable;
+- the drive's effects as :class:`~selftune.sim.DriveSettings` says (computation delay,
+  white noise on the measured phase currents inside the loop, ADC, dead time, PWM).
+
+The reference experiment of the issue is :data:`REFERENCE` (0.6 ohm, 8 mH, 0.35 Wb, p = 3,
+50 rad/s, T* = 5 N m). What the learner knows is :meth:`Experiment.known`: the cost
+``Q = 1e3 I``, ``R = I``, K0 and the regulated output (C = I and F, which follows from the
+flux the drive's torque reference assumes). The truth (:meth:`Experiment.digital_optimum`,
+:meth:`Experiment.continuous_optimum`) is the model-based optimum of the true motor,
+computed here and only to score the learners.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core import Array, ControlLaw
+from ..learn import LearningProblem, Trajectory
+from ..model import (
+    SPMSM,
+    DigitalSolution,
+    ModelBasedSolution,
+    RegulationProblem,
+    solve_digital_regulation,
+    solve_optimal_regulation,
+)
+from ..sim import DriveRecord, DriveSettings, held, run_drive_batch, uniform
+
+__all__ = [
+    "DC_VOLTAGE",
+    "EXPLORATION_FRACTION",
+    "MOTOR_RANGES_TEXT",
+    "REFERENCE",
+    "Experiment",
+    "log_uniform",
+    "random_experiment",
+    "truncated",
+]
+
+#: The DC-bus voltage whose fraction is the exploration amplitude, V.
+DC_VOLTAGE = 540.0
+#: Exploration amplitude as a fraction of the DC-bus voltage.
+EXPLORATION_FRACTION = 0.02
+#: The torque reference's square ripple (fraction of T*) and its frequency, Hz.
+SQUARE_RIPPLE, SQUARE_HZ = 0.3, 20.0
+#: The torque reference's sine ripple (fraction of T*) and its frequency, Hz.
+SINE_RIPPLE, SINE_HZ = 0.1, 130.0
+#: The cost weights of every study: ``Q = 1e3 I``, ``R = I``.
+STATE_WEIGHT, INPUT_WEIGHT = 1e3, 1.0
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A motor at a speed and torque reference, sampled at h (see the module docstring).
+
+    Attributes
+    ----------
+    motor : SPMSM
+        The true motor.
+    speed : float
+        Held mechanical speed, rad/s.
+    torque : float
+        Torque reference T*, N m (before the ripples).
+    h : float
+        Sampling period, s.
+    """
+
+    motor: SPMSM
+    speed: float
+    torque: float
+    h: float
+
+    @property
+    def electrical_speed(self) -> float:
+        """``p speed``, rad/s."""
+        return self.motor.p * self.speed
+
+    @property
+    def K0(self) -> Array:
+        """The initial controller: 1.25% of the deadbeat gain ``L_s / h``, V/A."""
+        return 0.0125 * self.motor.L_s / self.h * np.eye(2)
+
+    def problem(self) -> RegulationProblem:
+        """The true known-flux regulation problem."""
+        return self.motor.regulation_problem(self.speed)
+
+    def known(self) -> LearningProblem:
+        """What the learner knows: cost, K0, C and F (no A, B or D)."""
+        return LearningProblem(
+            STATE_WEIGHT * np.eye(2), INPUT_WEIGHT * np.eye(2), self.K0, C=np.eye(2),
+            F=self.problem().F,
+        )  # fmt: skip
+
+    def digital_optimum(self, delay: int, hold: str) -> DigitalSolution:
+        """The optimum of the digital cost on the true sampled loop with a delay of d
+        samples; ``hold`` is what the inverter holds over a sample (``"rotor"``: the dq
+        zero-order hold; ``"stationary"``: a PWM inverter's stationary-frame vector)."""
+        plant = None if hold == "rotor" else self.motor.sampled_plant(self.speed, self.h, hold)
+        return solve_digital_regulation(
+            self.problem(), STATE_WEIGHT * np.eye(2), INPUT_WEIGHT * np.eye(2), self.h,
+            input_delay=delay, plant=plant,
+        )  # fmt: skip
+
+    def continuous_optimum(self) -> ModelBasedSolution:
+        """The paper's continuous-time optimum K*, U*."""
+        return solve_optimal_regulation(
+            self.problem(), STATE_WEIGHT * np.eye(2), INPUT_WEIGHT * np.eye(2)
+        )
+
+    def records(
+        self, settings: DriveSettings, seconds: float, seeds: Sequence[int]
+    ) -> list[DriveRecord]:
+        """One log per seed (independent exploration and noise), in one vectorized run.
+
+        Parameters
+        ----------
+        settings : DriveSettings
+            The drive's effects.
+        seconds : float
+            Length of each log, s.
+        seeds : sequence of int
+            The seed of each log.
+        """
+        base = self.motor.exogenous(self.speed, self.torque)
+        torque = self.torque
+
+        def reference(t: Array) -> Array:
+            ripple = SQUARE_RIPPLE * torque * np.sign(np.sin(2 * np.pi * SQUARE_HZ * t))
+            ripple = ripple + SINE_RIPPLE * torque * np.sin(2 * np.pi * SINE_HZ * t)
+            return base + np.column_stack([0.0 * t, ripple])
+
+        law = ControlLaw.regulator(self.K0, -self.problem().F, np.zeros((2, 2)))
+        return run_drive_batch(
+            [self.motor] * len(seeds), self.speed, self.h, settings, law, held(reference),
+            num_samples=max(round(seconds / self.h), 1),
+            exploration=uniform(EXPLORATION_FRACTION * DC_VOLTAGE), seed=list(seeds),
+        )  # fmt: skip
+
+    def logs(
+        self, settings: DriveSettings, seconds: float, seeds: Sequence[int]
+    ) -> list[Trajectory]:
+        """What the drive logs, one per seed (:meth:`records`)."""
+        return [record.trajectory for record in self.records(settings, seconds, seeds)]
+
+
+#: The reference experiment of issue 11 at 10 kHz.
+REFERENCE = Experiment(SPMSM(R_s=0.6, L_s=8e-3, phi_pm=0.35, p=3), speed=50.0, torque=5.0, h=1e-4)
+
+
+#: The ranges of :func:`random_experiment`, in words.
+MOTOR_RANGES_TEXT = (
+    "R_s 0.05-2 ohm, L_s 0.5-30 mH, phi_pm 0.02-0.5 Wb (log-uniform), p 2-8, i_q* 2-15 A, "
+    "100-2,000 rad/s electrical (capped so that the back-EMF and w_e L_s i_q* stay under "
+    "150 V), 10 or 20 kHz"
+)
+
+
+def log_uniform(rng: np.random.Generator, low: float, high: float) -> float:
+    """A number drawn log-uniformly from ``[low, high]``."""
+    return float(np.exp(rng.uniform(np.log(low), np.log(high))))
+
+
+def random_experiment(rng: np.random.Generator) -> Experiment:
+    """A plausible motor, operating point and sampling rate (:data:`MOTOR_RANGES_TEXT`).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The generator (the studies seed their own: their motors are not the tests').
+    """
+    R_s, L_s = log_uniform(rng, 0.05, 2.0), log_uniform(rng, 5e-4, 3e-2)
+    phi_pm, p = log_uniform(rng, 0.02, 0.5), int(rng.integers(2, 9))
+    current = log_uniform(rng, 2.0, 15.0)
+    w_e = min(log_uniform(rng, 100.0, 2000.0), 150.0 / phi_pm, 150.0 / (L_s * current))
+    f_s = float(rng.choice([1e4, 2e4]))
+    motor = SPMSM(R_s=R_s, L_s=L_s, phi_pm=phi_pm, p=p)
+    return Experiment(motor, speed=w_e / p, torque=1.5 * p * phi_pm * current, h=1.0 / f_s)
+
+
+def truncated(log: Trajectory, samples: int) -> Trajectory:
+    """The first ``samples`` samples of a log (its first ``samples * h`` seconds)."""
+    w = None if log.w is None else log.w[: samples + 1]
+    angle = None if log.angle is None else log.angle[: samples + 1]
+    return Trajectory(
+        t=log.t[: samples + 1], x=log.x[: samples + 1], u=log.u[:samples], w=w, angle=angle
+    )
