@@ -30,6 +30,7 @@ from collections.abc import Sequence
 from typing import Literal
 
 import numpy as np
+import scipy.special
 
 from ..core import Array
 from ._alignment import aligned_transitions
@@ -57,8 +58,12 @@ _PHASES = np.exp(2j * np.pi * np.arange(3) / 3)
 DeadTimeModel = Literal["phase signs", "speed", "current direction"]
 
 
-def phase_signs(x: Array, angle: Array) -> Array:
+def phase_signs(x: Array, angle: Array, width: float = 0.0) -> Array:
     """The dq vector ``(2/3) sum_x sign(i_x) exp(j 2 pi x / 3)`` of the phase currents' signs.
+
+    With a ``width``, each sign is the expected sign of a current measured with Gaussian
+    noise of that standard deviation, ``erf(i_x / (sqrt(2) width))``: smooth near zero,
+    where the measured sign is the noise's.
 
     Parameters
     ----------
@@ -66,6 +71,9 @@ def phase_signs(x: Array, angle: Array) -> Array:
         ``[i_d, i_q]``, A.
     angle : ndarray, shape (T,)
         Electrical rotor angle ``theta_e`` at each sample, rad.
+    width : float
+        Standard deviation of the noise on each measured phase current, A (0: the signs
+        as measured).
 
     Returns
     -------
@@ -75,7 +83,8 @@ def phase_signs(x: Array, angle: Array) -> Array:
     rotor = np.exp(1j * angle)
     stationary = (x[:, 0] + 1j * x[:, 1]) * rotor
     phases = np.real(stationary[:, np.newaxis] * np.conj(_PHASES))
-    vector = (2.0 / 3.0) * (np.sign(phases) @ _PHASES) * np.conj(rotor)
+    signs = np.sign(phases) if width <= 0.0 else scipy.special.erf(phases / (np.sqrt(2.0) * width))
+    vector = (2.0 / 3.0) * (signs @ _PHASES) * np.conj(rotor)
     return np.column_stack([vector.real, vector.imag])
 
 
@@ -128,7 +137,10 @@ def angle_offset(episode: Trajectory, electrical_speed: float, shift: int) -> fl
 
 
 def with_dead_time(
-    episodes: Sequence[Trajectory], electrical_speed: float | None, shift: int
+    episodes: Sequence[Trajectory],
+    electrical_speed: float | None,
+    shift: int,
+    width: float = 0.0,
 ) -> tuple[list[Trajectory], DeadTimeModel]:
     """The logs with the dq vector of the phase signs appended to ``w`` (two channels).
 
@@ -140,6 +152,9 @@ def with_dead_time(
         ``w_e``, rad/s, to compute the angle of a log without an angle column.
     shift : int
         The alignment of the logged inputs (for the offset's fit).
+    width : float
+        Noise on each measured phase current, A: the expected signs instead of the
+        measured ones (:func:`phase_signs`).
 
     Returns
     -------
@@ -151,14 +166,14 @@ def with_dead_time(
     """
     angles = [episode.angle for episode in episodes if episode.angle is not None]
     if len(angles) == len(episodes):
-        signs = [phase_signs(e.x, a) for e, a in zip(episodes, angles, strict=True)]
+        signs = [phase_signs(e.x, a, width) for e, a in zip(episodes, angles, strict=True)]
         return [_appended(e, s) for e, s in zip(episodes, signs, strict=True)], "phase signs"
     if electrical_speed is not None:
         result = []
         for episode in episodes:
             offset = angle_offset(episode, electrical_speed, shift)
             angle = electrical_speed * (episode.t - episode.t[0]) + offset
-            result.append(_appended(episode, phase_signs(episode.x, angle)))
+            result.append(_appended(episode, phase_signs(episode.x, angle, width)))
         return result, "speed"
     scale = float(np.sqrt(np.mean(np.concatenate([e.x for e in episodes]) ** 2)))
     floor = 0.02 * max(scale, 1e-300)

@@ -214,7 +214,10 @@ def _consistency(
 
 
 def gather_evidence(
-    episodes: Sequence[Trajectory], problem: LearningProblem, options: LearningOptions
+    episodes: Sequence[Trajectory],
+    problem: LearningProblem,
+    options: LearningOptions,
+    sign_width: float = 0.0,
 ) -> Evidence:
     """Alignment, output-error model and consistency of the logs (see the module).
 
@@ -226,6 +229,9 @@ def gather_evidence(
         What the learner knows.
     options : LearningOptions
         How to learn (alignment, dead time, structure).
+    sign_width : float
+        With ``dead_time``: the noise on each measured phase current, A, for the expected
+        signs instead of the measured ones (:func:`~._dead_time.phase_signs`).
 
     Returns
     -------
@@ -236,7 +242,7 @@ def gather_evidence(
     ConsistencyError
         If the data contradict the stated alignment, or the model cannot explain them.
     """
-    fitted, dead_time_model = _fitted(episodes, options)
+    fitted, dead_time_model = _fitted(episodes, options, sign_width)
     alignment = check_alignment(fitted, options.logged_input, options.input_delay)
     structure = None
     if options.structure == "spmsm":
@@ -275,7 +281,7 @@ def gather_evidence(
 
 
 def _fitted(
-    episodes: Sequence[Trajectory], options: LearningOptions
+    episodes: Sequence[Trajectory], options: LearningOptions, width: float = 0.0
 ) -> tuple[list[Trajectory], DeadTimeModel | None]:
     """The logs as the model sees them: with the dead time's channels if asked for."""
     if not options.dead_time:
@@ -289,7 +295,7 @@ def _fitted(
     if shift is None:  # "auto": the alignment of the simpler model decides the offset's fit
         rough, _ = with_dead_time(episodes, None, 0)
         shift = check_alignment(rough, "auto", options.input_delay).shift
-    return with_dead_time(episodes, options.electrical_speed, shift)
+    return with_dead_time(episodes, options.electrical_speed, shift, width)
 
 
 def reduced_problem(problem: LearningProblem, extra: int) -> LearningProblem:

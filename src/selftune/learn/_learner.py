@@ -31,7 +31,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..core import Array, ControlLaw, WithLaw
-from ..errors import InputError
+from ..errors import InputError, SelftuneError
 from ._alignment import Alignment, applied_inputs
 from ._continuous import lqr_from_moments, regulator_from_moments, solutions_of_output_equation
 from ._digital import DigitalTransitions, digital_transitions, learn_digital_adp
@@ -45,11 +45,13 @@ from ._servo import servo_from_moments
 from ._trajectory import Trajectory, as_trajectories
 from ._verdict import (
     ROUNDING_FLOOR,
+    SIGN_WIDTH_FACTOR,
     ModelErrors,
     design_target,
     model_errors,
     relative_size,
     verdict,
+    with_model_sensitivity,
     without_extra,
 )
 
@@ -269,7 +271,18 @@ def _prepared(
         )
     evidence = gather_evidence(episodes, problem, options)
     known = reduced_problem(problem, evidence.extra)
-    return evidence, known, model_errors(evidence, (known, problem.q), options)
+    errors = model_errors(evidence, (known, problem.q), options)
+    noise = evidence.model_noise
+    if evidence.extra and noise is not None and evidence.dead_time_model != "current direction":
+        # per phase: the dq noise of amplitude-invariant Clarke is sqrt(2/3) of it
+        width = SIGN_WIDTH_FACTOR * float(np.mean(noise)) * np.sqrt(1.5)
+        try:
+            other = gather_evidence(episodes, problem, options, sign_width=width)
+        except SelftuneError:
+            other = None  # the alternative is refused: the first model's errors stand
+        if other is not None:
+            errors = with_model_sensitivity(errors, other, (known, problem.q), options)
+    return evidence, known, errors
 
 
 def _judged(

@@ -316,7 +316,13 @@ def fit_output_error(
         return None
     if float(np.max(np.abs(np.linalg.eigvals(fit.model.Ad)))) >= 1.0:
         return None  # an unstable plant: its open-loop simulation is no model of the data
-    return replace(fit, structure=structure)
+    fit = replace(fit, structure=structure)
+    from ._bootstrap import SHORT_LOG, bootstrapped, slowest_time_constant  # no cycle
+
+    duration = start.h * sum(log.a.shape[0] for log in logs)
+    if duration < SHORT_LOG * slowest_time_constant(fit.model.Ad, start.h):
+        fit = bootstrapped(fit, logs, matrices, structure is not None, floor)
+    return fit
 
 
 def _jacobian_map(
