@@ -295,8 +295,8 @@ def _targets(comparison: RealisticDriveComparison) -> tuple[TargetOutcome, ...]:
         ),
         TargetOutcome(
             "flux",
-            f"phi_pm error within +-{FLUX_TARGET[0]:g}% from a flux step of <= {FLUX_TARGET[1]:g} s "
-            "(Algorithm 3)",
+            f"phi_pm error within +-{FLUX_TARGET[0]:g}% from a flux step of <= "
+            f"{FLUX_TARGET[1]:g} s (Algorithm 3)",
             _worst_text(flux, flux_missing, total, ".3f") + f" from {step:g} s",
             None if flux_met is None else flux_met and step <= FLUX_TARGET[1],
             "the torque reference steps through +-T*: the dead-time voltage follows the "
