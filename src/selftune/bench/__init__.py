@@ -31,11 +31,15 @@ are the field names.
    hazards of real logs (misaligned voltages, float32 and 7 digits, clock offsets, ADC,
    dead time, short logs), each classified correct, refused (by cause), silent wrong or
    destabilizing.
-7. :func:`measure_noise` (:mod:`._noise_study`): the reference experiment at 10 and 20 kHz,
-   10 and 50 mA, 5 ms to 2 s, 20 seeds, every method: p90 errors, consistency, short logs,
-   learning time.
+7. :func:`measure_noise` (:mod:`._noise_study`, targets and tables in
+   :mod:`._noise_report`): the reference experiment at 10 and 20 kHz, 10 and 50 mA, 5 ms to
+   2 s, 20 seeds (60 for the consistency ratios), every method: p90 errors, consistency,
+   short logs, learning time.
 8. :func:`measure_calibration` (:mod:`._calibration`): coverage of the stated standard
    errors on seeded motors no test uses.
+9. :func:`measure_realistic_drive` (:mod:`._realistic_drive`): selftune on the realistic
+   drive against identify-then-design, the industrial PI recipe and nominal designs,
+   every controller given the same knowledge and data; Algorithm 3's flux.
 
 The learners never see a model; the model-based optimum and the exact closed-form
 solution are used only to score them.
@@ -61,6 +65,11 @@ from ._honesty import HazardTally, Honesty, HonestyCase, HonestyOutcome, measure
 from ._learning_cost import LearningCost, LearningDataset, LearningRun, measure_learning_cost
 from ._loop import SimulatorMeasurement
 from ._noise_study import ConsistencyRatio, NoiseCell, NoiseConfig, NoiseStudy, measure_noise
+from ._realistic_drive import (
+    RealisticDriveComparison,
+    markdown_realistic_drive,
+    measure_realistic_drive,
+)
 from ._report import BenchReport, DriveStudiesConfig, Environment, bench_command, run_bench
 from ._simulation import BatchMeasurement, Simulation, measure_simulation
 from ._targets import TargetOutcome
@@ -101,17 +110,20 @@ __all__ = [
     "NoiseConfig",
     "NoiseStudy",
     "RateErrors",
+    "RealisticDriveComparison",
     "SelfTuningValue",
     "Simulation",
     "SimulatorMeasurement",
     "TargetOutcome",
     "bench_command",
+    "markdown_realistic_drive",
     "measure_calibration",
     "measure_data_efficiency",
     "measure_drive_rates",
     "measure_honesty",
     "measure_learning_cost",
     "measure_noise",
+    "measure_realistic_drive",
     "measure_self_tuning_value",
     "measure_simulation",
     "run_bench",

@@ -47,7 +47,8 @@ from ._drive_rates import (
 from ._gem import gem_version
 from ._honesty import Honesty, honesty_target, markdown_honesty, measure_honesty
 from ._learning_cost import LearningCost, markdown_learning, measure_learning_cost
-from ._noise_study import NoiseConfig, NoiseStudy, markdown_noise, measure_noise, noise_targets
+from ._noise_report import markdown_noise, noise_targets
+from ._noise_study import NoiseConfig, NoiseStudy, measure_noise
 from ._realistic_drive import (
     RealisticDriveComparison,
     markdown_realistic_drive,
