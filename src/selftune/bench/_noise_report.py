@@ -156,6 +156,19 @@ def markdown_noise(study: NoiseStudy) -> list[str]:
         "of the delayed loop); a refusal counts as infinite (n/a), with the count refused.",
         "",
     ]
+    lines += _error_table(study, keys, titles, places)
+    lines += _consistency_table(study, keys, titles, places)
+    lines += _short_table(study, keys, titles, places)
+    lines += _time_table(study, keys, titles, places)
+    return lines
+
+
+_Places = list[tuple[float, float]]
+
+
+def _error_table(
+    study: NoiseStudy, keys: list[str], titles: list[str], places: _Places
+) -> list[str]:
     rows = []
     for f_s, noise in places:
         for seconds in study.lengths_seconds:
@@ -167,25 +180,35 @@ def markdown_noise(study: NoiseStudy) -> list[str]:
                     f"{sci(c.K_p90_relative_error)} / {sci(c.U_p90_relative_error)}{refused}"
                 )
             rows.append(row)
-    lines += table(["kHz", "mA", "s", *titles], rows)
+    return table(["kHz", "mA", "s", *titles], rows)
+
+
+def _consistency_table(
+    study: NoiseStudy, keys: list[str], titles: list[str], places: _Places
+) -> list[str]:
     _, middle, long = study.lengths_seconds
-    lines += ["", f"Consistency: median error from {long:g} s over the one from {middle:g} s, "
-              f"K [10th-90th percentile of K's ratio over bootstrap resamples of the seeds] / U "
-              f"(target <= {TARGET_CONSISTENCY_RATIO:g}; {(middle / long) ** 0.5:.2f} expected "
-              "without bias; the bracket shows how far a ratio of two medians over these seeds "
-              "spreads by chance):", ""]  # fmt: skip
+    lines = ["", f"Consistency: median error from {long:g} s over the one from {middle:g} s, "
+             f"K [10th-90th percentile of K's ratio over bootstrap resamples of the seeds] / U "
+             f"(target <= {TARGET_CONSISTENCY_RATIO:g}; {(middle / long) ** 0.5:.2f} expected "
+             "without bias; the bracket shows how far a ratio of two medians over these seeds "
+             "spreads by chance):", ""]  # fmt: skip
     ratios = {
         (r.method_text, r.sampling_frequency_hz, r.current_noise_amperes): r for r in study.ratios
     }
-    lines += table(
+    return lines + table(
         ["method", *(f"{f / 1e3:g} kHz, {s * 1e3:g} mA" for f, s in places)],
         [[title, *(_ratio_text(ratios[key, f, s]) for f, s in places)]
          for key, title in zip(keys, titles, strict=True)],
     )  # fmt: skip
+
+
+def _short_table(
+    study: NoiseStudy, keys: list[str], titles: list[str], places: _Places
+) -> list[str]:
     short = study.lengths_seconds[0]
-    lines += ["", f"{short * 1e3:g} ms logs: learned (within 3 stated standard errors) / "
-              "refused with 'too little data for this noise level' (median length asked for) / "
-              "other refusals:", ""]  # fmt: skip
+    lines = ["", f"{short * 1e3:g} ms logs: learned (within 3 stated standard errors) / "
+             "refused with 'too little data for this noise level' (median length asked for) / "
+             "other refusals:", ""]  # fmt: skip
     lines += table(
         ["method", *(f"{f / 1e3:g} kHz, {s * 1e3:g} mA" for f, s in places)],
         [[title, *(_short_text(study.cell(key, f, s, short)) for f, s in places)]
@@ -198,19 +221,19 @@ def markdown_noise(study: NoiseStudy) -> list[str]:
         for c in study.cells
         if c.unnamed_messages_text
     ]
-    lines += ["", *unnamed] if unnamed else []
-    lines += [
-        "",
-        "Learning time (learn_controller, whole), s: median (min-max) over the seeds:",
-        "",
-    ]
+    return lines + (["", *unnamed] if unnamed else [])
+
+
+def _time_table(
+    study: NoiseStudy, keys: list[str], titles: list[str], places: _Places
+) -> list[str]:
+    lines = ["", "Learning time (learn_controller, whole), s: median (min-max) over the seeds:", ""]
     columns = [(f, s, n) for f, n in places for s in study.lengths_seconds[1:]]
-    lines += table(
+    return lines + table(
         ["method", *(f"{f / 1e3:g} kHz, {n * 1e3:g} mA, {s:g} s" for f, s, n in columns)],
         [[title, *(_time_text(study.cell(key, f, n, s)) for f, s, n in columns)]
          for key, title in zip(keys, titles, strict=True)],
     )  # fmt: skip
-    return lines
 
 
 def _ratio_text(ratio: ConsistencyRatio) -> str:

@@ -386,6 +386,13 @@ def _episode_moments(
     output: Array | None,
     discount: float,
 ) -> tuple[Array, ...]:
+    """The per-interval moments of one episode: ``int z z'``, ``int z u'`` and the
+    within-sample changes of ``z z'`` (with the integrator's and the discount's terms).
+
+    One pass builds every moment from the same per-sample stencils; it stays one function
+    (about 65 lines) because its parts share a dozen per-sample arrays that splitting it
+    would pass back and forth.
+    """
     h = np.diff(episode.t)
     count = h.shape[0]
     x = episode.x

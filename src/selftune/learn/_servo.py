@@ -346,6 +346,39 @@ def servo_from_moments(
     K = _initial_policy(K0, n, r)
     schedule = _checked_schedule(discounts)
     gamma = schedule[0] if schedule else _first_discount(undiscounted, K[:, :n], Q, R, X)
+    history, stages = _run_schedule(
+        moments_at, undiscounted, (K, gamma), (Q_a, R, X_a), (schedule, settings)
+    )
+    P, K, M = unpack_theta(history[-1].theta, n + r, m, q)
+    # B_a and G have zero integrator rows, so P B_a = (R K)' and P G = M' give B and
+    # G_x = D + A X - X E from the plant's columns alone (the best-determined ones)
+    P_x, K_x, M_x = P[:n, :n], K[:, :n], M[:, :n]
+    return LearnedServo(
+        K=K_x,
+        K_i=K[:, n:],
+        P=P,
+        X=X,
+        U=feedforward(P_x, K_x, M_x, R),
+        B=estimated_B(P_x, K_x, R),
+        exogenous_block=M,
+        history=tuple(history),
+        stages=tuple(stages),
+        converged=True,
+    )
+
+
+def _run_schedule(
+    moments_at: MomentsAt,
+    undiscounted: IntervalMoments,
+    start: tuple[Array, float],
+    weights: tuple[Array, Array, Array],
+    plan: tuple[tuple[float, ...], tuple[int, float]],
+) -> tuple[list[IterationRecord], list[DiscountStage]]:
+    """Policy iteration at each discount of the schedule, each stage's policy starting the
+    next, until the undiscounted one has converged."""
+    K, gamma = start
+    Q_a, R, X_a = weights
+    schedule, settings = plan
     history: list[IterationRecord] = []
     stages: list[DiscountStage] = []
     while True:
@@ -365,24 +398,8 @@ def servo_from_moments(
         stages.append(DiscountStage(gamma, K, steps[-1].P, len(steps), rate))
         following = _next_discount(gamma, rate, schedule, len(stages))
         if following is None:
-            break
+            return history, stages
         gamma = following
-    P, K, M = unpack_theta(history[-1].theta, n + r, m, q)
-    # B_a and G have zero integrator rows, so P B_a = (R K)' and P G = M' give B and
-    # G_x = D + A X - X E from the plant's columns alone (the best-determined ones)
-    P_x, K_x, M_x = P[:n, :n], K[:, :n], M[:, :n]
-    return LearnedServo(
-        K=K_x,
-        K_i=K[:, n:],
-        P=P,
-        X=X,
-        U=feedforward(P_x, K_x, M_x, R),
-        B=estimated_B(P_x, K_x, R),
-        exogenous_block=M,
-        history=tuple(history),
-        stages=tuple(stages),
-        converged=True,
-    )
 
 
 def _initial_policy(K0: Array, n: int, r: int) -> Array:
