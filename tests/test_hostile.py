@@ -1106,6 +1106,63 @@ def test_ctrl_c_while_reproduce_computes(tmp_path: Path) -> None:
     assert snapshot(tmp_path) == before
 
 
+def test_ctrl_c_swallowed_by_a_callback_still_stops_the_command(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A SIGINT that lands in a weak-reference callback (matplotlib runs many while it
+    draws) cannot propagate there; the command must stop all the same, before its output
+    set is put in place, not finish and then say it was interrupted."""
+    import weakref
+
+    from selftune.core import write_text
+    from selftune.core._atomic import output_directory
+
+    class Drawn:
+        pass
+
+    def interrupted_callback(reference: object) -> None:
+        raise KeyboardInterrupt
+
+    def reproduce_command(out: str, seed: int) -> int:
+        with output_directory(out, {"results.json"}, "reproduction") as directory:
+            drawn = Drawn()
+            reference = weakref.ref(drawn, interrupted_callback)
+            del drawn  # the callback's KeyboardInterrupt goes to sys.unraisablehook
+            deadline = time.monotonic() + 10
+            while time.monotonic() < deadline:  # more work after the interrupt
+                write_text(directory / "results.json", "{}")
+            assert reference() is None
+        return 0
+
+    monkeypatch.setattr(commands, "reproduce_command", reproduce_command)
+    assert main(["reproduce", "--out", str(tmp_path / "out")]) == 130
+    assert snapshot(tmp_path) == {}
+
+
+def test_ctrl_c_whose_keyboard_interrupt_was_lost_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """CPython can lose the KeyboardInterrupt (raised while a C function runs, replaced
+    by that function's ValueError, then caught: seen in matplotlib's font matching); the
+    output set is still not put in place."""
+    from selftune.core import write_text
+    from selftune.core._atomic import output_directory
+
+    def reproduce_command(out: str, seed: int) -> int:
+        with output_directory(out, {"results.json"}, "reproduction") as directory:
+            write_text(directory / "partial.json", "{}")
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(1)  # the handler runs here
+            except KeyboardInterrupt:
+                pass  # lost
+        return 0
+
+    monkeypatch.setattr(commands, "reproduce_command", reproduce_command)
+    assert main(["reproduce", "--out", str(tmp_path / "out")]) == 130
+    assert snapshot(tmp_path) == {}
+
+
 # -- output sets: written whole or not at all ---------------------------------------------
 
 

@@ -12,6 +12,7 @@ needs them turns a numerical one into an error naming the input.
 
 from __future__ import annotations
 
+import _thread
 import argparse
 import dataclasses
 import math
@@ -25,7 +26,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, NoReturn, TypeAlias
 
 from . import __version__
-from .errors import InputError, SelftuneError
+from .errors import INTERRUPTED, InputError, SelftuneError
 
 if TYPE_CHECKING:
     from .config import MotorConfig
@@ -403,35 +404,66 @@ def main(argv: Sequence[str] | None = None) -> int:
 class _Interrupts:
     """Ctrl-C while a command runs, however it surfaces.
 
-    SIGINT raises KeyboardInterrupt, as by default, and is remembered; an exception Python
+    SIGINT raises KeyboardInterrupt, as by default, and is remembered. An exception Python
     cannot raise (in a finalizer or a weak-reference callback: ``sys.unraisablehook``) is
-    not printed, and a KeyboardInterrupt that landed there is remembered too, so the
-    command still ends as interrupted.
+    not printed; a KeyboardInterrupt that landed there (matplotlib runs many weak-reference
+    callbacks while it draws) would be lost and the command would go on to write its
+    outputs, so it is remembered and raised again in the main thread a millisecond later,
+    once the hook has returned (raised in the hook itself, it would be lost again). Every
+    interrupt also sets :data:`selftune.errors.INTERRUPTED`, which output is checked
+    against before it is put in place: Python can lose a KeyboardInterrupt in other ways
+    too.
     """
 
     def __init__(self) -> None:
         self.received = False
         self._hook: Any = None
         self._handler: Any = None
+        self._in_hook = False
+        self._timers: list[threading.Timer] = []
 
     def __enter__(self) -> _Interrupts:
+        INTERRUPTED.clear()
         self._hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
         if threading.current_thread() is threading.main_thread():
             self._handler = signal.signal(signal.SIGINT, self._signal)
         return self
 
     def __exit__(self, *exc_info: object) -> None:
+        for timer in self._timers:
+            timer.cancel()
         sys.unraisablehook = self._hook
         if self._handler is not None:
             signal.signal(signal.SIGINT, self._handler)
+        INTERRUPTED.clear()
 
     def _signal(self, signum: int, frame: object) -> None:
         self.received = True
+        INTERRUPTED.set()
+        if self._in_hook:
+            self._raise_soon()
+            return
         raise KeyboardInterrupt
 
     def _unraisable(self, unraisable: Any) -> None:
-        if isinstance(unraisable.exc_value, KeyboardInterrupt):
-            self.received = True
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            return
+        self.received = True
+        INTERRUPTED.set()
+        self._in_hook = True
+        try:
+            self._raise_soon()
+        finally:
+            self._in_hook = False
+
+    def _raise_soon(self) -> None:
+        """Deliver SIGINT to the main thread again, from a timer thread."""
+        if self._handler is None:  # not the main thread: nothing to deliver it to
+            return
+        timer = threading.Timer(1e-3, _thread.interrupt_main)
+        timer.daemon = True
+        self._timers.append(timer)
+        timer.start()
 
 
 def _caused_by_interrupt(exc: BaseException) -> bool:

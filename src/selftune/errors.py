@@ -7,6 +7,8 @@ derive from :class:`ValueError`, as numpy and scipy users expect.
 
 from __future__ import annotations
 
+import threading
+
 __all__ = [
     "ConsistencyError",
     "ConvergenceError",
@@ -64,3 +66,22 @@ class ConsistencyError(SelftuneError):
     logged as applied), or a fit whose residual the measurement noise cannot explain. The
     message gives the statistic, the likely cause and the remedy.
     """
+
+
+INTERRUPTED = threading.Event()
+"""Set by the command-line interface when Ctrl-C arrives; cleared when a command starts
+and ends.
+
+SIGINT raises KeyboardInterrupt, but Python can lose it: raised in a weak-reference
+callback it goes to ``sys.unraisablehook``, and raised while a C function runs (CPython's
+``int()`` of a string, as matplotlib's font matching calls it) it can be replaced by that
+function's own error and then caught. Code that puts output in place calls
+:func:`raise_if_interrupted` first, so an interrupted command never leaves a result.
+"""
+
+
+def raise_if_interrupted() -> None:
+    """Raise KeyboardInterrupt if Ctrl-C arrived during the current command
+    (:data:`INTERRUPTED`), even if the KeyboardInterrupt it raised was lost."""
+    if INTERRUPTED.is_set():
+        raise KeyboardInterrupt

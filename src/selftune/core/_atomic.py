@@ -33,7 +33,7 @@ from typing import IO, Any, BinaryIO
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import DataFileError, InputError
+from ..errors import DataFileError, InputError, raise_if_interrupted
 
 __all__ = [
     "atomic_path",
@@ -333,6 +333,7 @@ def atomic_path(path: str | os.PathLike[str], suffix: str = "") -> Iterator[Path
         yield temporary
         os.chmod(temporary, _mode_for(target))
         check_output_file(path)
+        raise_if_interrupted()  # a Ctrl-C that Python lost still stops the write
         os.replace(temporary, target)
     except BaseException:
         temporary.unlink(missing_ok=True)
@@ -505,6 +506,7 @@ def output_directory(
         yield temporary
         written = set(os.listdir(temporary))
         with _interrupts_deferred():
+            raise_if_interrupted()  # a Ctrl-C that Python lost still stops the set
             check_output_directory(path, set(names) | written, what)
             if os.path.lexists(target):
                 _swap_files(temporary, target)
