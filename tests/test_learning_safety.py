@@ -11,10 +11,20 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import scipy.special
 
 from drive_logs import Q, R, noisy, reference_log
 from selftune import SPMSM, ConsistencyError, ConvergenceError, ExcitationError
-from selftune.learn import LearningOptions, LearningProblem, Trajectory, learn_controller
+from selftune.learn import (
+    TOO_LITTLE_DATA,
+    LearningOptions,
+    LearningProblem,
+    Trajectory,
+    fit_output_error,
+    gather_evidence,
+    learn_controller,
+)
+from selftune.learn._evidence import TEST_LEVEL, structure_statistic
 from selftune.model import solve_digital_regulation, solve_optimal_regulation
 from selftune.sim import DriveSettings
 
@@ -155,3 +165,55 @@ def test_quality_is_reported_on_noise_free_data() -> None:
     assert quality.K_relative_se < 1e-8 and 0 < quality.stability_margin < 1
     optimum = solve_optimal_regulation(problem, Q, R)
     assert relative(learned.U, optimum.U) < 1e-9  # same feedforward as continuous time
+
+
+def structured(speed: float = 150.0) -> LearningOptions:
+    """Identify-then-design with the SPMSM structure on the reference experiment's dq hold."""
+    return digital(
+        method="identify", structure="spmsm", electrical_speed=speed, voltage_hold="rotor"
+    )
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_short_noisy_logs_with_the_motor_structure_learn_or_say_how_much_data_they_need(
+    seed: int,
+) -> None:
+    # 50 samples at 50 mA: the structured fit can stop in a wrong minimum (the inputs' gain
+    # fitted to nothing, K = 0 with standard errors of 1e-20; a non-physical L_s whose
+    # discretization overflows) while the other tests pass
+    log, problem, known = reference_log(settings=noisy(0.05), seconds=0.005, seed=seed)
+    try:
+        learned = learn_controller(log, known, structured())
+    except ExcitationError as error:
+        assert TOO_LITTLE_DATA in str(error)
+        assert "s of the same kind of data" in str(error)
+    else:
+        truth = solve_digital_regulation(problem, Q, R, 1e-4, input_delay=1)
+        assert relative(learned.K, truth.K) <= 3 * learned.quality.K_relative_se
+        assert relative(learned.U, truth.U) <= 3 * learned.quality.U_relative_se
+
+
+def test_a_structure_the_data_contradict_is_refused_saying_the_data_suffice_without_it() -> None:
+    log, _, known = reference_log(settings=noisy(0.01), seconds=0.3)
+    learn_controller(log, known, structured())  # the right speed: learned
+    with pytest.raises(ConsistencyError, match=r"structure = 'none'\) these data suffice"):
+        learn_controller(log, known, structured(speed=180.0))  # 20% off
+
+
+def test_the_structure_statistic_is_chi_square_when_the_structure_holds() -> None:
+    statistics, freedoms = [], set()
+    for seed in range(8):
+        log, _, known = reference_log(settings=noisy(0.01), seconds=0.2, seed=seed)
+        evidence = gather_evidence([log], known, structured())
+        assert evidence.fit is not None
+        free = fit_output_error(
+            evidence.episodes, evidence.alignment.shift, evidence.alignment.model, stable=False
+        )
+        assert free is not None
+        statistic, freedom = structure_statistic(evidence.fit, free)
+        statistics.append(statistic)
+        freedoms.add(freedom)
+    assert freedoms == {12 - 3}  # every entry of [Ad, Bd, Ed] against R_s, L_s, kappa
+    # mean of chi-square(9) is 9, its standard deviation over 8 draws 1.5
+    assert 9 - 4 * 1.5 <= float(np.mean(statistics)) <= 9 + 4 * 1.5
+    assert max(statistics) < float(scipy.special.chdtri(9, TEST_LEVEL))

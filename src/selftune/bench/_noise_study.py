@@ -35,7 +35,7 @@ from tqdm import tqdm
 
 from ..core import Array
 from ..errors import ExcitationError, SelftuneError
-from ..learn import LearningOptions, Trajectory, learn_controller
+from ..learn import TOO_LITTLE_DATA, LearningOptions, Trajectory, learn_controller
 from ..sim import DriveSettings
 from ._causes import UNNAMED, refusal_cause
 from ._common import progress_bar, relative
@@ -62,7 +62,7 @@ NOISE_METHODS: tuple[tuple[str, str, LearningOptions], ...] = (
                      electrical_speed=REFERENCE.electrical_speed, voltage_hold="rotor")),
 )  # fmt: skip
 #: The phrase a refusal of a log too short for its noise must carry, and the length.
-TOO_LITTLE = "too little data for this noise level"
+TOO_LITTLE = TOO_LITTLE_DATA
 _NEEDED = re.compile(r"about ([0-9.eE+-]+) s of the same kind of data")
 #: A result within this many stated standard errors of the truth is right (as in study 6).
 SE_MULTIPLE = 3.0

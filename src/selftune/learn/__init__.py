@@ -59,7 +59,7 @@ from ._policy_iteration import (
     policy_step,
 )
 from ._problem import LearningOptions, LearningProblem, Method, Target
-from ._quality import Quality, closed_loop_radius
+from ._quality import TOO_LITTLE_DATA, Quality, closed_loop_radius
 from ._regression import (
     BLOCK_ADVICE,
     Regression,
@@ -75,6 +75,7 @@ __all__ = [
     "BLOCK_ADVICE",
     "CANDIDATE_SHIFTS",
     "MAX_TOLERANCE",
+    "TOO_LITTLE_DATA",
     "Alignment",
     "ConsistencyTest",
     "Design",

@@ -19,6 +19,12 @@ Every learner starts here (:func:`gather_evidence`):
    which refuses the data unless the dead time is modelled (then it is the dead-time
    model's own approximation near zero current, and the verdict notes it).
 
+A structured fit (``structure = "spmsm"``: three or four physical parameters instead of
+every entry of ``[Ad, Bd, Ed]``) is also compared with the unstructured fit of the same
+logs (:func:`structure_statistic`, a likelihood ratio): far in the chi-square tail the
+structure does not hold, or its search stopped in a wrong minimum, which short noisy logs
+do (the inputs' gain fitted near zero, say) while every other test passes.
+
 An inverter's dead time is such an unlogged input error: ``-v sign(i_x)`` on each phase.
 With ``dead_time = True`` the model carries it (the dq vector of the phase currents'
 signs becomes an extra exogenous input whose gain ``-v Bd`` is fitted, :mod:`._dead_time`),
@@ -50,6 +56,7 @@ __all__ = [
     "gather_evidence",
     "log_precision",
     "reduced_problem",
+    "structure_statistic",
 ]
 
 #: Lags of the input-residual cross-correlation test, samples.
@@ -267,6 +274,8 @@ def gather_evidence(
             "a nonlinearity (saturation, the voltage limit), or a measurement resolution too "
             "coarse for the signal"
         )
+    if structure is not None and (fit is None or not test.exact):  # exact: nothing to miss
+        _check_structure(fitted, alignment, fit, relative)
     if fit is not None and fit.correlation_inflation > INFLATION_LIMIT and not options.dead_time:
         raise ConsistencyError(
             f"the model misses an effect in the data: its output errors are correlated in "
@@ -278,6 +287,56 @@ def gather_evidence(
         )
     extra = problem.n if options.dead_time else 0
     return Evidence(fitted, alignment, fit, test, extra, precision, dead_time_model)
+
+
+def structure_statistic(fit: OutputErrorFit, free: OutputErrorFit) -> tuple[float, int]:
+    """The likelihood-ratio statistic of a structured output-error fit against the
+    unstructured one of the same logs, and its degrees of freedom.
+
+    ``N (log det Sigma_structured - log det Sigma_free)`` over the ``N`` output errors: a
+    chi-square variable with as many degrees of freedom as the structure removes when it
+    holds (the structured model is one of the free ones) and the noise is Gaussian;
+    large when the structure misses what the data show, or its fit stopped in a wrong
+    minimum.
+
+    Parameters
+    ----------
+    fit : OutputErrorFit
+        The structured fit.
+    free : OutputErrorFit
+        Every entry of ``[Ad, Bd, Ed]`` fitted to the same logs.
+    """
+    count = sum(residual.shape[0] for residual in fit.residuals)
+    ratio = np.linalg.slogdet(fit.noise_covariance)[1] - np.linalg.slogdet(free.noise_covariance)[1]
+    return count * float(ratio), int(free.parameters.size - fit.parameters.size)
+
+
+def _check_structure(
+    episodes: list[Trajectory], alignment: Alignment, fit: OutputErrorFit | None, resolution: float
+) -> None:
+    """Refuse a structured fit that explains the logs worse than the unstructured model
+    (:func:`structure_statistic` beyond the chi-square quantile at :data:`TEST_LEVEL`), or
+    that cannot be compared with one."""
+    free = fit_output_error(
+        episodes, alignment.shift, alignment.model, None, resolution=resolution, stable=False
+    )
+    if fit is None or free is None:
+        raise ConsistencyError(
+            "structure: the SPMSM fit cannot be checked against an unstructured model of "
+            "these data (an output-error fit that is not finite, or an unstable structured "
+            "one: too few or too noisy samples); structure = 'none' does not need the check"
+        )
+    statistic, freedom = structure_statistic(fit, free)
+    threshold = float(scipy.special.chdtri(freedom, TEST_LEVEL))
+    if statistic > threshold:
+        raise ConsistencyError(
+            f"structure: the SPMSM model explains the data worse than an unstructured one "
+            f"(likelihood-ratio statistic {statistic:.4g}, threshold {threshold:.4g} for "
+            f"{freedom} degrees of freedom); likely causes: its fit stopped in a wrong "
+            "minimum (too few or too noisy samples), or the drive is not what the structure "
+            "assumes (electrical_speed, voltage_hold, dead_time); structure = 'none' "
+            "assumes none of it"
+        )
 
 
 def _fitted(

@@ -31,7 +31,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..core import Array, ControlLaw, WithLaw
-from ..errors import InputError, SelftuneError
+from ..errors import (
+    ConsistencyError,
+    ExcitationError,
+    InputError,
+    SelftuneError,
+    UnsolvableError,
+)
 from ._alignment import Alignment, applied_inputs
 from ._continuous import lqr_from_moments, regulator_from_moments, solutions_of_output_equation
 from ._digital import DigitalTransitions, digital_transitions, learn_digital_adp
@@ -40,7 +46,7 @@ from ._moments import IntervalMoments, WKind, interval_moments
 from ._output_error import simulated_trajectories
 from ._policy_iteration import IterationRecord
 from ._problem import LearningOptions, LearningProblem
-from ._quality import Quality, check_precision, check_safety
+from ._quality import TOO_LITTLE_DATA, Quality, check_precision, check_safety
 from ._servo import servo_from_moments
 from ._trajectory import Trajectory, as_trajectories
 from ._verdict import (
@@ -172,7 +178,8 @@ def learn_controller(
         cannot explain them (the message gives the statistic and the likely causes).
     ExcitationError
         If the data do not excite the plant enough, or are too short for their noise
-        (the message says how much longer they should be).
+        (the message says how much longer they should be). A structured fit
+        (``options.structure``) that is refused says what the data give without it.
     ConvergenceError
         If the learned controller does not stabilize every plant the data allow, or
         policy iteration did not behave as theory says.
@@ -180,13 +187,12 @@ def learn_controller(
         As the learners raise them.
     """
     options = LearningOptions() if options is None else options
-    evidence, known, errors = _prepared(data, problem, options)
-    check_precision(
-        (relative_size(errors.K_se, errors.K), relative_size(errors.U_se, errors.U)),
-        evidence,
-        options.max_relative_error,
-        servo=problem.integral_weight is not None,
-    )
+    try:
+        evidence, known, errors = _precise(data, problem, options)
+    except (ConsistencyError, UnsolvableError, ExcitationError) as error:
+        if options.structure == "none" or TOO_LITTLE_DATA in str(error):
+            raise
+        raise _without_structure(error, data, problem, options) from error
     if options.method == "identify":
         model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
         law, P, B = design_target(model, known, options)
@@ -255,6 +261,44 @@ def assess(
     note = "the feedforward U was not learned, so it is not judged (U_se is NaN)"
     quality = replace(judged.quality, notes=(*judged.quality.notes, note))
     return replace(judged, quality=quality)
+
+
+def _precise(
+    data: Trajectory | Sequence[Trajectory], problem: LearningProblem, options: LearningOptions
+) -> tuple[Evidence, LearningProblem, ModelErrors]:
+    """:func:`_prepared`, refused unless the target's standard errors are small enough."""
+    evidence, known, errors = _prepared(data, problem, options)
+    check_precision(
+        (relative_size(errors.K_se, errors.K), relative_size(errors.U_se, errors.U)),
+        evidence,
+        options.max_relative_error,
+        servo=problem.integral_weight is not None,
+    )
+    return evidence, known, errors
+
+
+def _without_structure(
+    error: SelftuneError,
+    data: Trajectory | Sequence[Trajectory],
+    problem: LearningProblem,
+    options: LearningOptions,
+) -> SelftuneError:
+    """The refusal of a structured fit, told with what the same data give without the
+    structure: "too little data" and the length that would do, if that is what they say
+    (the usual reason a short noisy log defeats the structured fit), or that they suffice
+    without it."""
+    try:
+        _precise(data, problem, replace(options, structure="none"))
+    except ExcitationError as other:
+        if TOO_LITTLE_DATA not in str(other):
+            return error
+        return ExcitationError(
+            f"without the structure, {other}; with it (structure = 'spmsm') the fit was "
+            f"refused: {error}"
+        )
+    except SelftuneError:
+        return error
+    return type(error)(f"{error}; without the structure (structure = 'none') these data suffice")
 
 
 def _prepared(

@@ -25,16 +25,16 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Literal
 
 import numpy as np
 import scipy.linalg
 
-from ..core import Array, discretize, rotating_hold
+from ..core import Array
 from ..core._propagate import plant_last, propagate_uniform
 from ..errors import InputError
 from ._alignment import applied_inputs
 from ._discrete_model import DiscreteModel
+from ._spmsm_structure import SpmsmStructure
 from ._trajectory import Trajectory
 
 __all__ = [
@@ -163,92 +163,6 @@ class OutputErrorFit:
         return _unstructured(parameters, n, m, q)
 
 
-@dataclass(frozen=True)
-class SpmsmStructure:
-    """A surface PMSM's current dynamics at a known electrical speed: parameters
-    ``[R_s, L_s, kappa]`` (and ``v`` with dead time).
-
-    The known-flux form of the data (``w = [w_1, T*]``, ``w_1 = p speed phi_assumed`` the
-    back-EMF the controller assumes, q = 2)::
-
-        A = [[-R_s/L_s, w_e], [-w_e, -R_s/L_s]],  B = I / L_s,  D = [[0, 0], [-kappa/L_s, 0]]
-
-    ``kappa = phi_pm / phi_assumed`` is the true back-EMF per unit of ``w_1``: the flux is
-    fitted, not assumed (``phi_pm = kappa w_1 / w_e``).
-
-    Parameters
-    ----------
-    electrical_speed : float
-        ``w_e = p speed``, rad/s.
-    h : float
-        Sampling period, s.
-    dead_time : bool
-        The data carry the dq vector ``s_k`` of the phase currents' signs as two extra
-        exogenous channels (:mod:`._dead_time`): an inverter's dead-time voltage ``v =
-        t_d f_sw V_dc`` per phase, V, a fourth parameter. It is held in the stationary
-        frame from the sample's start, so in dq it turns by ``-w_e s`` within the sample.
-    hold : {"stationary", "rotor"}
-        What the drive holds over a sample: the stationary-frame voltage (a PWM inverter),
-        rotated by the usual angle compensation so that its dq mean is the command (it
-        turns from ``+w_e h / 2`` to ``-w_e h / 2`` in dq), or the dq voltage (an ideal
-        zero-order hold, e.g. :class:`selftune.sim.SimulatedDrive`).
-    """
-
-    electrical_speed: float
-    h: float
-    dead_time: bool = False
-    hold: Literal["stationary", "rotor"] = "stationary"
-
-    def __call__(self, theta: Array) -> tuple[Array, Array, Array]:
-        """``(Ad, Bd, Ed)`` of ``theta = [R_s (ohm), L_s (H), kappa]`` (and ``v``, V).
-
-        Parameters
-        ----------
-        theta : ndarray, shape (3,) or (4,)
-            ``[R_s, L_s, kappa]``, and ``v`` with dead time.
-        """
-        R_s, L_s, kappa = float(theta[0]), float(theta[1]), float(theta[2])
-        w_e, h = self.electrical_speed, self.h
-        A = np.array([[-R_s / L_s, w_e], [-w_e, -R_s / L_s]])
-        B = np.eye(2) / L_s
-        D = np.array([[0.0, 0.0], [-kappa / L_s, 0.0]])
-        exact = discretize(A, B, h, D=D)
-        Bd = exact.Bd
-        if self.hold == "stationary":  # the angle compensation centres the command
-            Bd = rotating_hold(A, B, h, w_e, advance=0.5 * w_e * h)
-        if not self.dead_time:
-            return exact.Ad, Bd, exact.Ed
-        dead_time = rotating_hold(A, B, h, w_e)  # set at the sample's start, then held
-        return exact.Ad, Bd, np.hstack([exact.Ed, -float(theta[3]) * dead_time])
-
-    def initial(self, model: DiscreteModel) -> Array:
-        """``[R_s, L_s, kappa]`` (and ``v``) read off an unstructured model (a start).
-
-        Parameters
-        ----------
-        model : DiscreteModel
-            The least-squares model.
-        """
-        L_s = self.h / float(np.mean(np.diag(model.Bd)))
-        decay = -np.log(max(float(np.abs(np.linalg.det(model.Ad))), 1e-300)) / (2 * self.h)
-        gains = np.linalg.solve(model.Bd, model.Ed)  # B^-1 D, nearly: [[0, 0], [-kappa, 0]]
-        start = [max(decay * L_s, 1e-9), L_s, -float(gains[1, 0])]
-        if self.dead_time:
-            start.append(-float(np.trace(gains[:, 2:])) / 2.0)  # -v I
-        return np.array(start)
-
-    @staticmethod
-    def names(dead_time: bool) -> tuple[str, ...]:
-        """The parameters' names, in order.
-
-        Parameters
-        ----------
-        dead_time : bool
-            With the dead-time voltage.
-        """
-        return ("R_s", "L_s", "kappa", "v") if dead_time else ("R_s", "L_s", "kappa")
-
-
 def _unstructured(theta: Array, n: int, m: int, q: int) -> tuple[Array, Array, Array]:
     M = theta.reshape((n, n + m + q), order="F")
     return M[:, :n], M[:, n : n + m], M[:, n + m :]
@@ -261,6 +175,7 @@ def fit_output_error(
     structure: SpmsmStructure | None = None,
     max_iterations: int = 60,
     resolution: float = 0.0,
+    stable: bool = True,
 ) -> OutputErrorFit | None:
     """Fit the discrete model by output error, starting from ``start``.
 
@@ -279,11 +194,16 @@ def fit_output_error(
     resolution : float
         The log's relative precision (e.g. 6e-8 for float32 values): the noise of each
         state is taken to be at least its rounding (:func:`resolution_floor`).
+    stable : bool
+        Return only a stable model (a model of the plant). False: any finite fit, for
+        its output errors alone (a comparison of models); its parameters' covariance is
+        then the asymptotic one, not bootstrapped on a short log.
 
     Returns
     -------
     OutputErrorFit or None
-        None when the plant is not stable (the open-loop simulation would diverge).
+        None when the fit is not finite, or (with ``stable``) the plant is not stable (the
+        open-loop simulation would diverge).
     """
     radius = float(np.max(np.abs(np.linalg.eigvals(start.Ad))))
     if radius >= 1.0 - 1e-9:
@@ -314,9 +234,11 @@ def fit_output_error(
     )
     if not np.all(np.isfinite(fit.model.Ad)):
         return None
+    fit = replace(fit, structure=structure)
+    if not stable:
+        return fit
     if float(np.max(np.abs(np.linalg.eigvals(fit.model.Ad)))) >= 1.0:
         return None  # an unstable plant: its open-loop simulation is no model of the data
-    fit = replace(fit, structure=structure)
     from ._bootstrap import SHORT_LOG, bootstrapped, slowest_time_constant  # no cycle
 
     duration = start.h * sum(log.a.shape[0] for log in logs)
@@ -378,9 +300,14 @@ def _cost(
     point: tuple[Array, list[Array]],
     weight: Array,
 ) -> float:
-    """The weighted output-error cost at ``(theta, x0s)``."""
+    """The weighted output-error cost at ``(theta, x0s)``: infinite where the parameters
+    give no model (a structure's non-physical values, an overflowing discretization), so
+    that the search never steps there."""
     theta, x0s = point
-    mats = matrices(theta)
+    try:
+        mats = matrices(theta)
+    except (InputError, np.linalg.LinAlgError):
+        return float("inf")
     total = 0.0
     for log, x0 in zip(logs, x0s, strict=True):
         r = log.x - simulate_model(mats, x0, log.a, log.w)

@@ -297,6 +297,9 @@ def check_safety(
         )
 
 
+#: How :func:`check_precision` begins its refusal (callers recognise it by this).
+TOO_LITTLE_DATA = "too little data for this noise level"
+
 #: With integral action the feedforward U only shapes the transient (the integrator
 #: removes its steady error), so its relative standard error may reach this.
 SERVO_FEEDFORWARD_LIMIT = 0.25
@@ -347,7 +350,7 @@ def check_precision(
             "saturated sensor or ADC, the voltage limit) or a misaligned voltage log"
         )
     raise ExcitationError(
-        f"too little data for this noise level: the standard error of K is {relative[0]:.2%} "
+        f"{TOO_LITTLE_DATA}: the standard error of K is {relative[0]:.2%} "
         f"and of U {relative[1]:.2%} of their size (the limits are {limit:.2%} and "
         f"{U_limit:.2%}) from {duration:.4g} s of data with about {_noise_text(evidence)} of "
         f"noise; about {needed:.3g} s of the same kind of data would bring them within the "
