@@ -16,6 +16,7 @@ from ..errors import (
     SelftuneError,
     UnsolvableError,
 )
+from ..learn import TOO_LITTLE_DATA
 
 __all__ = ["CAUSE_TITLES", "UNNAMED", "refusal_cause"]
 
@@ -28,7 +29,7 @@ _PATTERNS: tuple[tuple[type[SelftuneError], str, str], ...] = (
     (ConsistencyError, "cannot explain the data", "consistency"),
     (SelftuneError, "misses an effect", "consistency"),
     (ConsistencyError, "likely cause", "consistency"),
-    (ExcitationError, "too little data for this noise level", "too little data"),
+    (ExcitationError, TOO_LITTLE_DATA, "too little data"),
     (ExcitationError, "rank", "excitation"),
     (ExcitationError, "too short", "too short"),
     (ExcitationError, "too few", "too short"),
@@ -46,7 +47,7 @@ CAUSE_TITLES = {
     "alignment": "the logged voltages act at another sample than stated (names the shift)",
     "consistency": "no linear model explains the data: residuals correlated with the inputs "
     "or in time (names dead time, timing, nonlinearity, resolution)",
-    "too little data": "too little data for this noise level (names the length needed)",
+    "too little data": f"{TOO_LITTLE_DATA} (names the length needed)",
     "excitation": "a channel is not excited (names the block)",
     "too short": "fewer samples than unknowns",
     "instability": "the controller would not stabilize every plant the data allow",

@@ -61,8 +61,7 @@ NOISE_METHODS: tuple[tuple[str, str, LearningOptions], ...] = (
      LearningOptions(target="digital", method="identify", input_delay=1, structure="spmsm",
                      electrical_speed=REFERENCE.electrical_speed, voltage_hold="rotor")),
 )  # fmt: skip
-#: The phrase a refusal of a log too short for its noise must carry, and the length.
-TOO_LITTLE = TOO_LITTLE_DATA
+#: The length a refusal of a log too short for its noise asks for.
 _NEEDED = re.compile(r"about ([0-9.eE+-]+) s of the same kind of data")
 #: A result within this many stated standard errors of the truth is right (as in study 6).
 SE_MULTIPLE = 3.0
@@ -257,7 +256,7 @@ def _run(
     except SelftuneError as error:
         elapsed = time.perf_counter() - started
         match = _NEEDED.search(str(error))
-        too_little = isinstance(error, ExcitationError) and TOO_LITTLE in str(error)
+        too_little = isinstance(error, ExcitationError) and TOO_LITTLE_DATA in str(error)
         needed = float(match.group(1)) if match is not None and too_little else None
         message = f"{type(error).__name__}: {error}"
         return _Run(math.inf, math.inf, elapsed, refusal_cause(error), False, needed, message)
