@@ -20,7 +20,7 @@ import selftune
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "src" / "selftune"
-PACKAGES = ("core", "model", "learn", "sim", "config", "tuning", "report", "bench")
+PACKAGES = ("core", "loop", "model", "learn", "sim", "config", "tuning", "report", "bench")
 
 
 def _lint(pythonpath: Path, cwd: Path) -> subprocess.CompletedProcess[str]:
@@ -51,6 +51,9 @@ def test_the_import_contract_is_kept() -> None:
         ("learn/_probe.py", "from .. import tuning\n"),  # the learner imports upward
         ("model/_probe.py", "from ..learn import Trajectory\n"),  # the truth uses the method
         ("core/_probe.py", "from ..sim import simulate\n"),  # the neutral layer imports up
+        ("core/_probe.py", "from ..loop import SampledLoop\n"),  # the loop sits above core
+        ("loop/_probe.py", "from ..model import SPMSM\n"),  # the loop sees the model
+        ("loop/_probe.py", "from ..learn import Trajectory\n"),  # the loop sees the method
     ],
 )
 def test_the_import_contract_fails_on_a_forbidden_import(

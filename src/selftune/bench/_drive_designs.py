@@ -26,6 +26,7 @@ import numpy as np
 
 from ..core import Array, ControlLaw
 from ..learn import Trajectory
+from ..loop import SampledLoop
 from ..model import SPMSM
 from ..sim import ExogenousSignal, Exploration, RealisticDrive
 from ..tuning import known_flux_form
@@ -38,12 +39,10 @@ __all__ = [
     "VOLTAGE_MARGIN",
     "DriveCase",
     "RecordingDrive",
-    "closed_loop",
     "current_bandwidth",
     "drive_cases",
     "matched_pi",
     "pi_law",
-    "spectral_radius",
 ]
 
 #: Seed of the generator the motors are drawn with.
@@ -310,56 +309,12 @@ def pi_law(
     return ControlLaw(K, -F, U, history=1, K_i=k_i * np.eye(2), C=C, F=F, h=h)
 
 
-def closed_loop(plant: tuple[Array, Array], law: ControlLaw) -> tuple[Array, Array]:
-    """The digital loop of ``law`` (one past input, integral action) on ``x_(k+1) = Ad x_k
-    + Bd u_(k-1)``, in the state ``[x_k; u_(k-1); z_k]``, with T* as its input.
-
-    Parameters
-    ----------
-    plant : (Ad, Bd)
-        The sampled plant, the voltage applied one sample after it is computed.
-    law : ControlLaw
-        The controller (``history = 1``, with ``K_i``).
-
-    Returns
-    -------
-    A : ndarray, shape (6, 6)
-        The closed loop's transition matrix.
-    b : ndarray, shape (6,)
-        Its input from T* (the reference's second channel), per N m.
-    """
-    Ad, Bd = plant
-    assert law.K_i is not None and law.C is not None and law.F is not None and law.h is not None
-    n, m, r = law.n, law.m, law.r
-    K_x, K_u = law.K[:, :n], law.K[:, n:]
-    A = np.block(
-        [
-            [Ad, Bd, np.zeros((n, r))],
-            [-K_x, -K_u, -law.K_i],
-            [law.h * law.C, np.zeros((r, m)), np.eye(r)],
-        ]
-    )
-    feed = law.U + K_x @ law.X + K_u @ law.U
-    b = np.concatenate([np.zeros(n), feed[:, 1], law.h * law.F[:, 1]])
-    return A, b
-
-
-def spectral_radius(A: Array) -> float:
-    """``max |eig(A)|``: below 1 for a stable digital loop.
-
-    Parameters
-    ----------
-    A : ndarray
-        A transition matrix.
-    """
-    return float(np.max(np.abs(np.linalg.eigvals(A))))
-
-
 def current_bandwidth(plant: tuple[Array, Array], law: ControlLaw, h: float) -> float | None:
     """The -3 dB bandwidth of the q current's response to its reference, rad/s.
 
     The smallest frequency at which ``|G(e^(j w h))| = |G(1)| / sqrt 2``, G the transfer
-    function of :func:`closed_loop` from T* to ``i_q`` (a grid of 600 log-spaced
+    function of the closed loop (:meth:`selftune.loop.SampledLoop.closed_loop`) from T* to
+    ``i_q`` (a grid of 600 log-spaced
     frequencies up to the Nyquist frequency ``pi / h``, then bisection). A first-order loop
     ``w_c / (s + w_c)`` (the PI recipe on its own model, without delay) has the bandwidth
     ``w_c``; with the drive's delay a PI's is larger (its resonance).
@@ -378,8 +333,9 @@ def current_bandwidth(plant: tuple[Array, Array], law: ControlLaw, h: float) -> 
     float or None
         None if the loop is unstable; ``pi / h`` if the response never falls that far.
     """
-    A, b = closed_loop(plant, law)
-    if spectral_radius(A) >= 1.0:
+    A, B_w = SampledLoop.of_law(law, h).closed_loop(plant, law)
+    b = B_w[:, 1]
+    if np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
         return None
     identity = np.eye(A.shape[0])
 

@@ -20,9 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import Array, ControlLaw, delay_augmented, discretize, dlqr, dpolicy_value, lqr
+from ..core import Array, ControlLaw, discretize, lqr
 from ..errors import SelftuneError, UnsolvableError
 from ..learn import LearningOptions, LearningProblem, learn_controller
+from ..loop import SampledLoop
 from ..model import SPMSM, solve_digital_regulation, solve_optimal_regulation
 from ..sim import simulate_loop
 from ._causes import refusal_cause
@@ -213,13 +214,11 @@ def _digital_cost(A: Array, B: Array, h: float, weights: tuple[float, Array], de
     does not stabilize it), relative to the digital optimum's."""
     q, K = weights
     exact = discretize(A, B, h)
-    Az, Bz = delay_augmented(exact.Ad, exact.Bd, delay)
-    Qz = np.zeros_like(Az)
-    Qz[:2, :2] = h * q * np.eye(2)
-    Kz = np.hstack([K, np.zeros((2, Az.shape[0] - 2))])
-    _, P_opt = dlqr(Az, Bz, Qz, h * np.eye(2))
+    loop, plant = SampledLoop(h, delay), (exact.Ad, exact.Bd)
+    cost = loop.weights(plant, q * np.eye(2), np.eye(2))
+    _, P_opt = loop.optimum(plant, cost)
     try:
-        P = dpolicy_value(Az, Bz, Kz, Qz, h * np.eye(2))
+        P = loop.value(plant, ControlLaw.regulator(K, np.zeros((2, 0)), np.zeros((2, 0))), cost)
     except UnsolvableError:
         return float("inf")
     return float(np.trace(P[:2, :2]) / np.trace(P_opt[:2, :2]))

@@ -92,6 +92,7 @@ from ..learn import (
     gather_evidence,
     learn_controller,
 )
+from ..loop import SampledLoop
 from ..model import SPMSM, DigitalSolution, solve_digital_regulation
 from ..report import HOT_RESISTANCE, drive_text, feedback_excess_cost, steady_torque_error
 from ..sim import DriveSettings, RealisticDrive
@@ -102,11 +103,9 @@ from ._drive_designs import (
     TOLERANCES,
     DriveCase,
     RecordingDrive,
-    closed_loop,
     current_bandwidth,
     drive_cases,
     matched_pi,
-    spectral_radius,
 )
 from ._realistic_results import (
     REALISTIC_CONTROLLERS,
@@ -268,7 +267,8 @@ class _Study:
                 candidate.failure_text,
             )  # fmt: skip
         truth, case = self.truth, self.case
-        stable = spectral_radius(closed_loop(truth.plant, law)[0]) < 1.0
+        loop = SampledLoop.of_law(law, SAMPLING_SECONDS)
+        stable = loop.spectral_radius(truth.plant, law) < 1.0
         torque: list[float | None] = [None, None]
         if stable:
             torque = [

@@ -23,21 +23,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from ..core import (
     Array,
     ControlLaw,
     continuous_from_discrete,
-    delay_augmented,
-    dlqr,
-    integrator_augmented,
     is_positive_definite,
-    lqr,
-    sampled_data_weights,
     solve_regulator,
 )
-from ..errors import InputError
+from ..loop import Cost, SampledLoop
 from ._discrete_model import DiscreteModel
 from ._problem import LearningProblem
 
@@ -77,8 +71,16 @@ def _regulator(
     return solve_regulator((A, B, problem.C, D, E, problem.F), _weights_X(problem), problem.R)
 
 
+def _loop(problem: LearningProblem, h: float, delay: int) -> SampledLoop:
+    """The loop of the problem's integral action (none without it), sampled at h (0 for
+    the continuous loop) with a delay of d samples."""
+    if problem.integral_weight is None:
+        return SampledLoop(h, delay)
+    return SampledLoop(h, delay, C=problem.C, F=problem.F, Q_i=problem.integral_weight)
+
+
 def design_digital(
-    model: DiscreteModel, problem: LearningProblem, delay: int, cost: str = "digital"
+    model: DiscreteModel, problem: LearningProblem, delay: int, cost: Cost = "digital"
 ) -> Design:
     """The optimal digital controller of the identified sampled loop with its delay.
 
@@ -91,62 +93,19 @@ def design_digital(
     delay : int
         d, the drive's computation delay, samples.
     cost : {"digital", "sampled"}
-        The digital cost, or the continuous cost integrated exactly over each sample.
+        The digital cost, or the continuous cost integrated exactly over each sample
+        (:class:`~selftune.loop.SampledLoop`).
 
     Returns
     -------
     Design
     """
-    h, n, m = model.h, problem.n, problem.m
-    Az, Bz = delay_augmented(model.Ad, model.Bd, delay)
-    Qz, Rz, Nz = _digital_weights(model, problem, delay, cost)
-    if problem.integral_weight is not None:
-        assert problem.C is not None and problem.F is not None
-        C_full = np.hstack([problem.C, np.zeros((problem.r, delay * m))])
-        Az, Bz = integrator_augmented(Az, Bz, C_full, h)
-        Qz = scipy.linalg.block_diag(Qz, h * problem.integral_weight)
-        Nz = np.vstack([Nz, np.zeros((problem.r, m))])
-    K, P = dlqr(Az, Bz, Qz, Rz, Nz)
+    loop = _loop(problem, model.h, delay)
+    plant = (model.Ad, model.Bd)
+    K, P = loop.optimum(plant, loop.weights(plant, problem.Q, problem.R, cost))
     held = np.zeros((problem.q, problem.q))
-    X, U = _regulator(problem, model.Ad - np.eye(n), model.Bd, model.Ed, held)
-    return Design(law=_law(problem, K, (X, U), delay, h), P=P, B=model.Bd)
-
-
-def _digital_weights(
-    model: DiscreteModel, problem: LearningProblem, delay: int, cost: str
-) -> tuple[Array, Array, Array]:
-    """``(Qz, Rz, Nz)`` of the delay-augmented state for the digital or sampled cost."""
-    h, n, m = model.h, problem.n, problem.m
-    size = n + delay * m
-    Qz, Nz = np.zeros((size, size)), np.zeros((size, m))
-    if cost == "digital":
-        Qz[:n, :n] = h * problem.Q
-        return Qz, h * problem.R, Nz
-    if cost != "sampled":
-        raise InputError(f"cost: must be 'digital' or 'sampled', got {cost!r}")
-    A, B, _ = continuous_from_discrete(model.Ad, model.Bd, h)
-    Qd, Rd, N = sampled_data_weights(A, B, problem.Q, problem.R, h)
-    Qz[:n, :n] = Qd
-    if delay == 0:
-        return Qz, Rd, N
-    # the applied input is the oldest delayed one: its cross term joins the state weight,
-    # its own weight is charged when it is computed (d samples earlier)
-    Qz[:n, n : n + m] = N
-    Qz[n : n + m, :n] = N.T
-    return Qz, Rd, Nz
-
-
-def _law(
-    problem: LearningProblem, K: Array, steady: tuple[Array, Array], history: int, h: float
-) -> ControlLaw:
-    """The law of a gain over ``[x; delayed inputs; z]``: K's last r columns are K_i."""
-    X, U = steady
-    width = problem.n + history * problem.m
-    if problem.integral_weight is None:
-        return ControlLaw(K, X, U, history=history)
-    return ControlLaw(
-        K[:, :width], X, U, history=history, K_i=K[:, width:], C=problem.C, F=problem.F, h=h
-    )
+    X, U = _regulator(problem, model.Ad - np.eye(problem.n), model.Bd, model.Ed, held)
+    return Design(law=loop.law(K, X, U), P=P, B=model.Bd)
 
 
 def design_continuous(model: DiscreteModel, problem: LearningProblem) -> Design:
@@ -166,13 +125,8 @@ def design_continuous(model: DiscreteModel, problem: LearningProblem) -> Design:
         integrator run at the sampling period).
     """
     A, B, D = continuous_from_discrete(model.Ad, model.Bd, model.h, model.Ed)
-    if problem.integral_weight is not None:
-        assert problem.C is not None
-        A_aug, B_aug = integrator_augmented(A, B, problem.C)
-        Q_aug = scipy.linalg.block_diag(problem.Q, problem.integral_weight)
-        K, P = lqr(A_aug, B_aug, Q_aug, problem.R)
-    else:
-        K, P = lqr(A, B, problem.Q, problem.R)
+    loop = _loop(problem, 0.0, 0)
+    K, P = loop.optimum((A, B), loop.weights((A, B), problem.Q, problem.R))
     E = np.zeros((problem.q, problem.q)) if problem.E is None else problem.E
     X, U = _regulator(problem, A, B, D, E)
-    return Design(law=_law(problem, K, (X, U), 0, model.h), P=P, B=B)
+    return Design(law=loop.law(K, X, U, h=model.h), P=P, B=B)

@@ -28,8 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import RANK_TOLERANCE, Array, ControlLaw, delay_augmented
+from ..core import RANK_TOLERANCE, Array, ControlLaw
 from ..errors import ConvergenceError, ExcitationError
+from ..loop import SampledLoop
 from ._discrete_model import DiscreteModel
 from ._evidence import INFLATION_LIMIT, Evidence
 from ._policy_iteration import IterationRecord
@@ -155,26 +156,7 @@ def closed_loop_radius(model: DiscreteModel, law: ControlLaw, delay: int) -> flo
     delay : int
         The drive's computation delay, samples.
     """
-    n, m = model.n, model.Bd.shape[1]
-    Az, Bz = delay_augmented(model.Ad, model.Bd, delay)
-    size = Az.shape[0]
-    K = np.zeros((m, size))
-    K[:, :n] = law.K_x
-    for lag in range(1, law.history + 1):  # u_(k-lag) sits in block delay - lag
-        block = n + (delay - lag) * m
-        column = n + (law.history - lag) * m
-        K[:, block : block + m] = law.K[:, column : column + m]
-    closed = Az - Bz @ K
-    if law.K_i is not None:  # z_(k+1) = z_k + h C xbar_k, u_k also -K_i z_k
-        assert law.C is not None and law.h is not None
-        r = law.K_i.shape[1]
-        closed = np.block(
-            [
-                [closed, -Bz @ law.K_i],
-                [np.hstack([law.h * law.C, np.zeros((r, size - n))]), np.eye(r)],
-            ]
-        )
-    return float(np.max(np.abs(np.linalg.eigvals(closed))))
+    return SampledLoop.of_law(law, model.h, delay).spectral_radius((model.Ad, model.Bd), law)
 
 
 def standard_errors(

@@ -14,51 +14,18 @@ with ``(X, U)`` from the regulator equations (the same as in continuous time whe
 and ``K`` from the discrete Riccati equation of the augmented plant (:func:`dlqr`). Units
 are SI: for the motor, x in A, u in V, h in s.
 
-The costs, with ``ubar_k`` the deviation of the voltage *computed* at sample k and
-``a_k = u_(k-d)`` the voltage *applied* over ``[t_k, t_(k+1))`` (``abar_k`` its deviation):
-
-- ``"digital"``: ``sum_k h (xbar_k' Q xbar_k + ubar_k' R ubar_k)``, computable from
-  samples alone; the augmented weights are ``Qz = blockdiag(h Q, 0, ..., 0)``,
-  ``Rz = h R``, no cross term.
-- ``"sampled"``: the continuous cost ``int (xbar'Q xbar + abar'R abar) dt`` integrated
-  exactly over each sample with the voltage actually applied,
-  ``sum_k [xbar_k; abar_k]' W [xbar_k; abar_k]``, ``W = [[Qd, N], [N', Rd]]``
-  (:func:`sampled_data_weights`). For d = 0, ``a_k`` is the input. For d >= 1 it is the
-  oldest delayed input in ``z_k``, and each stage is charged d samples early, when its
-  voltage is computed: stage ``k + d`` is ``[xbar_(k+d); ubar_k]' W [xbar_(k+d); ubar_k]``
-  with ``xbar_(k+d) = Cz z_k`` (``Cz``: the first n rows of ``Az^d``), so ``Rz = Rd``,
-  ``Nz = Cz' N`` and ``Qz = Cz' Qd Cz``. The shift leaves out the first d stages, which
-  depend on ``z_0`` alone and no decision changes, so K is the infinite-horizon optimum;
-  ``P`` adds their value, so it is the value of the whole sampled cost. Shifting only the
-  ``Rd`` term (state weight ``Qd`` on x and the cross ``N`` between x and the oldest
-  delayed input, ``Rz = Rd``) gives the same K, but its joint weight is indefinite, outside
-  the conditions under which the Riccati equation is known to have a stabilizing solution.
-
-In both, ``P`` is the value: the optimal cost from ``z_0`` is ``z_0' P z_0``.
-
-**Integral action** (the optimal digital servo controller, ``integral_weight = Q_i``):
-the drive's integrator ``z_(k+1) = z_k + h e_k`` (:class:`ControlLaw`), with
-``e_k = C x_k + F w_k = C xbar_k`` since ``C X + F = 0``, extends the augmented state to
-``zeta_k = [xbar_k; ubar_(k-d); ...; ubar_(k-1); z_k]`` (:func:`integrator_augmented` of
-the delay-augmented plant with ``[C, 0]``)::
-
-    Az_i = [[Az, 0], [h [C, 0], I]],   Bz_i = [Bz; 0]
-
-exactly the state and matrices of the learners (:mod:`selftune.learn`). The cost adds
-``z' Q_i z``: ``"digital"``: ``sum_k h (xbar_k' Q xbar_k + ubar_k' R ubar_k + z_k' Q_i
-z_k)``, so ``Qz = h blockdiag(Q, 0, ..., 0, Q_i)``, ``Rz = h R``. ``"sampled"``: the
-integrator is a digital state, held over each sample, so ``int z' Q_i z dt`` over a sample
-is exactly ``h z_k' Q_i z_k``: the weights of the sampled cost above, padded with
-``h Q_i`` on z (no cross term), and the first d stages as before (they do not involve z).
-The learner's identify-then-design minimizes the same two costs. ``K``'s last r columns
-are ``K_i``; ``P`` is the value of the whole state: the optimal cost from ``zeta_0`` is
-``zeta_0' P zeta_0``.
+The loop (its augmented state ``zeta_k = [xbar_k; ubar_(k-d); ...; ubar_(k-1); z_k]``,
+the integrator with integral action), its two costs (``"digital"``, computable from
+samples, and ``"sampled"``, the continuous cost integrated exactly over each sample with
+the voltage actually applied), their weights and the Riccati equation are those of
+:class:`selftune.loop.SampledLoop`, which the learners' identify-then-design asks too: P
+is the value, the optimal cost from ``zeta_0`` is ``zeta_0' P zeta_0``, and ``K``'s last r
+columns are ``K_i``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -69,23 +36,20 @@ from ..core import (
     WithLaw,
     as_matrix,
     check_weights,
-    delay_augmented,
     discretize,
-    dlqr,
-    integrator_augmented,
     is_positive_definite,
     positive_finite,
     positive_integer,
-    sampled_data_weights,
 )
 from ..errors import InputError, UnsolvableError
+from ..loop import Cost, SampledLoop
 from ._optimum import check_integral_weight
 from ._problem import RegulationProblem
 
 __all__ = ["DigitalSolution", "solve_digital_regulation"]
 
 #: The costs a digital optimum can minimize (see :func:`solve_digital_regulation`).
-DigitalCost = Literal["digital", "sampled"]
+DigitalCost = Cost
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,6 +98,15 @@ class DigitalSolution(WithLaw):
     R: Array
     integral_weight: Array | None = None
 
+    @property
+    def loop(self) -> SampledLoop:
+        """The sampled loop this optimum is of (its period, delay and integrator)."""
+        if self.integral_weight is None:
+            return SampledLoop(self.h, self.input_delay)
+        return SampledLoop(
+            self.h, self.input_delay, C=self.law.C, F=self.law.F, Q_i=self.integral_weight
+        )
+
 
 def _check_arguments(
     problem: RegulationProblem, h: float, input_delay: int, cost: str
@@ -181,82 +154,6 @@ def _sampled_regulator(
             "transmission zero at 1 (no input holds the regulated output at its reference)"
         ) from None
     return solution[:n], solution[n:]
-
-
-def _digital_weights(Q: Array, R: Array, h: float, size: int) -> tuple[Array, Array, Array]:
-    """``Qz = blockdiag(h Q, 0)``, ``Rz = h R``, no cross weight."""
-    n, m = Q.shape[0], R.shape[0]
-    Qz = np.zeros((size, size))
-    Qz[:n, :n] = h * Q
-    return Qz, h * R, np.zeros((size, m))
-
-
-def _sampled_weights(
-    problem: RegulationProblem, Q: Array, R: Array, h: float, Az: Array, delay: int
-) -> tuple[tuple[Array, Array, Array], Array]:
-    """The sampled cost's weights on ``(z_k, u_k)``, charged d samples early, and the value
-    of the first d stages (which no decision changes) as a quadratic form in ``z_0``.
-
-    The stage of sample ``k + d`` is ``[x_(k+d); u_k]' W [x_(k+d); u_k]`` with
-    ``x_(k+d) = Cz z_k`` (``Cz`` the first n rows of ``Az^d``): ``Qz = Cz' Qd Cz``,
-    ``Nz = Cz' N``, ``Rz = Rd``.
-    """
-    n = problem.n
-    Qd, Rd, N = sampled_data_weights(problem.A, problem.B, Q, R, h)
-    W = np.block([[Qd, N], [N.T, Rd]])
-    ahead = np.linalg.matrix_power(Az, delay)
-    Cz = ahead[:n]
-    weights = (Cz.T @ Qd @ Cz, Rd, Cz.T @ N)
-    first_stages = np.zeros_like(Az)
-    power = np.eye(Az.shape[0])
-    for _ in range(delay):  # stage j: [x_j; u_(j-d)] = (first n + m rows of Az^j) z_0
-        selected = power[: n + problem.m]
-        first_stages += selected.T @ W @ selected
-        power = Az @ power
-    return weights, first_stages
-
-
-def _with_integral_action(
-    problem: RegulationProblem,
-    Q_i: Array,
-    h: float,
-    plant: tuple[Array, Array],
-    weights: tuple[Array, Array, Array],
-    first_stages: Array,
-) -> tuple[tuple[Array, Array], tuple[Array, Array, Array], Array]:
-    """The delay-augmented plant, its weights and first stages extended with the digital
-    integrator ``z_(k+1) = z_k + h C xbar_k``, weighted by ``h Q_i`` (no cross term)."""
-    Az, Bz = plant
-    Qz, Rz, Nz = weights
-    size, r = Az.shape[0], problem.r
-    C_full = np.zeros((r, size))
-    C_full[:, : problem.n] = problem.C
-    augmented = integrator_augmented(Az, Bz, C_full, h)
-    Qz_i = np.zeros((size + r, size + r))
-    Qz_i[:size, :size] = Qz
-    Qz_i[size:, size:] = h * Q_i
-    padded = np.zeros((size + r, size + r))
-    padded[:size, :size] = first_stages
-    return augmented, (Qz_i, Rz, np.vstack([Nz, np.zeros((r, Nz.shape[1]))])), padded
-
-
-def _law(
-    problem: RegulationProblem,
-    K: Array,
-    steady: tuple[Array, Array],
-    delay: int,
-    integral: tuple[Array | None, float],
-) -> ControlLaw:
-    """The law of a gain over ``[xbar; delayed inputs (; z)]``: the last r columns are
-    ``K_i`` under integral action."""
-    X, U = steady
-    Q_i, h = integral
-    if Q_i is None:
-        return ControlLaw(K, X, U, history=delay)
-    width = problem.n + delay * problem.m
-    return ControlLaw(
-        K[:, :width], X, U, history=delay, K_i=K[:, width:], C=problem.C, F=problem.F, h=h
-    )
 
 
 def solve_digital_regulation(
@@ -347,32 +244,16 @@ def solve_digital_regulation(
             raise InputError('plant: a given sampled plant supports cost = "digital" only')
         Ad, Bd, Ed = _sampled_plant(plant, problem)
         X, U = _sampled_regulator(problem, Ad, Bd, Ed)
-    Az, Bz = delay_augmented(Ad, Bd, delay)
-    if cost == "digital":
-        weights = _digital_weights(Q_, R_, period, Az.shape[0])
-        first_stages = np.zeros_like(Az)
+    if Q_i is None:
+        loop = SampledLoop(period, delay)
     else:
-        weights, first_stages = _sampled_weights(problem, Q_, R_, period, Az, delay)
-    if Q_i is not None:
-        (Az, Bz), weights, first_stages = _with_integral_action(
-            problem, Q_i, period, (Az, Bz), weights, first_stages
-        )
-    try:
-        K, P = dlqr(Az, Bz, *weights)
-    except UnsolvableError as exc:
-        integrator = "" if Q_i is None else " and an integrator"
-        raise UnsolvableError(
-            f"the plant sampled at h = {period:g} s with a delay of {delay} samples"
-            f"{integrator}: {exc}"
-        ) from None
-    P = P + first_stages
-    P = 0.5 * (P + P.T)
+        loop = SampledLoop(period, delay, C=problem.C, F=problem.F, Q_i=Q_i)
+    weights = loop.weights((Ad, Bd), Q_, R_, cost, continuous_plant=(problem.A, problem.B))
+    K, P = loop.optimum((Ad, Bd), weights)
     for matrix in (P, Ad, Bd, Ed, Q_, R_):
         matrix.setflags(write=False)
-    if Q_i is not None:
-        Q_i.setflags(write=False)
     return DigitalSolution(
-        law=_law(problem, K, (X, U), delay, (Q_i, period)),
+        law=loop.law(K, X, U),
         P=P,
         h=period,
         input_delay=delay,

@@ -33,12 +33,11 @@ from ..core import (
     as_matrix,
     check_positive_definite,
     check_weights,
-    integrator_augmented,
     is_positive_definite,
-    lqr,
     pack_theta,
 )
 from ..errors import InputError, UnsolvableError
+from ..loop import SampledLoop
 from ._problem import RegulationProblem
 
 __all__ = ["ModelBasedSolution", "check_integral_weight", "solve_optimal_regulation"]
@@ -130,14 +129,18 @@ def check_integral_weight(integral_weight: ArrayLike, r: int) -> Array:
     return check_positive_definite(weight, "integral_weight")
 
 
-def _servo_lqr(problem: RegulationProblem, Q: Array, R: Array, Q_i: Array) -> tuple[Array, Array]:
-    """``[K, K_i]`` and P of the plant augmented with the integral of ``C xbar``."""
-    A_aug, B_aug = integrator_augmented(problem.A, problem.B, problem.C)
-    Q_aug = np.zeros(A_aug.shape)
-    Q_aug[: problem.n, : problem.n] = Q
-    Q_aug[problem.n :, problem.n :] = Q_i
+def _optimal_gain(
+    problem: RegulationProblem, Q: Array, R: Array, Q_i: Array | None
+) -> tuple[Array, Array]:
+    """``K`` (``[K, K_i]`` with integral action) and P of the continuous loop: the plant,
+    augmented with the integral of ``C xbar`` when ``Q_i`` is given."""
+    plant = (problem.A, problem.B)
+    if Q_i is None:
+        loop = SampledLoop(0.0)
+        return loop.optimum(plant, loop.weights(plant, Q, R))
+    loop = SampledLoop(0.0, C=problem.C, F=problem.F, Q_i=Q_i)
     try:
-        return lqr(A_aug, B_aug, Q_aug, R)
+        return loop.optimum(plant, loop.weights(plant, Q, R))
     except UnsolvableError as exc:
         raise UnsolvableError(
             f"integral action (the plant augmented with z' = C x): {exc}; it needs rank"
@@ -191,12 +194,9 @@ def solve_optimal_regulation(
     Q, R = check_weights(Q, R, problem.n, problem.m)
     Q_i = None if integral_weight is None else check_integral_weight(integral_weight, problem.r)
     problem.check_solvable()
-    if Q_i is None:
-        K, P = lqr(problem.A, problem.B, Q, R)
-        K_i = None
-    else:
-        gain, P = _servo_lqr(problem, Q, R, Q_i)
-        K, K_i = gain[:, : problem.n].copy(), gain[:, problem.n :].copy()
+    gain, P = _optimal_gain(problem, Q, R, Q_i)
+    K = gain[:, : problem.n].copy()
+    K_i = None if Q_i is None else gain[:, problem.n :].copy()
     X, U = problem.solve_regulator_equations(Q if is_positive_definite(Q) else None, R)
     M = (problem.D + problem.A @ X - X @ problem.E).T @ P[: problem.n]
     for matrix in (Q, R, K, P, X, U, M, K_i, Q_i):

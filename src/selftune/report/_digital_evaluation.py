@@ -16,9 +16,8 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-import scipy.linalg
 
-from ..core import Array, ControlLaw, delay_augmented, dpolicy_value, integrator_augmented
+from ..core import Array, ControlLaw
 from ..errors import UnsolvableError
 from ..model import SPMSM, DigitalSolution, solve_digital_regulation
 from ..sim import DriveSettings, RealisticDrive, constant, simulate_loop
@@ -115,26 +114,17 @@ def feedback_excess_cost(optimum: DigitalSolution, law: ControlLaw, w: Array) ->
     float
         ``inf`` if the feedback does not stabilize the loop.
     """
-    n, m, d = optimum.Ad.shape[0], optimum.Bd.shape[1], optimum.input_delay
-    Az, Bz = delay_augmented(optimum.Ad, optimum.Bd, d)
-    h = optimum.h
-    Qz = np.zeros_like(Az)
-    Qz[:n, :n] = h * optimum.Q
-    zeta0 = np.concatenate([-optimum.X @ w, np.tile(-optimum.U @ w, d)])
-    if optimum.integral_weight is not None:
-        assert optimum.law.C is not None
-        r = optimum.law.C.shape[0]
-        C = np.hstack([optimum.law.C, np.zeros((r, d * m))])
-        Az, Bz = integrator_augmented(Az, Bz, C, h)
-        Qz = scipy.linalg.block_diag(Qz, h * optimum.integral_weight)
-        zeta0 = np.concatenate([zeta0, np.zeros(r)])
-    if law.history != d or law.r != (0 if optimum.law.K_i is None else optimum.law.r):
+    loop, plant = optimum.loop, (optimum.Ad, optimum.Bd)
+    if law.history != loop.input_delay or law.r != loop.r:
         return float("nan")
+    weights = loop.weights(plant, optimum.Q, optimum.R, "digital")
+    steady = [-optimum.X @ w, np.tile(-optimum.U @ w, loop.input_delay), np.zeros(loop.r)]
+    zeta0 = np.concatenate(steady)
     try:
-        value = dpolicy_value(Az, Bz, gains(law), Qz, h * optimum.R)
+        value = loop.value(plant, law, weights)
     except UnsolvableError:
         return float("inf")
-    best = dpolicy_value(Az, Bz, gains(optimum.law), Qz, h * optimum.R)
+    best = loop.value(plant, optimum.law, weights)
     return float(zeta0 @ value @ zeta0) / float(zeta0 @ best @ zeta0) - 1.0
 
 
