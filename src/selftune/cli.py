@@ -26,7 +26,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, NoReturn, TypeAlias
 
 from . import __version__
-from .errors import INTERRUPTED, InputError, SelftuneError
+from .errors import INTERRUPTED, InputError, SelftuneDeprecationWarning, SelftuneError
 
 if TYPE_CHECKING:
     from .config import MotorConfig
@@ -381,9 +381,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     with _Interrupts() as interrupts:
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # never on the terminal
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("ignore")  # numerical warnings never on the terminal
+                warnings.simplefilter("always", SelftuneDeprecationWarning)
                 code = _run(argv)
+            if code == 0:  # a failure says only what failed
+                for message in dict.fromkeys(
+                    str(item.message)
+                    for item in caught
+                    if issubclass(item.category, SelftuneDeprecationWarning)
+                ):
+                    print(f"selftune: warning: {message}", file=sys.stderr)
         except KeyboardInterrupt:
             interrupts.received = True
         except Exception as exc:

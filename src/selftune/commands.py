@@ -325,7 +325,7 @@ def _learn_document(result: Any) -> dict[str, Any]:
     return {
         "target": result.target,
         "method": result.method,
-        "sampling_period": result.sampling_period,
+        "h": result.h,
         "input_delay": result.input_delay,
         "state": list(law.state),
         "control_law": law.document(),

@@ -15,6 +15,7 @@ __all__ = [
     "DataFileError",
     "ExcitationError",
     "InputError",
+    "SelftuneDeprecationWarning",
     "SelftuneError",
     "UnsolvableError",
 ]
@@ -85,3 +86,9 @@ def raise_if_interrupted() -> None:
     (:data:`INTERRUPTED`), even if the KeyboardInterrupt it raised was lost."""
     if INTERRUPTED.is_set():
         raise KeyboardInterrupt
+
+
+class SelftuneDeprecationWarning(FutureWarning):
+    """A name selftune still reads but will not forever (a renamed configuration key or
+    argument). The command line shows it as one line ``selftune: warning: ...`` after a
+    command that succeeds; Python shows it as a FutureWarning."""

@@ -61,7 +61,7 @@ def drive_settings(table: ConfigTable) -> tuple[DriveSettings, float | None]:
     Returns
     -------
     settings : DriveSettings
-    sampling : float or None
+    h : float or None
         ``1 / switching_frequency``, s, if the table gives it.
 
     Raises
@@ -83,11 +83,11 @@ def drive_settings(table: ConfigTable) -> tuple[DriveSettings, float | None]:
         "logged_input": table.choice("logged_input", ("applied", "commanded"), "applied"),
         "voltage_hold": table.choice("voltage_hold", ("stationary", "rotor"), "stationary"),
     }
-    sampling = None
+    h = None
     if "switching_frequency" in table:
-        sampling = 1.0 / table.positive("switching_frequency")
+        h = 1.0 / table.positive("switching_frequency")
     try:
-        return DriveSettings(**values), sampling
+        return DriveSettings(**values), h
     except DataFileError:
         raise
     except InputError as exc:  # a rule across keys: name the key it is about

@@ -13,7 +13,7 @@
     R = [[1.0, 0.0], [0.0, 1.0]]
     [learning]         # optional: selftune tune's settings (selftune.tuning.TuningSettings)
     target = "digital" # or "continuous"; integral_action, dead_time (true/false),
-                       # perturbation, flux_length (s), sampling, K0, exploration, ...
+                       # perturbation, flux_length (s), h, K0, exploration, ...
     [drive]            # optional: tune on a realistic drive (see ._drive_table)
     input_delay = 1
 
@@ -75,13 +75,14 @@ __all__ = [
 
 #: Keys of MOTOR.toml's optional [learning] table (``selftune tune``'s settings).
 LEARNING_KEYS = (
-    "sampling",
+    "h",
     "episode_length",
     "K0",
     "exploration",
     "input_hold",
     "interval",
     "max_iterations",
+    "policy_iterations",
     "target",
     "integral_action",
     "dead_time",
@@ -143,7 +144,7 @@ class MotorConfig:
         The raw ``[learning]`` table (empty if absent); validated by the learning command.
     drive : DriveSettings or None
         The realistic drive of the ``[drive]`` table; None without one (the ideal drive).
-    drive_sampling : float or None
+    drive_h : float or None
         ``1 / switching_frequency`` of the ``[drive]`` table, s, if it gives one.
     source : str
         Where the configuration came from (a file name, or ``"paper preset"``), for
@@ -167,7 +168,7 @@ class MotorConfig:
     learning: Mapping[str, Any] = field(default_factory=dict)
     source: str = "paper preset"
     drive: DriveSettings | None = None
-    drive_sampling: float | None = None
+    drive_h: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("speed", "torque"):
@@ -258,15 +259,13 @@ def load_motor_config(path: str | os.PathLike[str]) -> MotorConfig:
     torque = operating_point.ranged("torque", PAPER_TORQUE)
     Q = cost.positive_definite("Q", 2, paper_Q())
     R = cost.positive_definite("R", 2, paper_R())
-    drive, drive_sampling = None, None
+    drive, drive_h = None, None
     if "drive" in config:
         from ._drive_table import drive_settings  # here: solve loads no simulator
 
-        drive, drive_sampling = drive_settings(config.table("drive"))
+        drive, drive_h = drive_settings(config.table("drive"))
     try:
-        return MotorConfig(
-            motor, speed, torque, Q, R, learning.data, config.file, drive, drive_sampling
-        )
+        return MotorConfig(motor, speed, torque, Q, R, learning.data, config.file, drive, drive_h)
     except InputError as exc:  # a rule across tables (the speed for the motor)
         key, _, reason = str(exc).partition(": ")
         table = operating_point if key in ("speed", "torque") else cost
@@ -294,7 +293,7 @@ def _motor(table: ConfigTable) -> SPMSM:
 def _check_learning(table: ConfigTable) -> None:
     """Each [learning] value of the right type and in its range (``selftune tune`` checks
     how they fit together)."""
-    for key in ("sampling", "episode_length", "exploration"):
+    for key in ("h", "episode_length", "exploration"):
         if key in table:
             table.positive(key)
             table.ranged(key)
@@ -304,6 +303,7 @@ def _check_learning(table: ConfigTable) -> None:
         ("input_hold", LIMITS["episode_samples"]),
         ("interval", LIMITS["episode_samples"]),
         ("max_iterations", LIMITS["iterations"]),
+        ("policy_iterations", LIMITS["iterations"]),
     ):
         if key in table:
             table.positive_integer(key, maximum=limit)

@@ -18,6 +18,7 @@ import difflib
 import math
 import os
 import tomllib
+import warnings
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from types import MappingProxyType
@@ -28,7 +29,7 @@ import numpy as np
 from ..core import Array, check_positive_definite
 from ..core._atomic import read_regular_file
 from ..core._validation import LIMITS, check_entries, check_range
-from ..errors import DataFileError, InputError
+from ..errors import DataFileError, InputError, SelftuneDeprecationWarning
 
 __all__ = ["ConfigFile", "ConfigTable", "read_toml"]
 
@@ -365,8 +366,18 @@ class ConfigTable:
             raise self.error(key, reason) from None
 
 
+#: Keys renamed since a file format first had them: ``{table: {old: new}}``. The old name
+#: is read as the new one, with a :class:`~selftune.errors.SelftuneDeprecationWarning`.
+RENAMED_KEYS: Mapping[str, Mapping[str, str]] = MappingProxyType(
+    {"learning": MappingProxyType({"sampling": "h"})}
+)
+
+
 class ConfigFile:
     """A parsed configuration file whose top level holds only known tables.
+
+    A key renamed since the format first had it (:data:`RENAMED_KEYS`) is read under its
+    new name, with a deprecation warning that says so; both names at once are an error.
 
     Parameters
     ----------
@@ -429,4 +440,19 @@ class ConfigFile:
         if name not in self.data and required:
             raise DataFileError(f"{self.file}: [{name}]: missing table")
         known = self.tables[name]
-        return ConfigTable(self.file, name, self.data.get(name, {}), known or None)
+        data = dict(self.data.get(name, {}))
+        for old, new in RENAMED_KEYS.get(name, {}).items():
+            if old not in data:
+                continue
+            if new in data:
+                raise DataFileError(
+                    f"{self.file}: [{name}] {old}: the old name of {new}, which is set too: "
+                    f"keep only {new}"
+                )
+            data[new] = data.pop(old)
+            warnings.warn(
+                f"{self.file}: [{name}] {old} is deprecated: call it {new} (same value)",
+                SelftuneDeprecationWarning,
+                stacklevel=2,
+            )
+        return ConfigTable(self.file, name, data, known or None)

@@ -92,7 +92,7 @@ PLAUSIBLE_RANGES: Mapping[str, tuple[float, float, str]] = MappingProxyType(
         "J": (1e-9, 1e6, "kg m^2"),
         "speed": (-1e5, 1e5, "rad/s"),
         "torque": (-1e6, 1e6, "N m"),
-        "sampling": (1e-8, 0.1, "s"),
+        "h": (1e-8, 0.1, "s"),
         "episode_length": (1e-6, 100.0, "s"),
         "exploration": (1e-9, 1e4, "V"),
     }

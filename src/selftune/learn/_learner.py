@@ -87,8 +87,8 @@ class LearnedController(WithLaw):
         ``"continuous"`` or ``"digital"``.
     method : str
         ``"adp"`` or ``"identify"``.
-    sampling_period : float
-        h of the data, s.
+    h : float
+        Sampling period of the data, s.
     input_delay : int
         d, the computation delay the digital target accounts for, samples.
     quality : Quality
@@ -104,7 +104,7 @@ class LearnedController(WithLaw):
     B: Array
     target: str
     method: str
-    sampling_period: float
+    h: float
     input_delay: int
     quality: Quality
     alignment: Alignment = field(repr=False)
@@ -347,7 +347,7 @@ def _judged(
         B=B,
         target=options.target,
         method=options.method,
-        sampling_period=evidence.alignment.model.h,
+        h=evidence.alignment.model.h,
         input_delay=options.input_delay if options.target == "digital" else 0,
         quality=quality,
         alignment=evidence.alignment,

@@ -73,9 +73,9 @@ def evaluate_digital(
     weight = learner_integral_weight(truth, settings) if law.K_i is not None else None
     hold = "rotor" if drive is None else drive.voltage_hold
     optimum = solve_digital_regulation(
-        truth.regulation_problem(settings.speed), settings.Q, settings.R, settings.sampling,
+        truth.regulation_problem(settings.speed), settings.Q, settings.R, settings.h,
         input_delay=law.history, integral_weight=weight,
-        plant=truth.sampled_plant(settings.speed, settings.sampling, hold),
+        plant=truth.sampled_plant(settings.speed, settings.h, hold),
     )  # fmt: skip
     best, learned = gains(optimum.law), gains(law)
     nan = np.full(len(result.history), np.nan)
@@ -164,10 +164,10 @@ def digital_step_cost(
     w_true = motor.exogenous(settings.speed, settings.torque)
     w = np.asarray(w, dtype=float)
     scale = np.divide(w_true, w, out=np.ones_like(w_true), where=w != 0.0)
-    Ad, Bd, Ed = motor.sampled_plant(settings.speed, settings.sampling, hold)
-    count = max(2, round(seconds / settings.sampling))
+    Ad, Bd, Ed = motor.sampled_plant(settings.speed, settings.h, hold)
+    count = max(2, round(seconds / settings.h))
     logs = simulate_loop(
-        (Ad, Bd, Ed @ np.diag(scale)), law, constant(w), h=settings.sampling,
+        (Ad, Bd, Ed @ np.diag(scale)), law, constant(w), h=settings.h,
         num_samples=count, delay=law.history, discrete=True,
     )  # fmt: skip
     run = logs.commanded
@@ -177,7 +177,7 @@ def digital_step_cost(
     total += np.einsum("ki,ij,kj->", du, settings.R, du)
     if integral_weight is not None and law.C is not None and law.F is not None:
         e = x @ law.C.T + w @ law.F.T
-        z = settings.sampling * np.vstack([np.zeros((1, e.shape[1])), np.cumsum(e, axis=0)[:-1]])
+        z = settings.h * np.vstack([np.zeros((1, e.shape[1])), np.cumsum(e, axis=0)[:-1]])
         dz = z - z[-1]
         total += np.einsum("ki,ij,kj->", dz, integral_weight, dz)
-    return float(settings.sampling * total)
+    return float(settings.h * total)

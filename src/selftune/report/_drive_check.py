@@ -29,7 +29,7 @@ STEADY_SECONDS = 0.2
 def steady_torque_error(
     motor: SPMSM,
     speed: float,
-    sampling: float,
+    h: float,
     law: ControlLaw,
     w: Array,
     *,
@@ -46,7 +46,7 @@ def steady_torque_error(
         The true motor (nameplate values; the drive's temperature heats it).
     speed : float
         Held mechanical speed, rad/s.
-    sampling : float
+    h : float
         Sampling period, s.
     law : ControlLaw
         The controller (q = 2: ``w = [p speed phi, T*]`` as it assumes them).
@@ -69,11 +69,11 @@ def steady_torque_error(
     """
     drive_settings = DriveSettings.ideal() if settings is None else settings
     actual = replace(motor, R_s=motor.R_s * resistance_factor)
-    drive = RealisticDrive(actual, speed, sampling, drive_settings)
+    drive = RealisticDrive(actual, speed, h, drive_settings)
     record = drive.record(
         law,
         constant(np.asarray(w, dtype=float)),
-        num_samples=max(2, round(seconds / sampling)),
+        num_samples=max(2, round(seconds / h)),
         exploration=None,
         seed=seed,
     )

@@ -175,7 +175,7 @@ def evaluate(
     excess = float("nan")
     if weight is None and 0.0 < optimal_cost < float("inf"):
         excess = feedback_value(motor, settings, result.K) / optimal_cost - 1.0
-    best = gains(optimum.law(settings.sampling))
+    best = gains(optimum.law(settings.h))
     return TuningEvaluation(
         optimum=optimum,
         theta_error=np.array(theta_error),
@@ -256,6 +256,6 @@ def closed_loop_response(
         K=K,
         X=X,
         U=U,
-        h=settings.sampling,
-        num_samples=round(duration / settings.sampling),
+        h=settings.h,
+        num_samples=round(duration / settings.h),
     )

@@ -189,7 +189,7 @@ def report(reproduction: Reproduction) -> str:
         f"phi_pm = {reproduction.motor.phi_pm} Wb, p = {reproduction.motor.p}; "
         f"{reproduction.settings.speed:g} rad/s, T* = {reproduction.settings.torque:g} N m, "
         "Q = 1e3 I, R = I",
-        f"  sampling {reproduction.settings.sampling * 1e6:g} us, episodes of "
+        f"  h = {reproduction.settings.h * 1e6:g} us, episodes of "
         f"{reproduction.settings.episode_length * 1e3:g} ms, exploration "
         f"+-{reproduction.settings.exploration:g} V, seed {reproduction.settings.seed}",
         "",

@@ -67,7 +67,7 @@ def torque_check(
     drive : DriveSettings or None
         The drive it was tuned on (None: the ideal drive).
     """
-    arguments = (motor, settings.speed, settings.sampling, result.law, result.w)
+    arguments = (motor, settings.speed, settings.h, result.law, result.w)
     return TorqueCheck(
         steady_error=steady_torque_error(*arguments, settings=drive, seed=settings.seed),
         hot_error=steady_torque_error(
@@ -180,7 +180,7 @@ def tune_document(
         Its steady torque on the simulated drive.
     """
     optimum = evaluation.optimum
-    best = optimum.law if isinstance(optimum, DigitalSolution) else optimum.law(settings.sampling)
+    best = optimum.law if isinstance(optimum, DigitalSolution) else optimum.law(settings.h)
     return {
         "algorithm": result.algorithm,
         "target": result.target,

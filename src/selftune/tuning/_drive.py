@@ -9,7 +9,8 @@ from __future__ import annotations
 from typing import Protocol
 
 from ..core import ControlLaw
-from ..learn import Trajectory
+from ..learn import LoggedInput, Trajectory
+from ..loop import SampledLoop
 from ..sim import ExogenousSignal, Exploration
 
 __all__ = ["Drive"]
@@ -19,10 +20,11 @@ class Drive(Protocol):
     """A drive in torque-control mode that runs episodes and returns what it logged.
 
     The session hands it a :class:`~selftune.core.ControlLaw` (the controller to run,
-    ``u_k = U w_k - K [...] + rho_k``) and reads back a log. The drive says how its log
-    is aligned: its computation delay (the voltage computed at sample k acts over
-    ``[t_(k+d), t_(k+d+1))``) and whether row k of the log holds the voltage applied
-    during sample k or the one computed at it.
+    ``u_k = U w_k - K [...] + rho_k``) and reads back a log. The drive says what its loop
+    is (:class:`~selftune.loop.SampledLoop`: the sampling period h, the computation delay
+    d, the voltage computed at sample k acting over ``[t_(k+d), t_(k+d+1))``, and what it
+    holds over a sample) and whether row k of its log holds the voltage applied during
+    sample k or the one computed at it.
     """
 
     @property
@@ -31,24 +33,15 @@ class Drive(Protocol):
         ...
 
     @property
-    def sampling(self) -> float:
-        """Sampling period, s."""
+    def loop(self) -> SampledLoop:
+        """The drive's current loop: sampling period h (s), computation delay (samples)
+        and voltage hold (``"stationary"`` for a PWM inverter, ``"rotor"`` for an ideal
+        zero-order hold of the dq voltage); no integrator (that is the controller's)."""
         ...
 
     @property
-    def input_delay(self) -> int:
-        """d, the computation delay, samples."""
-        ...
-
-    @property
-    def logged_input(self) -> str:
+    def logged_input(self) -> LoggedInput:
         """``"applied"`` or ``"commanded"``: what row k of the log's voltages holds."""
-        ...
-
-    @property
-    def voltage_hold(self) -> str:
-        """``"stationary"`` (a PWM inverter holds the stationary-frame vector) or
-        ``"rotor"`` (the dq voltage is held: an ideal zero-order hold)."""
         ...
 
     def run(

@@ -56,7 +56,7 @@ def checked(episode: Trajectory, K: Array, settings: TuningSettings) -> Trajecto
         raise ConvergenceError(
             f"the currents diverged (|i| reached {peak:.3g} A in {episode.duration * 1e3:g} ms) "
             f"under the feedback K = {gain} V/A "
-            f"applied every {settings.input_hold} sample(s) of {settings.sampling:g} s: it does "
+            f"applied every {settings.input_hold} sample(s) of {settings.h:g} s: it does "
             "not stabilize the sampled loop; choose a smaller K0 (e.g. about L_s times the "
             "wanted bandwidth in rad/s) or input_hold = 1"
         )

@@ -133,7 +133,7 @@ def identify_flux(drive: Drive, settings: TuningSettings, phi_guess: float) -> F
     def stepping(t: Array) -> Array:
         return w + reference_perturbation(t, "steps", settings.torque)
 
-    samples = max(2, round(settings.flux_length / settings.sampling))
+    samples = max(2, round(settings.flux_length / settings.h))
     episode = drive.run(
         ControlLaw.regulator(settings.K0, X, BACK_EMF_FEEDFORWARD),
         held(stepping),

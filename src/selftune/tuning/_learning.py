@@ -31,7 +31,7 @@ from ._drive import Drive
 from ._episodes import iteration_record
 from ._knowledge import known_flux_form
 from ._results import TuningIteration, TuningResult
-from ._settings import TuningSettings
+from ._settings import Target, TuningSettings
 
 __all__ = [
     "aligned",
@@ -56,11 +56,10 @@ def check_drive(drive: Drive, settings: TuningSettings) -> None:
         (the digital target or integral action on a controller updated every
         ``input_hold > 1`` samples).
     """
-    sampling = float(drive.sampling)
-    if abs(sampling - settings.sampling) > SAMPLING_AGREEMENT * settings.sampling:
+    h = drive.loop.h
+    if abs(h - settings.h) > SAMPLING_AGREEMENT * settings.h:
         raise InputError(
-            f"sampling: the settings say {settings.sampling:g} s but the drive samples every "
-            f"{sampling:g} s"
+            f"h: the settings say {settings.h:g} s but the drive samples every {h:g} s"
         )
     if settings.input_hold != 1 and (settings.target == "digital" or settings.integral_action):
         what = "the digital target" if settings.target == "digital" else "integral action"
@@ -111,7 +110,7 @@ def replace_F(problem: LearningProblem, F: Array | None) -> LearningProblem:
 
 
 def learning_options(
-    drive: Drive, settings: TuningSettings, *, target: str | None = None
+    drive: Drive, settings: TuningSettings, *, target: Target | None = None
 ) -> LearningOptions:
     """The options of the drive's alignment and the settings' target and dead time.
 
@@ -125,22 +124,22 @@ def learning_options(
         Overrides ``settings.target``.
     """
     return LearningOptions(
-        target=settings.target if target is None else target,  # type: ignore[arg-type]
+        target=settings.target if target is None else target,
         method="adp",
-        input_delay=drive.input_delay,
-        logged_input=drive.logged_input,  # type: ignore[arg-type]
+        input_delay=drive.loop.input_delay,
+        logged_input=drive.logged_input,
         interval=settings.regression_interval(),
-        max_iterations=max(settings.max_iterations, 50),
+        max_iterations=settings.policy_iterations,
         dead_time=settings.dead_time,
         electrical_speed=drive.pole_pairs * settings.speed,
-        voltage_hold=drive.voltage_hold,  # type: ignore[arg-type]
+        voltage_hold=drive.loop.hold,
     )
 
 
 def aligned(episode: Trajectory, drive: Drive) -> Trajectory:
     """The episode with row k of ``u`` the voltage applied during sample k (a drive that
     logs commanded voltages is read with its delay)."""
-    shift = stated_shift(drive.logged_input, drive.input_delay)  # type: ignore[arg-type]
+    shift = stated_shift(drive.logged_input, drive.loop.input_delay)
     return episode if not shift else aligned_trajectory(episode, shift)
 
 

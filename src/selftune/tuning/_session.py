@@ -56,7 +56,7 @@ def run_algorithm(
         plant = SimulatedDrive(
             motor=motor,
             speed=settings.speed,
-            sampling=settings.sampling,
+            sampling=settings.h,
             input_hold=settings.input_hold,
         )
     else:
@@ -65,7 +65,7 @@ def run_algorithm(
                 f"input_hold: a realistic drive's controller updates every sample; set "
                 f"input_hold = 1 (got {settings.input_hold})"
             )
-        plant = RealisticDrive(motor, settings.speed, settings.sampling, drive)
+        plant = RealisticDrive(motor, settings.speed, settings.h, drive)
     return _run(name, plant, settings, motor.phi_pm)
 
 

@@ -59,7 +59,7 @@ class TuningSettings:
         Torque reference T*, N m.
     Q, R : ndarray
         Cost weights (5): ``Q = 1e3 I`` (PAPER_NOTES erratum 1), ``R = I``.
-    sampling : float
+    h : float
         Sampling period, s (10 us).
     episode_length : float
         Length of each on-policy episode, s (5 ms); also the off-policy batch length.
@@ -91,8 +91,11 @@ class TuningSettings:
     interval : int
         Samples per regression interval.
     max_iterations : int
-        Upper bound on iterations (episodes) of the on-policy algorithms, and on
-        policy-iteration steps off-policy.
+        Upper bound on iterations (episodes) of the on-policy algorithms.
+    policy_iterations : int
+        Upper bound on the policy-iteration steps of one learning run from a batch
+        (off-policy, Algorithm 3's second step on a realistic drive; each discount of the
+        servo's schedule counts apart): 50.
     feedback_tolerance : float
         epsilon_1: relative change of Theta_1 below which the feedforward is learned.
     tolerance : float
@@ -119,7 +122,7 @@ class TuningSettings:
     torque: float = PAPER_TORQUE
     Q: Array = field(default_factory=paper_Q)
     R: Array = field(default_factory=paper_R)
-    sampling: float = PAPER_SAMPLING
+    h: float = PAPER_SAMPLING
     episode_length: float = PAPER_EPISODE_LENGTH
     K0: Array = field(default_factory=paper_K0)
     exploration: float = PAPER_EXPLORATION
@@ -129,6 +132,7 @@ class TuningSettings:
     no_load_hold: int = 10
     interval: int = 10
     max_iterations: int = 20
+    policy_iterations: int = 50
     feedback_tolerance: float = 1e-4
     tolerance: float = 1e-6
     seed: int = 0
@@ -138,7 +142,7 @@ class TuningSettings:
     flux_length: float = 0.2
 
     def __post_init__(self) -> None:
-        for name in ("sampling", "episode_length", "exploration"):
+        for name in ("h", "episode_length", "exploration"):
             value = check_range(positive_finite(getattr(self, name), name), name)
             object.__setattr__(self, name, value)
         for name in ("feedback_tolerance", "tolerance"):
@@ -162,13 +166,18 @@ class TuningSettings:
         length = positive_finite(self.flux_length, "flux_length")
         length = check_range(length, "flux_length", "episode_length")
         object.__setattr__(self, "flux_length", length)
-        for name in ("input_hold", "no_load_hold", "interval", "max_iterations"):
+        for name in (
+            "input_hold",
+            "no_load_hold",
+            "interval",
+            "max_iterations",
+            "policy_iterations",
+        ):
             object.__setattr__(self, name, positive_integer(getattr(self, name), name))
         object.__setattr__(self, "seed", positive_integer(self.seed, "seed", minimum=0))
         if self.samples_per_episode < 2:
             raise InputError(
-                f"episode_length: {self.episode_length} s is less than two samples of "
-                f"{self.sampling} s"
+                f"episode_length: {self.episode_length} s is less than two samples of {self.h} s"
             )
         self._check_sizes()
 
@@ -178,19 +187,20 @@ class TuningSettings:
         samples = self.samples_per_episode
         if samples > LIMITS["episode_samples"]:
             raise InputError(
-                f"episode_length: {self.episode_length:g} s of samples of {self.sampling:g} s"
+                f"episode_length: {self.episode_length:g} s of samples of {self.h:g} s"
                 f" is {samples} samples per episode; at most {LIMITS['episode_samples']}"
             )
         for name in ("input_hold", "no_load_hold", "interval"):
             if getattr(self, name) > samples:
                 raise InputError(
                     f"{name}: {getattr(self, name)} samples is longer than an episode"
-                    f" ({samples} samples of {self.sampling:g} s)"
+                    f" ({samples} samples of {self.h:g} s)"
                 )
-        if self.max_iterations > LIMITS["iterations"]:
-            raise InputError(
-                f"max_iterations: at most {LIMITS['iterations']}, got {self.max_iterations}"
-            )
+        for name in ("max_iterations", "policy_iterations"):
+            if getattr(self, name) > LIMITS["iterations"]:
+                raise InputError(
+                    f"{name}: at most {LIMITS['iterations']}, got {getattr(self, name)}"
+                )
 
     @classmethod
     def paper(cls, **changes: object) -> TuningSettings:
@@ -211,7 +221,7 @@ class TuningSettings:
     @property
     def samples_per_episode(self) -> int:
         """Samples in one episode (and in the off-policy batch)."""
-        return round(self.episode_length / self.sampling)
+        return round(self.episode_length / self.h)
 
     def regression_interval(self, unknowns: int = 11) -> int:
         """Samples per regression interval: ``interval``, made a multiple of ``input_hold``
@@ -244,7 +254,7 @@ DRIVE_DEFAULTS = {"K0_fraction": 0.0125, "exploration_fraction": 0.02, "episode_
 class _Defaults:
     """The defaults of a motor file's [learning] keys (not validated: the settings are)."""
 
-    sampling: float
+    h: float
     K0: Array
     exploration: float
     episode_length: float = PAPER_EPISODE_LENGTH
@@ -257,24 +267,24 @@ class _Defaults:
 def _drive_defaults(config: MotorConfig, table: ConfigTable) -> _Defaults:
     """The defaults of this file: the paper's, or a realistic drive's (the paper's are for
     its ideal drive)."""
-    sampling = table.ranged("sampling", PAPER_SAMPLING)
+    h = table.ranged("h", PAPER_SAMPLING)
     drive = config.drive
     if drive is None:
-        return _Defaults(sampling, paper_K0(), PAPER_EXPLORATION)
-    if config.drive_sampling is not None:
-        if "sampling" in table and abs(sampling - config.drive_sampling) > 1e-9 * sampling:
+        return _Defaults(h, paper_K0(), PAPER_EXPLORATION)
+    if config.drive_h is not None:
+        if "h" in table and abs(h - config.drive_h) > 1e-9 * h:
             raise table.error(
-                "sampling",
-                f"{sampling:g} s disagrees with the [drive] switching_frequency "
-                f"({1.0 / config.drive_sampling:g} Hz: one PWM period per sample)",
+                "h",
+                f"{h:g} s disagrees with the [drive] switching_frequency "
+                f"({1.0 / config.drive_h:g} Hz: one PWM period per sample)",
             )
-        sampling = config.drive_sampling
+        h = config.drive_h
     exploration = PAPER_EXPLORATION
     if drive.dc_voltage is not None:
         exploration = DRIVE_DEFAULTS["exploration_fraction"] * drive.dc_voltage
     return _Defaults(
-        sampling=sampling,
-        K0=DRIVE_DEFAULTS["K0_fraction"] * config.motor.L_s / sampling * np.eye(2),
+        h=h,
+        K0=DRIVE_DEFAULTS["K0_fraction"] * config.motor.L_s / h * np.eye(2),
         exploration=exploration,
         episode_length=DRIVE_DEFAULTS["episode_length"],
         input_hold=1,
@@ -289,9 +299,10 @@ def tuning_settings(
 ) -> TuningSettings:
     """The self-tuning settings of a motor file: its operating point, cost and [learning].
 
-    ``[learning]`` may set ``sampling`` (s), ``episode_length`` (s), ``K0`` (2x2, V/A),
-    ``exploration`` (V), ``input_hold`` (samples per controller update), ``interval``
-    (samples), ``max_iterations``, ``target``, ``integral_action``, ``dead_time``,
+    ``[learning]`` may set ``h`` (the sampling period, s; formerly ``sampling``),
+    ``episode_length`` (s), ``K0`` (2x2, V/A), ``exploration`` (V), ``input_hold``
+    (samples per controller update), ``interval`` (samples), ``max_iterations``,
+    ``policy_iterations``, ``target``, ``integral_action``, ``dead_time``,
     ``perturbation`` and ``flux_length`` (s). Absent keys take the defaults of
     :class:`TuningSettings` (the paper's values, but ``input_hold = 2``: the controller at
     half the sampling rate, which lets the learner integrate the data to fourth order).
@@ -337,13 +348,16 @@ def tuning_settings(
             torque=config.torque,
             Q=config.Q,
             R=config.R,
-            sampling=defaults.sampling,
+            h=defaults.h,
             episode_length=table.ranged("episode_length", defaults.episode_length),
             K0=table.matrix("K0", (2, 2), defaults.K0),
             exploration=table.ranged("exploration", defaults.exploration),
             input_hold=table.positive_integer("input_hold", defaults.input_hold),
             interval=table.positive_integer("interval", TuningSettings.interval),
             max_iterations=table.positive_integer("max_iterations", TuningSettings.max_iterations),
+            policy_iterations=table.positive_integer(
+                "policy_iterations", TuningSettings.policy_iterations
+            ),
             seed=seed,
             target=_target(
                 defaults.target
