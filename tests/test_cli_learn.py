@@ -83,7 +83,7 @@ def test_learn_from_a_file_equals_learning_in_memory(tmp_path: Path, suffix: str
         np.testing.assert_array_equal(np.array(result[key]), getattr(expected, key), err_msg=key)
     assert result["iterations"] == len(expected.history)
     assert (result["target"], result["method"], result["input_delay"]) == ("continuous", "adp", 0)
-    assert result["state"] == ["x1", "x2"] and result["sampling_period"] == pytest.approx(1e-5)
+    assert result["state"] == ["x1", "x2"] and result["h"] == pytest.approx(1e-5)
     assert result["control_law"]["equations"].startswith("u_k = U w_k - K [xbar_k]")
     assert result["alignment"]["shift"] == 0 and result["quality"]["K_relative_se"] < 1e-4
     optimum = solve_optimal_regulation(PROBLEM, Q, R)

@@ -16,6 +16,8 @@ from selftune.config import (
     load_motor_config,
     read_toml,
 )
+from selftune.errors import SelftuneDeprecationWarning
+from selftune.tuning import tuning_settings
 
 MOTOR_TOML = """\
 [motor]            # R_s, L_s, phi_pm, p, and optional J
@@ -104,18 +106,51 @@ def test_whole_float_pole_pairs_are_accepted(tmp_path: Path) -> None:
 
 
 def test_a_learning_table_is_kept_raw(tmp_path: Path) -> None:
-    text = MOTOR_TOML + "[learning]\nsampling = 1e-5\nK0 = [[62.8, 0], [0, 62.8]]\n"
+    text = MOTOR_TOML + "[learning]\nh = 1e-5\nK0 = [[62.8, 0], [0, 62.8]]\n"
     config = load_motor_config(write(tmp_path, text))
-    assert config.learning == {"sampling": 1e-5, "K0": [[62.8, 0], [0, 62.8]]}
+    assert config.learning == {"h": 1e-5, "K0": [[62.8, 0], [0, 62.8]]}
     with pytest.raises(TypeError):
-        config.learning["sampling"] = 1.0  # type: ignore[index]
+        config.learning["h"] = 1.0  # type: ignore[index]
+
+
+def test_the_old_name_of_the_sampling_period_is_read_with_a_deprecation_warning(
+    tmp_path: Path,
+) -> None:
+    text = MOTOR_TOML + "[learning]\nsampling = 2e-5\n"
+    with pytest.warns(
+        SelftuneDeprecationWarning, match=r"\[learning\] sampling is deprecated: call it h"
+    ):
+        config = load_motor_config(write(tmp_path, text))
+    assert config.learning == {"sampling": 2e-5}  # kept as written
+    with pytest.warns(SelftuneDeprecationWarning):
+        assert tuning_settings(config).h == 2e-5
+    with pytest.raises(
+        DataFileError, match=r"\[learning\] sampling: the old name of h, which is set"
+    ):
+        load_motor_config(write(tmp_path, text + "h = 2e-5\n"))
+
+
+def test_the_command_line_says_a_deprecated_key_in_one_line_after_success(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from selftune.cli import main
+
+    motor = write(tmp_path, MOTOR_TOML + "[learning]\nsampling = 1e-5\n")
+    assert main(["solve", "--motor", str(motor)]) == 0
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == [
+        f"selftune: warning: {motor}: [learning] sampling is deprecated: call it h (same value)"
+    ]
+    bad = write(tmp_path, MOTOR_TOML.replace("p = 2", "p = -2") + "[learning]\nsampling = 1e-5\n")
+    assert main(["solve", "--motor", str(bad)]) == 2
+    assert len(capsys.readouterr().err.splitlines()) == 1
 
 
 @pytest.mark.parametrize(
     ("line", "expected"),
     [
-        ("anything = 'x'", "[learning] anything: unknown key (known: sampling,"),
-        ("sampeling = 1e-5", "[learning] sampeling: unknown key (known: sampling,"),
+        ("anything = 'x'", "[learning] anything: unknown key (known: h,"),
+        ("sampeling = 1e-5", "[learning] sampeling: unknown key (known: h,"),
         ("sampling = -1e-5", "[learning] sampling: must be positive"),
         ("sampling = 1e-12", "[learning] sampling: must be between 1e-08 and 0.1 s"),
         ("exploration = 'a'", "[learning] exploration: must be a number, got a string"),

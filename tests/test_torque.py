@@ -121,7 +121,7 @@ def test_an_unstable_initial_policy_is_named() -> None:
 
 def test_settings_are_validated() -> None:
     with pytest.raises(InputError, match="episode_length"):
-        TuningSettings(sampling=1e-3, episode_length=1e-3)
+        TuningSettings(h=1e-3, episode_length=1e-3)
     with pytest.raises(InputError, match="Q"):
         TuningSettings(Q=-np.eye(2))
     with pytest.raises(InputError, match="input_hold"):

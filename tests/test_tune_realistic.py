@@ -61,7 +61,7 @@ def drive_settings(motor: SPMSM, speed: float, current: float, drive: DriveSetti
         learning=learning,
         source="test",
         drive=drive,
-        drive_sampling=1e-4,
+        drive_h=1e-4,
     )
     return tuning_settings(config)
 

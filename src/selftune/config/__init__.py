@@ -12,11 +12,12 @@ from __future__ import annotations
 
 from ._learn_file import LEARN_TABLES, LearnConfig, load_learn_config
 from ._motor_file import MOTOR_TABLES, MotorConfig, load_motor_config
-from ._toml import ConfigFile, ConfigTable, read_toml
+from ._toml import RENAMED_KEYS, ConfigFile, ConfigTable, read_toml
 
 __all__ = [
     "LEARN_TABLES",
     "MOTOR_TABLES",
+    "RENAMED_KEYS",
     "ConfigFile",
     "ConfigTable",
     "LearnConfig",

@@ -265,7 +265,8 @@ def load_motor_config(path: str | os.PathLike[str]) -> MotorConfig:
 
         drive, drive_h = drive_settings(config.table("drive"))
     try:
-        return MotorConfig(motor, speed, torque, Q, R, learning.data, config.file, drive, drive_h)
+        raw = config.data.get("learning", {})  # as written: read with its names by the tuner
+        return MotorConfig(motor, speed, torque, Q, R, raw, config.file, drive, drive_h)
     except InputError as exc:  # a rule across tables (the speed for the motor)
         key, _, reason = str(exc).partition(": ")
         table = operating_point if key in ("speed", "torque") else cost

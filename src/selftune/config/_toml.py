@@ -125,6 +125,10 @@ class ConfigTable:
         The table's content as parsed by :func:`read_toml`.
     known_keys : iterable of str, optional
         If given, any other key is an error (catches typos such as ``Ls`` for ``L_s``).
+    renamed : mapping of str to str, optional
+        ``{old: new}``: keys renamed since the format had them (:data:`RENAMED_KEYS`),
+        read under the new name with a deprecation warning; messages name the key as the
+        file writes it. Both names at once are an error.
 
     Examples
     --------
@@ -141,10 +145,24 @@ class ConfigTable:
         name: str,
         data: Mapping[str, Any],
         known_keys: Iterable[str] | None = None,
+        renamed: Mapping[str, str] | None = None,
     ) -> None:
         self.file = file
         self.name = name
-        self.data: Mapping[str, Any] = MappingProxyType(dict(data))
+        content, written = dict(data), {}
+        self.written: Mapping[str, str] = MappingProxyType(written)  # {new: old} as written
+        for old, new in (renamed or {}).items():
+            if old not in content:
+                continue
+            if new in content:
+                raise self.error(old, f"the old name of {new}, which is set too: keep only {new}")
+            content[new], written[new] = content.pop(old), old
+            warnings.warn(
+                f"{file}: [{name}] {old} is deprecated: call it {new} (same value)",
+                SelftuneDeprecationWarning,
+                stacklevel=2,
+            )
+        self.data: Mapping[str, Any] = MappingProxyType(content)
         if known_keys is not None:
             self.check_keys(known_keys)
 
@@ -161,6 +179,8 @@ class ConfigTable:
         message : str
             What is wrong.
         """
+        if key is not None:
+            key = self.written.get(key, key)
         where = f"[{self.name}]" if key is None else f"[{self.name}] {_clip(key)}"
         return DataFileError(one_line(f"{self.file}: {where}: {message}"))
 
@@ -377,7 +397,7 @@ class ConfigFile:
     """A parsed configuration file whose top level holds only known tables.
 
     A key renamed since the format first had it (:data:`RENAMED_KEYS`) is read under its
-    new name, with a deprecation warning that says so; both names at once are an error.
+    new name (:class:`ConfigTable`).
 
     Parameters
     ----------
@@ -440,19 +460,5 @@ class ConfigFile:
         if name not in self.data and required:
             raise DataFileError(f"{self.file}: [{name}]: missing table")
         known = self.tables[name]
-        data = dict(self.data.get(name, {}))
-        for old, new in RENAMED_KEYS.get(name, {}).items():
-            if old not in data:
-                continue
-            if new in data:
-                raise DataFileError(
-                    f"{self.file}: [{name}] {old}: the old name of {new}, which is set too: "
-                    f"keep only {new}"
-                )
-            data[new] = data.pop(old)
-            warnings.warn(
-                f"{self.file}: [{name}] {old} is deprecated: call it {new} (same value)",
-                SelftuneDeprecationWarning,
-                stacklevel=2,
-            )
-        return ConfigTable(self.file, name, data, known or None)
+        data = self.data.get(name, {})
+        return ConfigTable(self.file, name, data, known or None, RENAMED_KEYS.get(name))

@@ -7,7 +7,7 @@ from typing import Literal
 
 import numpy as np
 
-from ..config import ConfigTable, MotorConfig
+from ..config import RENAMED_KEYS, ConfigTable, MotorConfig
 from ..config._motor_file import LEARNING_KEYS
 from ..core import (
     PAPER_EPISODE_LENGTH,
@@ -333,7 +333,9 @@ def tuning_settings(
     InputError
         If ``target`` is not one of the two.
     """
-    table = ConfigTable(config.source, "learning", config.learning, TUNING_KEYS)
+    table = ConfigTable(
+        config.source, "learning", config.learning, TUNING_KEYS, RENAMED_KEYS["learning"]
+    )
     defaults = _drive_defaults(config, table)
     if target is not None:
         if target not in ("continuous", "digital"):
