@@ -49,7 +49,7 @@ from ._policy_iteration import (
     check_iteration_settings,
     estimated_B,
     feedforward,
-    not_converged,
+    moments_step,
     policy_iteration,
 )
 from ._regression import RegressionSolution, regression, solve_regression
@@ -168,19 +168,14 @@ def lqr_from_moments(
     LQRLearningResult
     """
     Q, R, K0 = cost
-    max_iterations, tolerance = settings
-    history, converged = policy_iteration(
-        moments, K0, Q, R, max_iterations=max_iterations, tolerance=tolerance
-    )
-    if not converged:
-        raise not_converged(history, tolerance)
+    history = policy_iteration(moments_step(moments, Q, R), K0, settings)
     last = history[-1]
     return LQRLearningResult(
         K=last.K,
         P=last.P,
         B=estimated_B(last.P, last.K, R),
         history=tuple(history),
-        converged=converged,
+        converged=True,
     )
 
 
@@ -363,7 +358,6 @@ def regulator_from_moments(
     """
     C, _, F = output
     Q, R, K0 = cost
-    max_iterations, tolerance = settings
     n = moments.n
     X_particular, null_basis = solutions_of_output_equation(C, F)
     if method == "auto":
@@ -373,17 +367,8 @@ def regulator_from_moments(
             "method 'customized' needs a unique X from C X + F = 0 (C of full column rank); "
             f"here the solutions form a space of dimension {len(null_basis)}: use 'general'"
         )
-    history, converged = policy_iteration(
-        moments,
-        K0,
-        Q,
-        R,
-        X=X_particular if method == "customized" else None,
-        max_iterations=max_iterations,
-        tolerance=tolerance,
-    )
-    if not converged:
-        raise not_converged(history, tolerance)
+    X_policy = X_particular if method == "customized" else None
+    history = policy_iteration(moments_step(moments, Q, R, X_policy), K0, settings)
     if method == "customized":
         return _customized(history, X_particular, R)
     weight_X = Q if is_positive_definite(Q) else np.eye(n)

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -46,7 +47,7 @@ from numpy.typing import NDArray
 from ..core import RANK_TOLERANCE, Array, ControlLaw, unvec, unvecs, vecs_hat, vecs_hat_from_outer
 from ..errors import ConvergenceError, ExcitationError, InputError
 from ._alignment import applied_inputs
-from ._policy_iteration import IterationRecord, not_converged
+from ._policy_iteration import IterationRecord, PolicyStep, discounted_policy_iteration
 from ._regression import Regression, RegressionSolution, solve_regression
 from ._trajectory import Trajectory
 
@@ -260,8 +261,8 @@ def _blocks(solution: RegressionSolution, data: DigitalTransitions) -> _Blocks:
 
 
 def _step(
-    data: DigitalTransitions, K: Array, weights: _Weights, gamma: float, iteration: int
-) -> tuple[IterationRecord, _Blocks]:
+    data: DigitalTransitions, weights: _Weights, gamma: float, K: Array, iteration: int
+) -> IterationRecord:
     """Evaluate ``K`` (= K_j) on the data and improve it."""
     # S_ww, the value's part quadratic in w, is a nuisance no policy or feedforward uses:
     # its columns may be collinear (a constant w_1 beside the dead-time channels, whose
@@ -278,7 +279,7 @@ def _step(
             "noisy or too short"
         )
     K_next = np.asarray(np.linalg.solve(weights.Rz + blocks.S_uu, blocks.S_K), dtype=np.float64)
-    record = IterationRecord(
+    return IterationRecord(
         iteration=iteration,
         P=blocks.P,
         K=K_next,
@@ -286,7 +287,6 @@ def _step(
         change=float("inf"),
         regression=solution,
     )
-    return record, blocks
 
 
 def _initial_policy(K0: Array, data: DigitalTransitions) -> Array:
@@ -297,30 +297,6 @@ def _initial_policy(K0: Array, data: DigitalTransitions) -> Array:
     if K0.shape != (m, data.n):
         raise InputError(f"K0: expected shape ({m}, {data.n}) or ({m}, {nz}), got {K0.shape}")
     return np.hstack([K0, np.zeros((m, nz - data.n))])
-
-
-def _iterate(
-    data: DigitalTransitions,
-    K: Array,
-    weights: _Weights,
-    gamma: float,
-    settings: tuple[int, float],
-) -> tuple[list[IterationRecord], _Blocks, Array]:
-    """Policy iteration at one discount until P settles; also returns the last policy
-    evaluated (whose value the returned blocks hold)."""
-    max_iterations, tolerance = settings
-    history: list[IterationRecord] = []
-    for iteration in range(max_iterations):
-        record, blocks = _step(data, K, weights, gamma, iteration)
-        if history:
-            change = float(np.linalg.norm(record.P - history[-1].P) / np.linalg.norm(record.P))
-            record = replace(record, change=change)
-        history.append(record)
-        floor = 100.0 * float(np.finfo(float).eps) * record.regression.condition
-        if record.change <= max(tolerance, floor):
-            return history, blocks, K
-        K = record.K
-    raise not_converged(history, tolerance)
 
 
 def _feedforward(data: DigitalTransitions, K: Array, blocks: _Blocks, weights: _Weights) -> Array:
@@ -387,13 +363,15 @@ def learn_digital_adp(
     scaled = _Weights(Qz=Qz, Rz=h * R)
     X, C, F = regulation
     K = _initial_policy(K0, data)
+
+    def step_at(gamma: float) -> PolicyStep:
+        return partial(_step, data, scaled, gamma)
+
     schedule = DISCOUNTS if r else (1.0,)
-    history: list[IterationRecord] = []
-    for gamma in schedule:
-        steps, blocks, evaluated = _iterate(data, K, scaled, gamma, settings)
-        history.extend(steps)
-        K = steps[-1].K
-    U = _feedforward(data, evaluated, blocks, scaled) if data.q else np.zeros((m, 0))
+    history, stages = discounted_policy_iteration(step_at, K, settings, schedule)
+    K = history[-1].K
+    blocks = _blocks(history[-1].regression, data)
+    U = _feedforward(data, stages[-1].evaluated, blocks, scaled) if data.q else np.zeros((m, 0))
     K_state, K_i = K[:, : data.nz - r], (K[:, data.nz - r :] if r else None)
     integrator = {"K_i": K_i, "C": C, "F": F, "h": h} if r else {}
     law = ControlLaw(K_state, X, U, history=d, **integrator)  # type: ignore[arg-type]

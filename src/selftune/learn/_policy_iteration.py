@@ -1,15 +1,21 @@
-"""Kleinman's policy iteration on the continuous-time data equation, off-policy.
+"""Kleinman's policy iteration, off-policy: the one loop of every ADP learner.
 
-At step j the data equation (:mod:`._regression`) is solved for ``P_j`` (the value of
-the policy ``K_j``), ``K_(j+1) = R^-1 B' P_j`` and, with an exogenous signal,
-``M = (D + A X - X E)' P_j``. One batch of data is reused for every step (Jiang & Jiang
-2012). The learners of :mod:`._continuous` and the paper's algorithms
-(:mod:`selftune.tuning`) are built from :func:`policy_step`.
+:func:`policy_iteration` runs a learner's step (evaluate ``K_j`` on the data, improve
+it) until P settles, keeping the history and stopping at the tolerance or the rounding
+floor of the step's regression; :func:`discounted_policy_iteration` runs it at each
+discount of a schedule (integral action: :mod:`._servo`, :mod:`._digital`).
+
+The continuous learners' step, :func:`policy_step`: the data equation
+(:mod:`._regression`) is solved for ``P_j`` (the value of the policy ``K_j``),
+``K_(j+1) = R^-1 B' P_j`` and, with an exogenous signal, ``M = (D + A X - X E)' P_j``.
+One batch of data is reused for every step (Jiang & Jiang 2012). The learners of
+:mod:`._continuous` and the paper's algorithms (:mod:`selftune.tuning`) are built from
+it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -30,10 +36,15 @@ from ._regression import RegressionSolution, regression, solve_regression
 __all__ = [
     "MAX_TOLERANCE",
     "IterationRecord",
+    "NextDiscount",
     "PolicyIterationFacts",
+    "PolicyStep",
+    "Stage",
     "check_iteration_settings",
+    "discounted_policy_iteration",
     "estimated_B",
     "feedforward",
+    "moments_step",
     "not_converged",
     "policy_iteration",
     "policy_step",
@@ -86,70 +97,175 @@ def _rounding_floor(solution: RegressionSolution) -> float:
     return 100.0 * float(np.finfo(float).eps) * solution.condition
 
 
+#: One policy-iteration step, ``step(K_j, j)``: evaluate the policy ``K_j`` on the data and
+#: improve it; the record's ``change`` is inf (:func:`policy_iteration` fills it in).
+PolicyStep = Callable[[Array, int], IterationRecord]
+
+
 def policy_iteration(
-    moments: IntervalMoments,
+    step: PolicyStep,
     K0: Array,
-    Q: Array,
-    R: Array,
+    settings: tuple[int, float],
     *,
-    X: Array | None = None,
-    max_iterations: int = 50,
-    tolerance: float = 1e-9,
-    allow_deficient: Sequence[str] = (),
-) -> tuple[list[IterationRecord], bool]:
-    """Off-policy policy iteration on precomputed data moments.
+    context: str = "",
+) -> list[IterationRecord]:
+    """Policy iteration from ``K0`` until P settles: the loop of every learner.
 
     Parameters
     ----------
-    moments : IntervalMoments
-        The data, reused for every step.
+    step : callable
+        ``step(K_j, j)`` evaluates ``K_j`` on the data and improves it (the learner's
+        regression: :func:`moments_step` for the continuous data equation).
     K0 : ndarray, shape (m, n)
         Initial stabilizing policy.
-    Q, R : ndarray
-        Cost weights.
-    X : ndarray, shape (n, q), optional
-        ``xbar = x - X w``.
-    max_iterations : int
-        Upper bound on the number of steps.
-    tolerance : float
-        Stop when the relative change of P is at most this (or at most the rounding
-        floor ``100 eps cond`` of the regression, when that is larger).
-    allow_deficient : sequence of str
-        Blocks allowed to lack rank (see :func:`solve_regression`).
+    settings : (int, float)
+        ``(max_iterations, tolerance)``: at most that many steps; stop when the relative
+        change of P is at most the tolerance (or at most the rounding floor
+        ``100 eps cond`` of the step's regression, when that is larger).
+    context : str
+        Put before the message when the iteration does not converge (e.g. the discount).
 
     Returns
     -------
     history : list of IterationRecord
-    converged : bool
+        The steps, the last one converged.
 
     Raises
     ------
-    ExcitationError
-        If the data do not determine the unknowns.
     ConvergenceError
-        If a learned ``P_j`` is not positive definite.
+        If the steps are used up before P settles (:func:`not_converged`), or from
+        ``step``.
     """
+    max_iterations, tolerance = settings
     K = K0
     history: list[IterationRecord] = []
     for iteration in range(max_iterations):
-        record = policy_step(
-            moments,
-            K,
-            Q,
-            R,
-            X=X,
-            allow_deficient=allow_deficient,
-            iteration=iteration,
-        )
+        record = step(K, iteration)
         if history:
             previous = history[-1].P
             change = float(np.linalg.norm(record.P - previous)) / float(np.linalg.norm(record.P))
             record = replace(record, change=change)
         history.append(record)
         if record.change <= max(tolerance, _rounding_floor(record.regression)):
-            return history, True
+            return history
         K = record.K
-    return history, False
+    raise not_converged(history, tolerance, context)
+
+
+@dataclass(frozen=True)
+class Stage:
+    """Policy iteration run to convergence at one discount of a schedule.
+
+    Attributes
+    ----------
+    discount : float
+        The discount the step was built with.
+    steps : tuple of IterationRecord
+        The steps at this discount (numbered from 0).
+    evaluated : ndarray, shape (m, n)
+        The last policy evaluated, ``K_j`` of the last step: ``steps[-1].P`` is its value.
+    """
+
+    discount: float
+    steps: tuple[IterationRecord, ...]
+    evaluated: Array
+
+
+#: A discount schedule: the discount after the stages run so far (the first discount
+#: after none), None when the schedule is done.
+NextDiscount = Callable[[Sequence[Stage]], float | None]
+
+
+def discounted_policy_iteration(
+    step_at: Callable[[float], PolicyStep],
+    K0: Array,
+    settings: tuple[int, float],
+    discounts: Sequence[float] | NextDiscount,
+    *,
+    unit: str | None = None,
+) -> tuple[list[IterationRecord], list[Stage]]:
+    """:func:`policy_iteration` at each discount of a schedule, each stage's policy
+    starting the next.
+
+    An initial policy that stabilizes the plant only for a discounted cost (with integral
+    action: the integrator at the stability limit) is improved at a discount for which it
+    is stabilizing, and the discount is then moved towards the undiscounted cost.
+
+    Parameters
+    ----------
+    step_at : callable
+        ``step_at(discount)``: the step (see :func:`policy_iteration`) at that discount.
+    K0 : ndarray, shape (m, n)
+        The policy the first stage starts from.
+    settings : (int, float)
+        ``(max_iterations, tolerance)`` at each discount.
+    discounts : sequence of float or callable
+        The schedule, or the rule that gives the next discount from the stages run so far
+        (None: done).
+    unit : str, optional
+        The discount's unit: a stage that does not converge is then named by its
+        discount in the message.
+
+    Returns
+    -------
+    history : list of IterationRecord
+        Every step of every stage.
+    stages : list of Stage
+
+    Raises
+    ------
+    ConvergenceError
+        If a stage does not converge, or from ``step_at`` and ``discounts``.
+    """
+    following = _fixed(discounts) if isinstance(discounts, Sequence) else discounts
+    history: list[IterationRecord] = []
+    stages: list[Stage] = []
+    K = K0
+    gamma = following(stages)
+    while gamma is not None:
+        context = "" if unit is None else f"at the discount {gamma:.4g} {unit}: "
+        steps = policy_iteration(step_at(gamma), K, settings, context=context)
+        evaluated = steps[-2].K if len(steps) > 1 else K
+        history.extend(steps)
+        stages.append(Stage(gamma, tuple(steps), evaluated))
+        K = steps[-1].K
+        gamma = following(stages)
+    return history, stages
+
+
+def _fixed(schedule: Sequence[float]) -> NextDiscount:
+    """The rule of a given schedule: its discounts in turn."""
+
+    def following(stages: Sequence[Stage]) -> float | None:
+        return schedule[len(stages)] if len(stages) < len(schedule) else None
+
+    return following
+
+
+def moments_step(
+    moments: IntervalMoments, Q: Array, R: Array, X: Array | None = None
+) -> PolicyStep:
+    """The step of the continuous learners: :func:`policy_step` on these moments.
+
+    Parameters
+    ----------
+    moments : IntervalMoments
+        The data, reused for every step.
+    Q, R : ndarray
+        Cost weights.
+    X : ndarray, shape (n, q), optional
+        ``xbar = x - X w``.
+
+    Returns
+    -------
+    callable
+        ``step(K_j, j)``.
+    """
+
+    def step(K: Array, iteration: int) -> IterationRecord:
+        return policy_step(moments, K, Q, R, X=X, iteration=iteration)
+
+    return step
 
 
 def policy_step(
@@ -219,7 +335,9 @@ def policy_step(
     )
 
 
-def not_converged(history: list[IterationRecord], tolerance: float) -> ConvergenceError:
+def not_converged(
+    history: list[IterationRecord], tolerance: float, context: str = ""
+) -> ConvergenceError:
     """The error to raise when policy iteration used up its steps without converging.
 
     Parameters
@@ -228,11 +346,13 @@ def not_converged(history: list[IterationRecord], tolerance: float) -> Convergen
         The policy-iteration steps taken (the last one's ``change`` is reported).
     tolerance : float
         Relative change of P at which the iteration would have stopped.
+    context : str
+        Put before the message (e.g. the discount).
     """
     return ConvergenceError(
-        f"policy iteration did not converge in {len(history)} steps: the last relative change "
-        f"of P was {history[-1].change:.3g} > tolerance {tolerance:.3g}; allow more iterations, "
-        "or loosen the tolerance if the data are noisy"
+        f"{context}policy iteration did not converge in {len(history)} steps: the last "
+        f"relative change of P was {history[-1].change:.3g} > tolerance {tolerance:.3g}; allow "
+        "more iterations, or loosen the tolerance if the data are noisy"
     )
 
 

@@ -114,12 +114,15 @@ from ._continuous import solutions_of_output_equation
 from ._moments import IntervalMoments, WKind, interval_moments
 from ._policy_iteration import (
     IterationRecord,
+    NextDiscount,
     PolicyIterationFacts,
+    PolicyStep,
+    Stage,
     check_iteration_settings,
+    discounted_policy_iteration,
     estimated_B,
     feedforward,
-    not_converged,
-    policy_iteration,
+    moments_step,
     policy_step,
 )
 from ._trajectory import Trajectory, as_trajectories
@@ -344,11 +347,25 @@ def servo_from_moments(
     Q_a = scipy.linalg.block_diag(Q, Q_i)
     X_a = np.vstack([X, np.zeros((r, q))])
     K = _initial_policy(K0, n, r)
-    schedule = _checked_schedule(discounts)
-    gamma = schedule[0] if schedule else _first_discount(undiscounted, K[:, :n], Q, R, X)
-    history, stages = _run_schedule(
-        moments_at, undiscounted, (K, gamma), (Q_a, R, X_a), (schedule, settings)
-    )
+
+    def step_at(gamma: float) -> PolicyStep:
+        moments = undiscounted if gamma == 0.0 else moments_at(gamma)
+        return moments_step(moments, Q_a, R, X_a)
+
+    def rate(stage: Stage) -> float:
+        return _stage_rate(stage, Q_a, R)
+
+    def adaptive(stages: Sequence[Stage]) -> float | None:
+        if not stages:
+            return _first_discount(undiscounted, K[:, :n], Q, R, X)
+        return _next_discount(stages[-1].discount, rate(stages[-1]), len(stages))
+
+    schedule: Sequence[float] | NextDiscount = _checked_schedule(discounts) or adaptive
+    history, runs = discounted_policy_iteration(step_at, K, settings, schedule, unit="1/s")
+    stages = [
+        DiscountStage(run.discount, run.steps[-1].K, run.steps[-1].P, len(run.steps), rate(run))
+        for run in runs
+    ]
     P, K, M = unpack_theta(history[-1].theta, n + r, m, q)
     # B_a and G have zero integrator rows, so P B_a = (R K)' and P G = M' give B and
     # G_x = D + A X - X E from the plant's columns alone (the best-determined ones)
@@ -365,41 +382,6 @@ def servo_from_moments(
         stages=tuple(stages),
         converged=True,
     )
-
-
-def _run_schedule(
-    moments_at: MomentsAt,
-    undiscounted: IntervalMoments,
-    start: tuple[Array, float],
-    weights: tuple[Array, Array, Array],
-    plan: tuple[tuple[float, ...], tuple[int, float]],
-) -> tuple[list[IterationRecord], list[DiscountStage]]:
-    """Policy iteration at each discount of the schedule, each stage's policy starting the
-    next, until the undiscounted one has converged."""
-    K, gamma = start
-    Q_a, R, X_a = weights
-    schedule, settings = plan
-    history: list[IterationRecord] = []
-    stages: list[DiscountStage] = []
-    while True:
-        moments = undiscounted if gamma == 0.0 else moments_at(gamma)
-        steps, converged = policy_iteration(
-            moments, K, Q_a, R, X=X_a, max_iterations=settings[0], tolerance=settings[1]
-        )
-        if not converged:
-            raise ConvergenceError(
-                f"at the discount {gamma:.4g} 1/s: {not_converged(steps, settings[1])}"
-            )
-        evaluated = steps[-2].K if len(steps) > 1 else K
-        K = steps[-1].K
-        change = K - evaluated
-        rate = _decay_rate(steps[-1].P, Q_a + K.T @ R @ K + change.T @ R @ change)
-        history.extend(steps)
-        stages.append(DiscountStage(gamma, K, steps[-1].P, len(steps), rate))
-        following = _next_discount(gamma, rate, schedule, len(stages))
-        if following is None:
-            return history, stages
-        gamma = following
 
 
 def _initial_policy(K0: Array, n: int, r: int) -> Array:
@@ -423,6 +405,14 @@ def _checked_schedule(discounts: Sequence[float] | None) -> tuple[float, ...]:
     return schedule
 
 
+def _stage_rate(stage: Stage, Q_a: Array, R: Array) -> float:
+    """:func:`_decay_rate` of a converged stage: ``P = P_j``, ``K = K_(j+1)`` and
+    ``W = Q_a + K'R K + (K - K_j)'R (K - K_j)`` (see the module docstring)."""
+    K, P = stage.steps[-1].K, stage.steps[-1].P
+    change = K - stage.evaluated
+    return _decay_rate(P, Q_a + K.T @ R @ K + change.T @ R @ change)
+
+
 def _decay_rate(P: Array, W: Array) -> float:
     """``mu``, the smallest eigenvalue of ``P^-1 W``, 1/s; ``tr(W) / tr(P)`` where that is
     not positive (W singular: no rate is certified, see the module docstring)."""
@@ -437,12 +427,8 @@ def _first_discount(moments: IntervalMoments, K0: Array, Q: Array, R: Array, X: 
     return FIRST_DISCOUNT * _decay_rate(record.P, Q + K0.T @ R @ K0)
 
 
-def _next_discount(
-    gamma: float, rate: float, schedule: tuple[float, ...], stages: int
-) -> float | None:
-    """The discount after ``gamma`` (None: the schedule is done)."""
-    if schedule:
-        return schedule[stages] if stages < len(schedule) else None
+def _next_discount(gamma: float, rate: float, stages: int) -> float | None:
+    """The discount after ``gamma`` in the schedule read off the data (None: done)."""
     if gamma == 0.0:
         return None
     if stages >= MAX_DISCOUNTS:
