@@ -30,7 +30,8 @@ with TemporaryDirectory() as folder:
     # What the engineer has: the log, and C, E, F from the flux and pole pairs.
     logged = selftune.load_trajectory(log)
     Q, R = 1e3 * np.eye(2), np.eye(2)
-    learned = selftune.learn_output_regulation(logged, problem.C, problem.E, problem.F, Q, R, K0)
+    known = selftune.LearningProblem(Q, R, C=problem.C, E=problem.E, F=problem.F)
+    learned = selftune.learn_regulator(logged, known, K0)
 
 optimum = selftune.solve_optimal_regulation(problem, Q, R)
 print(f"learned from {logged.duration * 1e3:.1f} ms of data in {learned.iterations} iterations")

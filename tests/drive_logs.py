@@ -39,8 +39,9 @@ def reference_log(
     seconds: float = 0.5,
     settings: DriveSettings | None = None,
     seed: int = 0,
-) -> tuple[Trajectory, RegulationProblem, LearningProblem]:
-    """A log of the reference experiment, the true problem and what the learner knows."""
+) -> tuple[Trajectory, RegulationProblem, tuple[LearningProblem, Array]]:
+    """A log of the reference experiment, the true problem and what the learner knows:
+    the problem and the K0 the log was taken under."""
     settings = replace(DriveSettings.ideal(), input_delay=1) if settings is None else settings
     problem = motor.regulation_problem(speed)
     K0 = gentle_K0(motor, h)
@@ -56,7 +57,7 @@ def reference_log(
     log = drive.run(
         law, held(reference), num_samples=round(seconds / h), exploration=uniform(10.8), seed=seed
     )
-    known = LearningProblem(Q, R, K0, C=np.eye(2), F=problem.F)
+    known = (LearningProblem(Q, R, C=np.eye(2), F=problem.F), K0)
     return log, problem, known
 
 

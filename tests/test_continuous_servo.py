@@ -37,6 +37,7 @@ import scipy.linalg
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from learners import servo as learn_servo
 from selftune import SPMSM, ExcitationError, InputError, RegulationProblem, lqr
 from selftune.core import discretize
 from selftune.learn import (
@@ -48,7 +49,7 @@ from selftune.learn import (
     interval_moments,
     learn_controller,
 )
-from selftune.learn._servo import FIRST_DISCOUNT, LearnedServo, learn_servo
+from selftune.learn._servo import FIRST_DISCOUNT
 from selftune.sim import constant, held, prbs, simulate, steps, uniform
 
 Q, R = 1e3 * np.eye(2), np.eye(2)
@@ -83,10 +84,8 @@ def feedforward(problem: RegulationProblem) -> np.ndarray:
     return -np.linalg.solve(problem.B, problem.A @ X + problem.D)
 
 
-def learned_gain(learned: LearnedController | LearnedServo) -> np.ndarray:
+def learned_gain(learned: LearnedController) -> np.ndarray:
     """``[K, K_i]``."""
-    if isinstance(learned, LearnedServo):
-        return np.hstack([learned.K, learned.K_i])
     assert learned.law.K_i is not None
     return np.hstack([learned.K, learned.law.K_i])
 
@@ -122,7 +121,7 @@ def paper_data(h: float) -> tuple[RegulationProblem, Trajectory]:
 
 
 def paper_knowledge(problem: RegulationProblem) -> LearningProblem:
-    return LearningProblem(Q, R, PAPER_K0, C=problem.C, F=problem.F, integral_action=True)
+    return LearningProblem(Q, R, C=problem.C, F=problem.F, integral_action=True)
 
 
 def paper_weights(problem: RegulationProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -132,7 +131,7 @@ def paper_weights(problem: RegulationProblem) -> tuple[np.ndarray, np.ndarray, n
     return Q, R, Q_i
 
 
-def learn_paper_servo(h: float, discounts: tuple[float, ...] | None = None) -> LearnedServo:
+def learn_paper_servo(h: float, discounts: tuple[float, ...] | None = None) -> LearnedController:
     problem, data = paper_data(h)
     output = (problem.C, problem.E, problem.F)
     return learn_servo(data, output, paper_weights(problem), PAPER_K0, discounts=discounts)
@@ -155,7 +154,7 @@ def test_the_paper_motor_servo_is_learned_to_the_second_order_quadrature() -> No
     assert U_errors[1] < U_errors[0] / 2.0, U_errors
     tolerance, U_tolerance = min(errors[0] / 2.0, 3e-6), min(U_errors[0] / 2.0, 1e-5)
     for noise in ("none", "smoothed", "instruments"):
-        learned = learn_controller(data, known, LearningOptions(noise=noise))
+        learned = learn_controller(data, known, PAPER_K0, LearningOptions(noise=noise))
         gain = learned_gain(learned)
         assert relative(gain, K_star) < tolerance, noise
         assert relative(learned.P, P_star) < tolerance, noise
@@ -369,8 +368,8 @@ def test_random_motors_through_learn_controller(
         problem.A, problem.B, D=problem.D, exogenous=reference, K=K0, X=X0, U=U0,
         exploration=prbs(2500.0 * motor.L_s, 20), h=h, num_samples=3000, seed=seed,
     )  # fmt: skip
-    known = LearningProblem(Q, R, K0, C=problem.C, F=problem.F, integral_action=True)
-    learned = learn_controller(data, known, LearningOptions(noise="none"))
+    known = LearningProblem(Q, R, C=problem.C, F=problem.F, integral_action=True)
+    learned = learn_controller(data, known, K0, LearningOptions(noise="none"))
     assert known.integral_weight is not None
     K_star, _ = servo_optimum(problem.A, problem.B, problem.C, (Q, R, known.integral_weight))
     omega = float(np.max(np.abs(np.linalg.eigvals(problem.A - problem.B @ K0))))
@@ -388,12 +387,14 @@ def test_noisy_logs_learned_within_the_stated_standard_error() -> None:
     rng = np.random.default_rng(1)
     noisy = Trajectory(data.t, data.x + 1e-4 * rng.normal(size=data.x.shape), data.u, data.w)
     K_star, _ = servo_optimum(problem.A, problem.B, problem.C, paper_weights(problem))
-    learned = learn_controller(noisy, paper_knowledge(problem))
+    learned = learn_controller(noisy, paper_knowledge(problem), PAPER_K0)
     assert learned.quality.noise_handling == "smoothed"
     assert relative(learned_gain(learned), K_star) < 3.0 * learned.quality.K_relative_se
     assert relative(learned.U, feedforward(problem)) < 3.0 * learned.quality.U_relative_se
     with pytest.raises(ExcitationError, match=r"too little data for this noise level"):
-        learn_controller(noisy, paper_knowledge(problem), LearningOptions(noise="instruments"))
+        learn_controller(
+            noisy, paper_knowledge(problem), PAPER_K0, LearningOptions(noise="instruments")
+        )
 
 
 # -- what the learner refuses ----------------------------------------------------------------
@@ -410,7 +411,7 @@ def test_a_constant_reference_is_refused_naming_the_exogenous_block() -> None:
     with pytest.raises(ExcitationError, match=r"the M block adds rank .*perturb the reference"):
         learn_servo(data, (problem.C, problem.E, problem.F), weights, PAPER_K0)
     with pytest.raises(ExcitationError, match=r"perturb the reference"):
-        learn_controller(data, paper_knowledge(problem))
+        learn_controller(data, paper_knowledge(problem), PAPER_K0)
 
 
 def test_too_short_data_are_refused_with_the_servo_count() -> None:
@@ -424,6 +425,6 @@ def test_too_short_data_are_refused_with_the_servo_count() -> None:
 
 def test_an_output_that_does_not_fix_X_is_refused() -> None:
     problem, data = paper_data(1e-5)
-    known = LearningProblem(Q, R, PAPER_K0, C=problem.C[1:], F=problem.F[1:], integral_action=True)
+    known = LearningProblem(Q, R, C=problem.C[1:], F=problem.F[1:], integral_action=True)
     with pytest.raises(InputError, match=r"needs a unique X from C X \+ F = 0.*'identify'"):
-        learn_controller(data, known)
+        learn_controller(data, known, PAPER_K0)

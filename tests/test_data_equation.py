@@ -7,11 +7,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from learners import regulator
 from selftune import RegulationProblem, lqr, solve_optimal_regulation
 from selftune.learn import (
     Trajectory,
     interval_moments,
-    learn_output_regulation,
     regression,
     solve_regression,
 )
@@ -131,7 +131,7 @@ def test_holding_the_input_gives_fourth_order() -> None:
             seed=1,
             input_hold=2,
         )
-        learned = learn_output_regulation(
+        learned = regulator(
             data, C, E, F, np.eye(n), np.eye(n), K0, interval=2 * round(0.01 / h)
         )
         errors.append(np.linalg.norm(learned.theta - optimum.theta) / np.linalg.norm(optimum.theta))

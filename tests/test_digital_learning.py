@@ -47,8 +47,9 @@ def motor_logs(
 
 def knowledge(
     problem: RegulationProblem, K0: np.ndarray, integral: bool = False
-) -> LearningProblem:
-    return LearningProblem(Q, R, K0, C=np.eye(2), F=problem.F, integral_action=integral)
+) -> tuple[LearningProblem, np.ndarray]:
+    """What the learner knows: the problem, and the K0 the data were taken under."""
+    return LearningProblem(Q, R, C=np.eye(2), F=problem.F, integral_action=integral), K0
 
 
 motors = st.builds(
@@ -80,7 +81,7 @@ def test_digital_optimum_learned_exactly_on_motors(
             options = LearningOptions(
                 target="digital", method=method, input_delay=delay, logged_input=logged
             )
-            learned = learn_controller(log, known, options)
+            learned = learn_controller(log, *known, options)
             assert learned.state == truth.state
             assert relative(learned.K, truth.K) < 1e-9, (method, logged)
             assert relative(learned.P, truth.P) < 1e-9, (method, logged)
@@ -92,10 +93,10 @@ def test_continuous_target_exact_by_identification_and_floored_by_quadrature() -
     problem, applied, _ = motor_logs(motor, 50.0, 1e-4, 0, seed=3, samples=3000)
     optimum = solve_optimal_regulation(problem, Q, R)
     known = knowledge(problem, gentle_K0(motor, 1e-4))
-    identified = learn_controller(applied, known, LearningOptions(method="identify"))
+    identified = learn_controller(applied, *known, LearningOptions(method="identify"))
     assert relative(identified.K, optimum.K) < 1e-9
     assert relative(identified.U, optimum.U) < 1e-9
-    paper = learn_controller(applied, known, LearningOptions(method="adp"))
+    paper = learn_controller(applied, *known, LearningOptions(method="adp"))
     # the continuous data equation's O(h^2) quadrature leaves a floor far above rounding
     assert 1e-7 < relative(paper.K, optimum.K) < 1e-2
 
@@ -126,7 +127,7 @@ def test_plain_state_feedback_on_random_plants(n: int, m: int, delay: int, seed:
     count = 4000
     applied, _ = loop.run(delay, lambda t: np.zeros((t.shape[0], 0)), rng.normal(size=(count, m)))
     Qx = np.eye(n)
-    known = LearningProblem(Qx, np.eye(m), np.zeros((m, n)))
+    known = (LearningProblem(Qx, np.eye(m)), np.zeros((m, n)))
     exact = discretize(A, B, h)
     Az, Bz = delay_augmented(exact.Ad, exact.Bd, delay)
     Qz = np.zeros_like(Az)
@@ -134,7 +135,7 @@ def test_plain_state_feedback_on_random_plants(n: int, m: int, delay: int, seed:
     K_true, P_true = dlqr(Az, Bz, Qz, h * np.eye(m))
     for method in ("adp", "identify"):
         options = LearningOptions(target="digital", method=method, input_delay=delay)
-        learned = learn_controller(applied, known, options)
+        learned = learn_controller(applied, *known, options)
         assert relative(learned.K, K_true) < 1e-9, method
         assert relative(learned.P, P_true) < 1e-9, method
 
@@ -145,9 +146,9 @@ def test_a_commanded_log_stated_as_applied_is_refused_with_the_shift() -> None:
     known = knowledge(problem, gentle_K0(motor, 1e-4))
     for target in ("continuous", "digital"):
         with pytest.raises(ConsistencyError, match=r"1 sample later.*commanded.*input_delay = 1"):
-            learn_controller(commanded, known, LearningOptions(target=target, input_delay=1))
+            learn_controller(commanded, *known, LearningOptions(target=target, input_delay=1))
     auto = learn_controller(
-        commanded, known, LearningOptions(target="digital", input_delay=1, logged_input="auto")
+        commanded, *known, LearningOptions(target="digital", input_delay=1, logged_input="auto")
     )
     assert auto.alignment.shift == 1 and auto.alignment.detected_shift == 1
 
@@ -167,11 +168,11 @@ def test_integral_action_learned_exactly() -> None:
     B_aug = np.vstack([Bz, np.zeros((2, 2))])
     Q_aug = np.zeros_like(A_aug)
     Q_aug[:2, :2] = h * Q
-    Q_aug[size:, size:] = h * known.integral_weight  # type: ignore[operator]
+    Q_aug[size:, size:] = h * known[0].integral_weight  # type: ignore[operator]
     K_true, _ = dlqr(A_aug, B_aug, Q_aug, h * R)
     for method in ("adp", "identify"):
         options = LearningOptions(target="digital", method=method, input_delay=1)
-        learned = learn_controller(applied, known, options)
+        learned = learn_controller(applied, *known, options)
         K = np.hstack([learned.K, learned.law.K_i])  # type: ignore[list-item]
         assert relative(K, K_true) < 1e-8, method
     assert "K_i z_k" in learned.law.equations()

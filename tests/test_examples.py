@@ -110,7 +110,7 @@ def test_the_sample_drive_log_learns_the_drive_controller_within_its_errors(
     motor = SPMSM(R_s=0.6, L_s=8e-3, phi_pm=0.35, p=3)  # the script's, unknown to the learner
     problem = motor.regulation_problem(50.0)
     weight = LearningProblem(
-        1e3 * np.eye(2), np.eye(2), np.eye(2), C=problem.C, F=problem.F, integral_action=True
+        1e3 * np.eye(2), np.eye(2), C=problem.C, F=problem.F, integral_action=True
     ).integral_weight
     truth = solve_digital_regulation(
         problem, 1e3 * np.eye(2), np.eye(2), 1e-4, input_delay=1, integral_weight=weight,

@@ -11,6 +11,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from learners import regulator
 from selftune import (
     ConvergenceError,
     ExcitationError,
@@ -20,7 +21,7 @@ from selftune import (
     lqr,
     solve_optimal_regulation,
 )
-from selftune.learn import Trajectory, learn_lqr, learn_output_regulation
+from selftune.learn import LearningOptions, LearningProblem, Trajectory, learn_lqr
 from selftune.sim import constant, exosystem, prbs, simulate, steps, sum_of_sines
 
 
@@ -114,7 +115,7 @@ def test_learning_is_exact_when_the_quadrature_is_exact(
     optimum = solve_optimal_regulation(problem, Q, R)
     K0 = lqr(problem.A, problem.B, 5.0 * np.eye(n), np.eye(m))[0]
     data = record(problem, K0, h, duration=400 * h, seed=seed, exploration=prbs(1.0, 3))
-    learned = learn_output_regulation(data, problem.C, problem.E, problem.F, Q, R, K0, interval=4)
+    learned = regulator(data, problem.C, problem.E, problem.F, Q, R, K0, interval=4)
     check_against_optimum(learned, optimum, 1e-7)
 
 
@@ -148,10 +149,10 @@ def test_learned_controller_matches_optimum_at_fine_sampling(
     closed_loop = np.max(np.abs(np.linalg.eigvals(problem.A - problem.B @ K0)))
     h = 2e-4 / closed_loop
     data = record(problem, K0, h, duration=8.0, seed=n + m + r + q)
-    learned = learn_output_regulation(
+    learned = regulator(
         data, problem.C, problem.E, problem.F, np.eye(n), np.eye(m), K0, interval=50
     )
-    assert learned.method == ("customized" if r == n else "general")
+    assert learned.formulation == ("customized" if r == n else "general")
     check_against_optimum(learned, optimum, 1e-6)
 
 
@@ -163,8 +164,8 @@ def test_min_trace_pair_is_learned_when_regulator_solution_is_not_unique() -> No
     K0 = lqr(problem.A, problem.B, 10.0 * np.eye(3), np.eye(3))[0]
     h = 2e-4 / np.max(np.abs(np.linalg.eigvals(problem.A - problem.B @ K0)))
     data = record(problem, K0, h, duration=8.0, seed=3)
-    learned = learn_output_regulation(data, problem.C, problem.E, problem.F, Q, R, K0, interval=50)
-    assert learned.method == "general"
+    learned = regulator(data, problem.C, problem.E, problem.F, Q, R, K0, interval=50)
+    assert learned.formulation == "general"
     check_against_optimum(learned, optimum, 1e-6)
     residuals = problem.regulator_residuals(learned.X, learned.U)
     assert max(residuals) < 1e-5 * np.linalg.norm(problem.D)
@@ -197,7 +198,7 @@ def test_error_shrinks_at_second_order(method: str) -> None:
             num_samples=round(10.0 / h),
             seed=11,
         )
-        learned = learn_output_regulation(
+        learned = regulator(
             data,
             problem.C,
             problem.E,
@@ -206,7 +207,7 @@ def test_error_shrinks_at_second_order(method: str) -> None:
             np.eye(3),
             K0,
             interval=round(0.02 / h),
-            method=method,  # type: ignore[arg-type]
+            formulation=method,  # type: ignore[arg-type]
         )
         errors.append(relative(learned.theta, optimum.theta))
     order = np.polyfit(np.log(periods), np.log(errors), 1)[0]
@@ -239,7 +240,7 @@ def test_learn_lqr_matches_riccati_and_recovers_B(seed: int, n: int, m: int) -> 
         num_samples=round(8.0 / h),
         seed=seed,
     )
-    learned = learn_lqr(data, Q, R, K0, interval=50)
+    learned = learn_lqr(data, LearningProblem(Q, R), K0, LearningOptions(interval=50))
     assert relative(learned.K, K_star) < 1e-6
     assert relative(learned.P, P_star) < 1e-6
     assert relative(learned.B, B) < 1e-6
@@ -254,9 +255,7 @@ def test_off_policy_result_does_not_depend_on_the_initial_policy() -> None:
     K_gather = lqr(problem.A, problem.B, 10.0 * np.eye(2), np.eye(2))[0]
     data = record(problem, K_gather, 1e-4, duration=6.0, seed=5)
     results = [
-        learn_output_regulation(
-            data, problem.C, problem.E, problem.F, np.eye(2), np.eye(2), K0, interval=50
-        )
+        regulator(data, problem.C, problem.E, problem.F, np.eye(2), np.eye(2), K0, interval=50)
         for K0 in (K_gather, lqr(problem.A, problem.B, 300.0 * np.eye(2), np.eye(2))[0])
     ]
     assert relative(results[0].K, results[1].K) < 1e-9
@@ -268,7 +267,7 @@ def test_episodes_add_their_intervals() -> None:
     problem = random_problem(rng, 2, 2, 2, 1, rotating=False)
     K0 = lqr(problem.A, problem.B, 10.0 * np.eye(2), np.eye(2))[0]
     episodes = [record(problem, K0, 1e-3, 1.0, seed) for seed in (1, 2, 3)]
-    together = learn_output_regulation(
+    together = regulator(
         episodes, problem.C, problem.E, problem.F, np.eye(2), np.eye(2), K0, interval=10
     )
     assert together.rows == 300
@@ -304,9 +303,7 @@ def test_constant_reference_is_an_excitation_error_naming_the_block() -> None:
         seed=0,
     )
     with pytest.raises(ExcitationError) as error:
-        learn_output_regulation(
-            data, problem.C, problem.E, problem.F, 1e3 * np.eye(2), np.eye(2), K0
-        )
+        regulator(data, problem.C, problem.E, problem.F, 1e3 * np.eye(2), np.eye(2), K0)
     message = str(error.value)
     assert "rank 9 of 11" in message
     assert "M block" in message
@@ -319,7 +316,7 @@ def test_no_exploration_is_an_excitation_error_naming_the_input_block() -> None:
     K0 = np.array([[1.0, 1.0]])
     data = simulate(A, B, K=K0, x0=[1.0, 0.0], h=1e-2, num_samples=500)
     with pytest.raises(ExcitationError) as error:
-        learn_lqr(data, np.eye(2), np.eye(1), K0)
+        learn_lqr(data, LearningProblem(np.eye(2), np.eye(1)), K0)
     assert "K block" in str(error.value)
     assert "exploration" in str(error.value)
 
@@ -328,7 +325,7 @@ def test_too_few_samples_is_an_excitation_error() -> None:
     problem = motor_like_problem()
     data = record(problem, 60.0 * np.eye(2), 1e-5, 5e-4, seed=0)
     with pytest.raises(ExcitationError, match="intervals"):
-        learn_output_regulation(
+        regulator(
             data,
             problem.C,
             problem.E,
@@ -348,24 +345,21 @@ def test_destabilizing_initial_policy_is_a_convergence_error() -> None:
         A, B, K=K0, exploration=prbs(1.0, 5), x0=[0.1, 0.1], h=1e-3, num_samples=2000, seed=1
     )
     with pytest.raises(ConvergenceError, match="not positive definite"):
-        learn_lqr(data, np.eye(2), np.eye(2), K0)
+        learn_lqr(data, LearningProblem(np.eye(2), np.eye(2)), K0)
 
 
 def test_wrong_shapes_are_named() -> None:
     problem = motor_like_problem()
     data = record(problem, 60.0 * np.eye(2), 1e-5, 5e-3, seed=0)
     with pytest.raises(InputError, match="K0"):
-        learn_output_regulation(
-            data, problem.C, problem.E, problem.F, np.eye(2), np.eye(2), np.eye(3)
-        )
+        regulator(data, problem.C, problem.E, problem.F, np.eye(2), np.eye(2), np.eye(3))
     with pytest.raises(InputError, match="F"):
-        learn_output_regulation(
-            data, problem.C, problem.E, np.zeros((2, 3)), np.eye(2), np.eye(2), np.eye(2)
-        )
+        I2 = np.eye(2)
+        regulator(data, problem.C, np.zeros((3, 3)), np.zeros((2, 3)), I2, I2, I2)
     with pytest.raises(InputError, match="exogenous"):
-        learn_lqr(data, np.eye(2), np.eye(2), 60.0 * np.eye(2))
+        learn_lqr(data, LearningProblem(np.eye(2), np.eye(2)), 60.0 * np.eye(2))
     with pytest.raises(InputError, match="interval"):
-        learn_output_regulation(
+        regulator(
             data, problem.C, problem.E, problem.F, np.eye(2), np.eye(2), np.eye(2), interval=0
         )
 
@@ -376,6 +370,32 @@ def test_exosystem_data_need_every_sample_of_w() -> None:
     data = record(problem, lqr(problem.A, problem.B, np.eye(2), np.eye(2))[0], 1e-3, 1.0, 0)
     held_only = Trajectory(t=data.t, x=data.x, u=data.u, w=data.w[:-1])
     with pytest.raises(InputError, match="exosystem"):
-        learn_output_regulation(
-            held_only, problem.C, problem.E, problem.F, np.eye(2), np.eye(2), np.eye(2)
-        )
+        regulator(held_only, problem.C, problem.E, problem.F, np.eye(2), np.eye(2), np.eye(2))
+
+
+def test_the_learners_earlier_arguments_still_work_and_warn() -> None:
+    """``learn_output_regulation(data, C, E, F, Q, R, K0)`` and
+    ``learn_controller(data, LearningProblem(..., K0=K0), options)`` (the README's of
+    earlier releases) give what the new order gives, with a deprecation warning."""
+    from selftune.errors import SelftuneDeprecationWarning
+    from selftune.learn import learn_controller, learn_output_regulation, learn_regulator
+
+    rng = np.random.default_rng(4)
+    problem = random_problem(rng, 2, 2, 2, 2, rotating=False, A_zero=True)
+    Q, R = np.eye(2), np.eye(2)
+    K0 = lqr(problem.A, problem.B, 5.0 * np.eye(2), np.eye(2))[0]
+    data = record(problem, K0, 1e-2, duration=4.0, seed=4, exploration=prbs(1.0, 3))
+    known = LearningProblem(Q, R, C=problem.C, E=problem.E, F=problem.F)
+    new = learn_regulator(data, known, K0, LearningOptions(interval=4))
+    with pytest.warns(SelftuneDeprecationWarning, match="call learn_regulator"):
+        old = learn_output_regulation(data, problem.C, problem.E, problem.F, Q, R, K0, interval=4)
+    np.testing.assert_array_equal(old.K, new.K)
+    np.testing.assert_array_equal(old.U, new.U)
+    options = LearningOptions(interval=4, noise="none")
+    with pytest.warns(SelftuneDeprecationWarning, match=r"LearningProblem\(K0=...\)"):
+        with_K0 = LearningProblem(Q, R, C=problem.C, E=problem.E, F=problem.F, K0=K0)
+    with pytest.warns(SelftuneDeprecationWarning, match="learn_controller.data, problem, K0"):
+        old_order = learn_controller(data, with_K0, options)
+    np.testing.assert_array_equal(old_order.K, learn_controller(data, known, K0, options).K)
+    with pytest.raises(InputError, match="K0: missing"):
+        learn_controller(data, known, options)

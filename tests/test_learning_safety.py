@@ -45,8 +45,8 @@ def test_a_commanded_log_stated_as_applied_is_refused_naming_the_shift(delay: in
         for target in ("continuous", "digital"):
             options = LearningOptions(target=target, method=method, input_delay=0)  # type: ignore[arg-type]
             with pytest.raises(ConsistencyError, match=rf"shift of {delay} sample.*commanded"):
-                learn_controller(log, known, options)
-    learned = learn_controller(log, known, digital(delay, logged_input="auto"))
+                learn_controller(log, *known, options)
+    learned = learn_controller(log, *known, digital(delay, logged_input="auto"))
     assert learned.quality.shift == delay == learned.quality.detected_shift
 
 
@@ -54,22 +54,22 @@ def test_a_late_log_is_refused_and_auto_reads_it() -> None:
     log, _, known = reference_log(settings=noisy(0.01))
     late = Trajectory(log.t, log.x, np.vstack([np.zeros((1, 2)), log.u[:-1]]), log.w)
     with pytest.raises(ConsistencyError, match=r"-1 sample|late"):
-        learn_controller(late, known, digital())
-    assert learn_controller(late, known, digital(logged_input="auto")).quality.shift == -1
+        learn_controller(late, *known, digital())
+    assert learn_controller(late, *known, digital(logged_input="auto")).quality.shift == -1
 
 
 def test_an_input_error_the_log_does_not_show_is_refused_with_its_likely_cause() -> None:
     hardware = DriveSettings.hardware_like(sampling=1e-4)
     log, _, known = reference_log(settings=hardware)
     with pytest.raises(ConsistencyError, match="dead time"):
-        learn_controller(log, known, digital(method="identify"))
+        learn_controller(log, *known, digital(method="identify"))
 
 
 def test_dead_time_modelled_with_the_motor_structure_is_learned_and_reported() -> None:
     hardware = DriveSettings.hardware_like(sampling=1e-4)
     log, problem, known = reference_log(settings=hardware)
     options = digital(method="identify", structure="spmsm", electrical_speed=150.0, dead_time=True)
-    learned = learn_controller(log, known, options)
+    learned = learn_controller(log, *known, options)
     truth = solve_digital_regulation(problem, Q, R, 1e-4, input_delay=1)
     assert relative(learned.K, truth.K) < 4 * learned.quality.K_relative_se + 1e-3
     # t_d f_sw V_dc = 2 V per phase, which the model reports (not its 4/pi average)
@@ -79,7 +79,7 @@ def test_dead_time_modelled_with_the_motor_structure_is_learned_and_reported() -
 def test_short_noisy_logs_learn_or_say_how_much_data_they_need() -> None:
     log, problem, known = reference_log(settings=noisy(0.06), seconds=0.005)
     try:
-        learned = learn_controller(log, known, digital())
+        learned = learn_controller(log, *known, digital())
     except ExcitationError as error:
         assert "too little data for this noise level" in str(error)
         assert "s of the same kind of data" in str(error)
@@ -97,7 +97,9 @@ def test_errors_keep_falling_with_more_data(method: str) -> None:
         for seed in range(3):
             log, problem, known = reference_log(settings=noisy(0.05), seconds=seconds, seed=seed)
             truth = solve_digital_regulation(problem, Q, R, 1e-4, input_delay=1)
-            values.append(relative(learn_controller(log, known, digital(method=method)).K, truth.K))
+            values.append(
+                relative(learn_controller(log, *known, digital(method=method)).K, truth.K)
+            )
         errors[seconds] = float(np.median(values))
     assert errors[4.0] <= 0.6 * errors[0.25], errors  # 1/sqrt(16) = 0.25 expected
 
@@ -116,7 +118,7 @@ def test_standard_errors_cover_the_truth() -> None:
         log, problem, known = reference_log(
             motor, speed=speed, torque=1.0, settings=noisy(0.02), seconds=0.3, seed=seed
         )
-        learned = learn_controller(log, known, digital(method="identify"))
+        learned = learn_controller(log, *known, digital(method="identify"))
         truth = solve_digital_regulation(problem, Q, R, 1e-4, input_delay=1)
         inside += int(
             np.linalg.norm(learned.K - truth.K) <= 2 * np.linalg.norm(learned.quality.K_se)
@@ -137,7 +139,7 @@ def test_low_precision_logs_are_right_within_their_errors_or_refused(precision: 
     truth = solve_digital_regulation(problem, Q, R, 1e-4, input_delay=1)
     for method in ("adp", "identify"):
         try:
-            learned = learn_controller(rounded, known, digital(method=method))
+            learned = learn_controller(rounded, *known, digital(method=method))
         except (ExcitationError, ConvergenceError):
             continue
         error = relative(learned.K, truth.K)
@@ -147,19 +149,20 @@ def test_low_precision_logs_are_right_within_their_errors_or_refused(precision: 
 def test_a_continuous_optimum_that_destabilizes_the_delayed_loop_is_refused() -> None:
     fast = SPMSM(R_s=0.2, L_s=1e-3, phi_pm=0.05, p=4)
     log, problem, _ = reference_log(fast, speed=100.0, torque=0.5, settings=noisy(0.0))
-    aggressive = LearningProblem(
-        1e7 * np.eye(2), np.eye(2), 0.0125 * fast.L_s / 1e-4 * np.eye(2), C=np.eye(2), F=problem.F
+    aggressive = (
+        LearningProblem(1e7 * np.eye(2), np.eye(2), C=np.eye(2), F=problem.F),
+        0.0125 * fast.L_s / 1e-4 * np.eye(2),
     )
     options = LearningOptions(target="continuous", method="identify", input_delay=1)
     with pytest.raises(ConvergenceError, match="does not stabilize every plant the data allow"):
-        learn_controller(log, aggressive, options)
+        learn_controller(log, *aggressive, options)
     # the digital target accounts for the delay and is fine
-    learn_controller(log, aggressive, replace(options, target="digital"))
+    learn_controller(log, *aggressive, replace(options, target="digital"))
 
 
 def test_quality_is_reported_on_noise_free_data() -> None:
     log, problem, known = reference_log(settings=noisy(0.0))
-    learned = learn_controller(log, known, digital())
+    learned = learn_controller(log, *known, digital())
     quality = learned.quality
     assert quality.shift == 0 and quality.alignment_ratio > 1e6
     assert quality.K_relative_se < 1e-8 and 0 < quality.stability_margin < 1
@@ -183,7 +186,7 @@ def test_short_noisy_logs_with_the_motor_structure_learn_or_say_how_much_data_th
     # discretization overflows) while the other tests pass
     log, problem, known = reference_log(settings=noisy(0.05), seconds=0.005, seed=seed)
     try:
-        learned = learn_controller(log, known, structured())
+        learned = learn_controller(log, *known, structured())
     except ExcitationError as error:
         assert TOO_LITTLE_DATA in str(error)
         assert "s of the same kind of data" in str(error)
@@ -195,16 +198,16 @@ def test_short_noisy_logs_with_the_motor_structure_learn_or_say_how_much_data_th
 
 def test_a_structure_the_data_contradict_is_refused_saying_the_data_suffice_without_it() -> None:
     log, _, known = reference_log(settings=noisy(0.01), seconds=0.3)
-    learn_controller(log, known, structured())  # the right speed: learned
+    learn_controller(log, *known, structured())  # the right speed: learned
     with pytest.raises(ConsistencyError, match=r"structure = 'none'\) these data suffice"):
-        learn_controller(log, known, structured(speed=180.0))  # 20% off
+        learn_controller(log, *known, structured(speed=180.0))  # 20% off
 
 
 def test_the_structure_statistic_is_chi_square_when_the_structure_holds() -> None:
     statistics, freedoms = [], set()
     for seed in range(8):
         log, _, known = reference_log(settings=noisy(0.01), seconds=0.2, seed=seed)
-        evidence = gather_evidence([log], known, structured())
+        evidence = gather_evidence([log], known[0], structured())
         assert evidence.fit is not None
         free = fit_output_error(
             evidence.episodes, evidence.alignment.shift, evidence.alignment.model, stable=False
@@ -227,6 +230,6 @@ def test_the_structure_check_tolerates_the_dead_time_models_own_approximation(se
         settings=DriveSettings.hardware_like(sampling=1e-4), seed=seed
     )
     options = digital(method="identify", structure="spmsm", electrical_speed=150.0, dead_time=True)
-    learned = learn_controller(log, known, options)
+    learned = learn_controller(log, *known, options)
     truth = solve_digital_regulation(problem, Q, R, 1e-4, input_delay=1)
     assert relative(learned.K, truth.K) < 4 * learned.quality.K_relative_se + 1e-3

@@ -102,7 +102,7 @@ def test_the_optimum_is_slicots_on_the_augmented_plant(seed: int, d: int, integr
     if C is not None:
         Qz[-m:, -m:] = h * np.eye(m)
     try:
-        Kz, P = loop.optimum((Ad, Bd), loop.weights((Ad, Bd), Q, R))
+        Kz, P = loop.optimum((Ad, Bd), loop.weights(Q, R))
     except UnsolvableError:  # e.g. an integrator the inputs cannot drive: SLICOT agrees
         with pytest.raises((ValueError, np.linalg.LinAlgError, control.ControlArgument)):
             control.dlqr(Az, Bz, Qz, h * R, method="slycot")
@@ -129,7 +129,7 @@ def test_a_laws_value_is_its_summed_digital_cost(seed: int, d: int) -> None:
     if np.max(np.abs(np.linalg.eigvals(A_cl))) > 0.95:
         return  # too slow to sum to convergence in the steps below
     Q, R = np.eye(n), np.eye(m)
-    P = loop.value((Ad, Bd), law, loop.weights((Ad, Bd), Q, R))
+    P = loop.value((Ad, Bd), law, loop.weights(Q, R))
     state = rng.standard_normal(n + d * m)
     start, total = state.copy(), 0.0
     for _ in range(3000):
@@ -144,7 +144,7 @@ def test_the_continuous_loop_is_lqr_of_the_integrator_augmented_plant() -> None:
     B = np.eye(2) / 0.06
     C = np.eye(2)
     loop = SampledLoop(0.0, C=C, F=np.zeros((2, 2)), Q_i=1e6 * np.eye(2))
-    Kz, P = loop.optimum((A, B), loop.weights((A, B), 1e3 * np.eye(2), np.eye(2)))
+    Kz, P = loop.optimum((A, B), loop.weights(1e3 * np.eye(2), np.eye(2)))
     A_aug = np.block([[A, np.zeros((2, 2))], [C, np.zeros((2, 2))]])
     B_aug = np.vstack([B, np.zeros((2, 2))])
     Q_aug = np.diag([1e3, 1e3, 1e6, 1e6])
@@ -193,4 +193,4 @@ def test_a_law_that_does_not_fit_the_loop_is_refused_by_name() -> None:
     with pytest.raises(InputError, match="1 integrator states, the loop has 0"):
         SampledLoop(1e-4).gain(integral)
     with pytest.raises(InputError, match="Q_i: the cost of a loop with integral action"):
-        SampledLoop.of_law(integral, 1e-4).weights((np.eye(2), np.ones((2, 1))), np.eye(2), [[1.0]])
+        SampledLoop.of_law(integral, 1e-4).weights(np.eye(2), [[1.0]])

@@ -264,7 +264,7 @@ def _exact_model(case: Case) -> DiscreteModel:
 def _knowledge(case: Case) -> LearningProblem:
     problem = case.problem
     return LearningProblem(
-        Q, R, PAPER_K0, C=problem.C, F=problem.F, integral_action=True, integral_weight=case.Q_i
+        Q, R, C=problem.C, F=problem.F, integral_action=True, integral_weight=case.Q_i
     )
 
 

@@ -254,7 +254,7 @@ def _learn(data: Any, config: LearnConfig, source: str) -> Any:
     from .learn import LearningOptions, LearningProblem, learn_controller
 
     problem = LearningProblem(
-        config.Q, config.R, config.K0, C=config.C, E=config.E, F=config.F,
+        config.Q, config.R, C=config.C, E=config.E, F=config.F,
         integral_action=config.integral_action,
     )  # fmt: skip
     options = LearningOptions(
@@ -262,7 +262,7 @@ def _learn(data: Any, config: LearnConfig, source: str) -> Any:
         tolerance=config.tolerance, **config.options,  # type: ignore[arg-type]
     )  # fmt: skip
     with _numerics(source) as caught:
-        result = learn_controller(data, problem, options)
+        result = learn_controller(data, problem, config.K0, options)
     _check_numerics(source, caught, result.P, result.K, result.U)
     return result
 

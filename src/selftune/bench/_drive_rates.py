@@ -215,7 +215,7 @@ def _digital_cost(A: Array, B: Array, h: float, weights: tuple[float, Array], de
     q, K = weights
     exact = discretize(A, B, h)
     loop, plant = SampledLoop(h, delay), (exact.Ad, exact.Bd)
-    cost = loop.weights(plant, q * np.eye(2), np.eye(2))
+    cost = loop.weights(q * np.eye(2), np.eye(2))
     _, P_opt = loop.optimum(plant, cost)
     try:
         P = loop.value(plant, ControlLaw.regulator(K, np.zeros((2, 0)), np.zeros((2, 0))), cost)

@@ -149,7 +149,7 @@ class ConfigTable:
     ) -> None:
         self.file = file
         self.name = name
-        content, written = dict(data), {}
+        content, written = dict(data), dict[str, str]()
         self.written: Mapping[str, str] = MappingProxyType(written)  # {new: old} as written
         for old, new in (renamed or {}).items():
             if old not in content:

@@ -9,8 +9,10 @@ The data flow: :class:`Trajectory` -> :func:`interval_moments` (the quadrature o
 data equation, :mod:`._moments`) -> :func:`regression` and :func:`solve_regression`
 (the rows and their excitation check, :mod:`._regression`) -> :func:`policy_step` and
 :func:`policy_iteration` (:mod:`._policy_iteration`) -> :func:`learn_lqr` and
-:func:`learn_output_regulation` (:mod:`._continuous`), :func:`learn_servo` (integral
-action, :mod:`._servo`), the discrete-time learner (:mod:`._digital`).
+:func:`learn_regulator` (:mod:`._continuous`), :func:`learn_servo` (integral action,
+:mod:`._servo`), the discrete-time learner :func:`learn_digital_adp` (:mod:`._digital`).
+Every learner takes the data, the :class:`LearningProblem`, K0 and the
+:class:`LearningOptions`, in that order, and returns a :class:`LearnedController`.
 
 For a drive's log, :func:`learn_controller` runs them all behind one pipeline: the
 evidence of the log (alignment, output-error model, consistency, :mod:`._evidence`),
@@ -32,19 +34,23 @@ from ._alignment import (
     stated_shift,
 )
 from ._continuous import (
-    LearnedSolution,
-    LQRLearningResult,
     learn_lqr,
     learn_output_regulation,
+    learn_regulator,
     solutions_of_output_equation,
 )
 from ._dead_time import direction_signs, phase_signs
-from ._digital import DigitalTransitions, digital_transitions, learn_digital_adp
+from ._digital import (
+    DigitalTransitions,
+    digital_transitions,
+    learn_digital_adp,
+    steady_state_map,
+)
 from ._discrete_model import DiscreteModel, Transitions, fit_discrete_model
 from ._evidence import ConsistencyTest, Evidence, gather_evidence
 from ._identify import Design, design_continuous, design_digital
 from ._io import load_csv, load_npz, load_trajectory, save_csv, save_npz, save_trajectory
-from ._learner import LearnedController, aligned_trajectory, assess, learn_controller
+from ._learner import aligned_trajectory, assess, learn_controller
 from ._moments import IntervalMoments, WKind, interval_moments
 from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error, simulated_trajectories
 from ._policy_iteration import (
@@ -67,7 +73,8 @@ from ._regression import (
     regression,
     solve_regression,
 )
-from ._servo import DiscountStage, LearnedServo, learn_servo, servo_from_moments
+from ._result import DiscountStage, Formulation, LearnedController
+from ._servo import learn_servo, servo_from_moments
 from ._trajectory import Trajectory, as_trajectories
 from ._verdict import dead_time_voltage
 
@@ -83,12 +90,10 @@ __all__ = [
     "DiscountStage",
     "DiscreteModel",
     "Evidence",
+    "Formulation",
     "IntervalMoments",
     "IterationRecord",
-    "LQRLearningResult",
     "LearnedController",
-    "LearnedServo",
-    "LearnedSolution",
     "LearningOptions",
     "LearningProblem",
     "LoggedInput",
@@ -126,6 +131,7 @@ __all__ = [
     "learn_digital_adp",
     "learn_lqr",
     "learn_output_regulation",
+    "learn_regulator",
     "learn_servo",
     "load_csv",
     "load_npz",
@@ -144,4 +150,5 @@ __all__ = [
     "solutions_of_output_equation",
     "solve_regression",
     "stated_shift",
+    "steady_state_map",
 ]

@@ -5,9 +5,14 @@ episodes) is reused for every policy-iteration step (Jiang & Jiang 2012).
 
 - :func:`learn_lqr`: optimal state feedback ``u = -K x`` of ``x' = A x + B u`` with A
   and B unknown: returns K*, P* and the estimated B.
-- :func:`learn_output_regulation`: adaptive optimal output regulation (Gao & Jiang 2016)
+- :func:`learn_regulator`: adaptive optimal output regulation (Gao & Jiang 2016)
   of ``x' = A x + B u + D w, w' = E w, e = C x + F w`` with A, B, D unknown and C, E, F
-  known: returns K*, P* and the feedforward (X*, U*).
+  known: returns K*, P* and the feedforward (X*, U*) (:func:`learn_output_regulation`
+  is its deprecated alias with the arguments of earlier releases).
+
+Both take the data, the :class:`LearningProblem`, K0 and the :class:`LearningOptions`,
+and return a :class:`LearnedController` (without a verdict: that is
+:func:`~selftune.learn.learn_controller`'s).
 
 Policy iteration (Kleinman, :mod:`._policy_iteration`) starts from a stabilizing ``K0``;
 at step j the data equation is solved for ``P_j`` (the value of ``K_j``),
@@ -21,8 +26,8 @@ held over two or more samples (found in the data). On the paper's motor, 5 ms at
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -32,75 +37,43 @@ from numpy.typing import ArrayLike
 from ..core import (
     RANK_TOLERANCE,
     Array,
-    RegulatorSolution,
-    as_matrix,
-    check_weights,
+    ControlLaw,
     is_positive_definite,
     minimize_weighted_norm,
     unpack_theta,
     unvec,
     vec,
 )
-from ..errors import InputError, UnsolvableError
-from ._moments import IntervalMoments, interval_moments
+from ..errors import InputError, SelftuneDeprecationWarning, UnsolvableError
+from ._moments import IntervalMoments, WKind, interval_moments
 from ._policy_iteration import (
     IterationRecord,
-    PolicyIterationFacts,
-    check_iteration_settings,
     estimated_B,
     feedforward,
     moments_step,
     policy_iteration,
 )
+from ._problem import LearningOptions, LearningProblem
 from ._regression import RegressionSolution, regression, solve_regression
+from ._result import Formulation, LearnedController
 from ._trajectory import Trajectory, as_trajectories
 
 __all__ = [
-    "LQRLearningResult",
-    "LearnedSolution",
     "learn_lqr",
     "learn_output_regulation",
+    "learn_regulator",
     "lqr_from_moments",
     "regulator_from_moments",
     "solutions_of_output_equation",
 ]
 
-Method = Literal["auto", "customized", "general"]
-
-
-@dataclass(frozen=True)
-class LQRLearningResult(PolicyIterationFacts):
-    """Optimal state feedback learned from data.
-
-    Attributes
-    ----------
-    K : ndarray, shape (m, n)
-        Learned optimal gain (``u = -K x``), the last improved policy.
-    P : ndarray, shape (n, n)
-        Learned value matrix (of the last evaluated policy).
-    B : ndarray, shape (n, m)
-        Estimated input matrix.
-    history : tuple of IterationRecord
-    converged : bool
-    """
-
-    K: Array
-    P: Array
-    B: Array
-    history: tuple[IterationRecord, ...]
-    converged: bool
-
 
 def learn_lqr(
     data: Trajectory | Sequence[Trajectory],
-    Q: ArrayLike,
-    R: ArrayLike,
+    problem: LearningProblem,
     K0: ArrayLike,
-    *,
-    interval: int = 10,
-    max_iterations: int = 50,
-    tolerance: float = 1e-9,
-) -> LQRLearningResult:
+    options: LearningOptions | None = None,
+) -> LearnedController:
     """Learn the optimal state feedback of an unknown linear plant from data.
 
     Parameters
@@ -108,22 +81,18 @@ def learn_lqr(
     data : Trajectory or sequence of Trajectory
         Samples of ``x' = A x + B u`` under any input that excites it (e.g. a stabilizing
         policy plus exploration noise); several episodes may be given.
-    Q : array_like, shape (n, n)
-        State weight, symmetric positive semidefinite.
-    R : array_like, shape (m, m)
-        Input weight, symmetric positive definite.
+    problem : LearningProblem
+        The cost weights Q, R (no regulated output: C None).
     K0 : array_like, shape (m, n)
         Stabilizing initial policy ``u = -K0 x``.
-    interval : int
-        Samples per regression interval.
-    max_iterations : int
-        Upper bound on policy-iteration steps.
-    tolerance : float
-        Relative change of P at which iteration stops.
+    options : LearningOptions, optional
+        ``interval`` (samples per regression row), ``max_iterations`` and ``tolerance``
+        (relative change of P at which iteration stops).
 
     Returns
     -------
-    LQRLearningResult
+    LearnedController
+        The law ``u = -K x``, the learned value and B, the history; no verdict.
 
     Raises
     ------
@@ -134,24 +103,34 @@ def learn_lqr(
     InputError
         On wrong shapes or values, or if the data carry a non-zero exogenous signal.
     """
+    options = LearningOptions() if options is None else options
     episodes = as_trajectories(data)
-    n, m = episodes[0].n, episodes[0].m
-    Q, R = check_weights(Q, R, n, m)
-    K0 = as_matrix(K0, "K0", (m, n))
-    max_iterations, tolerance = check_iteration_settings(max_iterations, tolerance)
+    K0_ = _checked(episodes, problem, K0)
     if any(episode.w is not None and np.any(episode.w) for episode in episodes):
         raise InputError(
             "the data carry a non-zero exogenous signal w, which learn_lqr would ignore; "
-            "use learn_output_regulation"
+            "use learn_regulator"
         )
     stripped = [Trajectory(t=e.t, x=e.x, u=e.u) for e in episodes]
-    moments = interval_moments(stripped, interval)
-    return lqr_from_moments(moments, (Q, R, K0), (max_iterations, tolerance))
+    moments = interval_moments(stripped, options.interval)
+    settings = (options.max_iterations, options.tolerance)
+    return lqr_from_moments(moments, (problem.Q, problem.R, K0_), settings)
+
+
+def _checked(episodes: Sequence[Trajectory], problem: LearningProblem, K0: ArrayLike) -> Array:
+    """K0 validated, and the data's dimensions checked against the problem's."""
+    first = episodes[0]
+    if (first.n, first.m) != (problem.n, problem.m):
+        raise InputError(
+            f"Q, R: are {problem.n}x{problem.n} and {problem.m}x{problem.m}, but the data "
+            f"have n = {first.n} states and m = {first.m} inputs"
+        )
+    return problem.initial_policy(K0)
 
 
 def lqr_from_moments(
     moments: IntervalMoments, cost: tuple[Array, Array, Array], settings: tuple[int, float]
-) -> LQRLearningResult:
+) -> LearnedController:
     """:func:`learn_lqr` on precomputed (validated) moments, which may carry instruments.
 
     Parameters
@@ -165,52 +144,18 @@ def lqr_from_moments(
 
     Returns
     -------
-    LQRLearningResult
+    LearnedController
     """
     Q, R, K0 = cost
     history = policy_iteration(moments_step(moments, Q, R), K0, settings)
     last = history[-1]
-    return LQRLearningResult(
-        K=last.K,
+    n, m = last.P.shape[0], R.shape[0]
+    return LearnedController(
+        law=ControlLaw.regulator(last.K, np.zeros((n, 0)), np.zeros((m, 0))),
         P=last.P,
         B=estimated_B(last.P, last.K, R),
         history=tuple(history),
-        converged=True,
     )
-
-
-@dataclass(frozen=True)
-class LearnedSolution(RegulatorSolution, PolicyIterationFacts):
-    """An optimal output regulator learned from data.
-
-    The attributes of :class:`~selftune.core.RegulatorSolution` (K, P, X, U, the
-    exogenous block, L, theta), as the model-based solution has them, plus the estimates
-    the learner makes on the way and its history.
-
-    Attributes
-    ----------
-    B : ndarray, shape (n, m)
-        Estimated input matrix.
-    method : str
-        ``"customized"`` (one regression family with the unique X) or ``"general"``
-        (Gao & Jiang 2016: a basis of the solutions of CX + F = 0 and the Sylvester map).
-    history : tuple of IterationRecord
-        The policy-iteration steps.
-    converged : bool
-    sylvester_regressions : tuple of RegressionSolution
-        The general method's extra solves, one per basis element of CX + F = 0.
-    """
-
-    B: Array
-    method: str
-    history: tuple[IterationRecord, ...]
-    converged: bool
-    sylvester_regressions: tuple[RegressionSolution, ...] = ()
-
-    @property
-    def least_squares_solves(self) -> int:
-        """All least-squares solves: the policy-iteration steps plus the Sylvester solves."""
-        return len(self.history) + len(self.sylvester_regressions)
 
 
 def solutions_of_output_equation(C: Array, F: Array) -> tuple[Array, list[Array]]:
@@ -249,20 +194,14 @@ def solutions_of_output_equation(C: Array, F: Array) -> tuple[Array, list[Array]
     return unvec(particular, n, q), [unvec(basis[:, i], n, q) for i in range(basis.shape[1])]
 
 
-def learn_output_regulation(
+def learn_regulator(
     data: Trajectory | Sequence[Trajectory],
-    C: ArrayLike,
-    E: ArrayLike,
-    F: ArrayLike,
-    Q: ArrayLike,
-    R: ArrayLike,
+    problem: LearningProblem,
     K0: ArrayLike,
+    options: LearningOptions | None = None,
     *,
-    interval: int = 10,
-    max_iterations: int = 50,
-    tolerance: float = 1e-9,
-    method: Method = "auto",
-) -> LearnedSolution:
+    formulation: Formulation | Literal["auto"] = "auto",
+) -> LearnedController:
     """Learn the optimal output regulator of an unknown plant from data (Gao & Jiang 2016).
 
     The plant ``x' = A x + B u + D w`` has A, B, D unknown; the exosystem ``w' = E w`` and
@@ -277,21 +216,14 @@ def learn_output_regulation(
         Samples with ``w``. With ``E = 0``, ``w`` is held over each sample (a digital
         reference); with ``E != 0``, ``w`` is the exosystem state at every sample time.
         The data must excite the exogenous block: a constant ``w`` does not (perturb it).
-    C : array_like, shape (r, n)
-    E : array_like, shape (q, q)
-    F : array_like, shape (r, q)
-    Q : array_like, shape (n, n)
-        State weight, symmetric positive semidefinite.
-    R : array_like, shape (m, m)
-        Input weight, symmetric positive definite.
+    problem : LearningProblem
+        C, E, F and the cost weights Q, R (no integral action: :func:`learn_servo`).
     K0 : array_like, shape (m, n)
         Stabilizing initial feedback.
-    interval : int
-        Samples per regression interval.
-    max_iterations : int
-    tolerance : float
-        Relative change of P at which iteration stops.
-    method : {"auto", "customized", "general"}
+    options : LearningOptions, optional
+        ``interval`` (samples per regression row), ``max_iterations`` and ``tolerance``
+        (relative change of P at which iteration stops).
+    formulation : {"auto", "customized", "general"}
         ``"customized"`` (the paper's, Sec. III-A) needs a unique X from ``C X + F = 0``
         (C of full column rank) and runs one regression family with ``xbar = x - X w``.
         ``"general"`` is Gao & Jiang's algorithm: policy iteration on ``x``, then one more
@@ -300,42 +232,98 @@ def learn_output_regulation(
 
     Returns
     -------
-    LearnedSolution
+    LearnedController
+        With ``exogenous_block``, ``formulation`` and (general) ``extra_regressions``; no
+        verdict.
 
     Raises
     ------
     ExcitationError, ConvergenceError, UnsolvableError, InputError
     """
+    options = LearningOptions() if options is None else options
     episodes = as_trajectories(data)
-    first = episodes[0]
-    n, m, q = first.n, first.m, first.q
-    if q == 0:
+    K0_ = _checked(episodes, problem, K0)
+    if episodes[0].q == 0:
         raise InputError(
             "the data have no exogenous signal w; output regulation needs it (use learn_lqr "
             "for plain state feedback)"
         )
-    C = as_matrix(C, "C", (None, n))
-    r = C.shape[0]
-    E = as_matrix(E, "E", (q, q))
-    F = as_matrix(F, "F", (r, q))
-    Q, R = check_weights(Q, R, n, m)
-    K0 = as_matrix(K0, "K0", (m, n))
-    max_iterations, tolerance = check_iteration_settings(max_iterations, tolerance)
-    if method not in ("auto", "customized", "general"):
-        raise InputError(f"method: must be 'auto', 'customized' or 'general', got {method!r}")
-    moments = interval_moments(episodes, interval, w_kind="exosystem" if np.any(E) else "held")
+    if problem.C is None or problem.E is None or problem.F is None:
+        raise InputError("C: output regulation needs the regulated output (C, E, F)")
+    if episodes[0].q != problem.q:
+        raise InputError(
+            f"F: has {problem.q} columns, but the data have {episodes[0].q} exogenous channels w"
+        )
+    if formulation not in ("auto", "customized", "general"):
+        raise InputError(
+            f"formulation: must be 'auto', 'customized' or 'general', got {formulation!r}"
+        )
+    w_kind: WKind = "held" if problem.held else "exosystem"
+    moments = interval_moments(episodes, options.interval, w_kind=w_kind)
     return regulator_from_moments(
-        moments, (C, E, F), (Q, R, K0), method, (max_iterations, tolerance)
+        moments,
+        (problem.C, problem.E, problem.F),
+        (problem.Q, problem.R, K0_),
+        formulation,
+        (options.max_iterations, options.tolerance),
     )
+
+
+def learn_output_regulation(
+    data: Trajectory | Sequence[Trajectory],
+    C: ArrayLike,
+    E: ArrayLike,
+    F: ArrayLike,
+    Q: ArrayLike,
+    R: ArrayLike,
+    K0: ArrayLike,
+    *,
+    interval: int = 10,
+    max_iterations: int = 50,
+    tolerance: float = 1e-9,
+    method: Formulation | Literal["auto"] = "auto",
+) -> LearnedController:
+    """Deprecated: :func:`learn_regulator`, in the order every learner takes (the data, the
+    problem, K0, the options). This thin alias keeps the arguments of earlier releases
+    (``method`` is now ``formulation``) and warns.
+
+    Parameters
+    ----------
+    data : Trajectory or sequence of Trajectory
+        As :func:`learn_regulator`.
+    C, E, F : array_like
+        The regulated output and the exosystem.
+    Q, R : array_like
+        The cost weights.
+    K0 : array_like, shape (m, n)
+        Stabilizing initial feedback.
+    interval, max_iterations, tolerance
+        As :class:`LearningOptions`.
+    method : {"auto", "customized", "general"}
+        The formulation.
+
+    Returns
+    -------
+    LearnedController
+    """
+    warnings.warn(
+        "learn_output_regulation(data, C, E, F, Q, R, K0) is deprecated: call "
+        "learn_regulator(data, LearningProblem(Q, R, C=C, E=E, F=F), K0, options)",
+        SelftuneDeprecationWarning,
+        stacklevel=2,
+    )
+    options = LearningOptions(interval=interval, max_iterations=max_iterations, tolerance=tolerance)
+    problem = LearningProblem(Q, R, C=C, E=E, F=F)
+    return learn_regulator(data, problem, K0, options, formulation=method)
 
 
 def regulator_from_moments(
     moments: IntervalMoments,
     output: tuple[Array, Array, Array],
     cost: tuple[Array, Array, Array],
-    method: Method,
+    formulation: Formulation | Literal["auto"],
     settings: tuple[int, float],
-) -> LearnedSolution:
+) -> LearnedController:
     """:func:`learn_output_regulation` on precomputed (validated) moments, which may carry
     instruments.
 
@@ -347,49 +335,46 @@ def regulator_from_moments(
         Regulated output and exosystem.
     cost : (Q, R, K0)
         Weights and the stabilizing initial policy.
-    method : {"auto", "customized", "general"}
-        As :func:`learn_output_regulation`.
+    formulation : {"auto", "customized", "general"}
+        As :func:`learn_regulator`.
     settings : (int, float)
         ``(max_iterations, tolerance)``.
 
     Returns
     -------
-    LearnedSolution
+    LearnedController
     """
     C, _, F = output
     Q, R, K0 = cost
     n = moments.n
     X_particular, null_basis = solutions_of_output_equation(C, F)
-    if method == "auto":
-        method = "general" if null_basis else "customized"
-    if method == "customized" and null_basis:
+    if formulation == "auto":
+        formulation = "general" if null_basis else "customized"
+    if formulation == "customized" and null_basis:
         raise InputError(
-            "method 'customized' needs a unique X from C X + F = 0 (C of full column rank); "
+            "formulation 'customized' needs a unique X from C X + F = 0 (C of full column rank); "
             f"here the solutions form a space of dimension {len(null_basis)}: use 'general'"
         )
-    X_policy = X_particular if method == "customized" else None
+    X_policy = X_particular if formulation == "customized" else None
     history = policy_iteration(moments_step(moments, Q, R, X_policy), K0, settings)
-    if method == "customized":
+    if formulation == "customized":
         return _customized(history, X_particular, R)
     weight_X = Q if is_positive_definite(Q) else np.eye(n)
     return _general(moments, history, (K0, Q, R), (X_particular, null_basis), weight_X)
 
 
-def _customized(history: list[IterationRecord], X: Array, R: Array) -> LearnedSolution:
+def _customized(history: list[IterationRecord], X: Array, R: Array) -> LearnedController:
     """The paper's method: the last step's Theta with the unique X gives P, K, U."""
     n, q = X.shape
     m = R.shape[0]
     P, K, M = unpack_theta(history[-1].theta, n, m, q)
-    return LearnedSolution(
-        K=K,
+    return LearnedController(
+        law=ControlLaw.regulator(K, X, feedforward(P, K, M, R)),
         P=P,
-        X=X,
-        U=feedforward(P, K, M, R),
-        exogenous_block=M,
         B=estimated_B(P, K, R),
-        method="customized",
         history=tuple(history),
-        converged=True,
+        exogenous_block=M,
+        formulation="customized",
     )
 
 
@@ -399,7 +384,7 @@ def _general(
     problem: tuple[Array, Array, Array],
     solutions: tuple[Array, list[Array]],
     weight_X: Array,
-) -> LearnedSolution:
+) -> LearnedController:
     """Gao & Jiang (2016): policy iteration on x (X_0 = 0), then the Sylvester map
     ``S(X) = X E - A X`` on a particular solution and a basis of ``C X = 0``, then the
     (X, U) of least ``Tr(X' W_X X + U' R U)`` subject to ``S(X) - B U = D``.
@@ -421,17 +406,14 @@ def _general(
         sylvester.append(D - np.linalg.solve(P_i, M_i.T))  # S(X_i) = X_i E - A X_i
         solves.append(solution)
     X, U, S_X = _min_trace_pair(B, D, (X_particular, null_basis), sylvester, (weight_X, R))
-    return LearnedSolution(
-        K=K,
+    return LearnedController(
+        law=ControlLaw.regulator(K, X, U),
         P=P,
-        X=X,
-        U=U,
-        exogenous_block=(D - S_X).T @ P,
         B=B,
-        method="general",
         history=tuple(history),
-        converged=True,
-        sylvester_regressions=tuple(solves),
+        exogenous_block=(D - S_X).T @ P,
+        formulation="general",
+        extra_regressions=tuple(solves),
     )
 
 

@@ -42,16 +42,20 @@ from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-from ..core import RANK_TOLERANCE, Array, ControlLaw, unvec, unvecs, vecs_hat, vecs_hat_from_outer
+from ..core import RANK_TOLERANCE, Array, unvec, unvecs, vecs_hat, vecs_hat_from_outer
 from ..errors import ConvergenceError, ExcitationError, InputError
+from ..loop import LoopWeights, SampledLoop
 from ._alignment import applied_inputs
+from ._continuous import solutions_of_output_equation
 from ._policy_iteration import IterationRecord, PolicyStep, discounted_policy_iteration
+from ._problem import LearningOptions, LearningProblem
 from ._regression import Regression, RegressionSolution, solve_regression
+from ._result import LearnedController
 from ._trajectory import Trajectory
 
-__all__ = ["DigitalTransitions", "digital_transitions", "learn_digital_adp"]
+__all__ = ["DigitalTransitions", "digital_transitions", "learn_digital_adp", "steady_state_map"]
 
 #: The discounts of the schedule used when the initial policy does not stabilize the
 #: integrator: each is run to convergence before the next.
@@ -193,13 +197,9 @@ def digital_transitions(
     )
 
 
-@dataclass(frozen=True)
-class _Weights:
-    Qz: Array
-    Rz: Array
-
-
-def _regression(data: DigitalTransitions, K: Array, weights: _Weights, gamma: float) -> Regression:
+def _regression(
+    data: DigitalTransitions, K: Array, weights: LoopWeights, gamma: float
+) -> Regression:
     """Rows of the discrete Bellman identity for the policy ``K`` (see the module), with
     the instruments' rows when the data carry them."""
     rows = _rows(data, K, weights, gamma)
@@ -208,7 +208,7 @@ def _regression(data: DigitalTransitions, K: Array, weights: _Weights, gamma: fl
     return replace(rows, instruments=_rows(data.instruments, K, weights, gamma).Psi)
 
 
-def _rows(data: DigitalTransitions, K: Array, weights: _Weights, gamma: float) -> Regression:
+def _rows(data: DigitalTransitions, K: Array, weights: LoopWeights, gamma: float) -> Regression:
     zeta, zeta_next, u, w = data.zeta, data.zeta_next, data.command, data.w
     a = zeta @ K.T
     e = u + a
@@ -261,7 +261,7 @@ def _blocks(solution: RegressionSolution, data: DigitalTransitions) -> _Blocks:
 
 
 def _step(
-    data: DigitalTransitions, weights: _Weights, gamma: float, K: Array, iteration: int
+    data: DigitalTransitions, weights: LoopWeights, gamma: float, K: Array, iteration: int
 ) -> IterationRecord:
     """Evaluate ``K`` (= K_j) on the data and improve it."""
     # S_ww, the value's part quadratic in w, is a nuisance no policy or feedforward uses:
@@ -289,17 +289,9 @@ def _step(
     )
 
 
-def _initial_policy(K0: Array, data: DigitalTransitions) -> Array:
-    """``[K0, 0, 0]`` over zeta, or K0 itself if it is already that wide."""
-    m, nz = data.m, data.nz
-    if K0.shape == (m, nz):
-        return K0
-    if K0.shape != (m, data.n):
-        raise InputError(f"K0: expected shape ({m}, {data.n}) or ({m}, {nz}), got {K0.shape}")
-    return np.hstack([K0, np.zeros((m, nz - data.n))])
-
-
-def _feedforward(data: DigitalTransitions, K: Array, blocks: _Blocks, weights: _Weights) -> Array:
+def _feedforward(
+    data: DigitalTransitions, K: Array, blocks: _Blocks, weights: LoopWeights
+) -> Array:
     """U from the exogenous blocks (see the module docstring)."""
     n, m = data.n, data.m
     if data.delay == 0:
@@ -318,61 +310,93 @@ def _feedforward(data: DigitalTransitions, K: Array, blocks: _Blocks, weights: _
     return np.asarray(-np.linalg.solve(B_P_B, G_P_B.T), dtype=np.float64)
 
 
+def steady_state_map(problem: LearningProblem) -> Array:
+    """X, the unique solution of ``C X + F = 0`` (n x 0 without regulation): the digital
+    ADP learner builds ``xbar = x - X w`` with it.
+
+    Parameters
+    ----------
+    problem : LearningProblem
+        C and F.
+
+    Raises
+    ------
+    InputError
+        If X is not unique (C not of full column rank).
+    """
+    if problem.C is None or problem.F is None:
+        return np.zeros((problem.n, 0))
+    X, null_basis = solutions_of_output_equation(problem.C, problem.F)
+    if null_basis:
+        raise InputError(
+            "C: the digital ADP learner needs a unique X from C X + F = 0 (C of full column "
+            "rank); use method = 'identify' for this problem"
+        )
+    return X
+
+
 def learn_digital_adp(
     data: DigitalTransitions,
-    K0: Array,
-    weights: tuple[Array, Array, Array | None],
-    regulation: tuple[Array, Array | None, Array | None],
-    settings: tuple[int, float],
-) -> tuple[ControlLaw, Array, tuple[IterationRecord, ...]]:
+    problem: LearningProblem,
+    K0: ArrayLike,
+    options: LearningOptions | None = None,
+) -> LearnedController:
     """Off-policy policy iteration on the discrete Bellman identity, and the feedforward.
 
     Parameters
     ----------
     data : DigitalTransitions
-        The controller-state transitions (:func:`digital_transitions`).
-    K0 : ndarray, shape (m, n) or (m, nz)
+        The controller-state transitions (:func:`digital_transitions`, built with the
+        problem's :func:`steady_state_map` and, with integral action, its C).
+    problem : LearningProblem
+        The weights of the digital cost (Q, R and, with integral action, Q_i) and the
+        regulated output (C, F) of the law's integrator.
+    K0 : array_like, shape (m, n) or (m, nz)
         The stabilizing policy the data start from.
-    weights : (Q, R, Q_i)
-        The continuous weights of the digital cost (``Q_i`` None without integral action).
-    regulation : (X, C, F)
-        ``X`` (n x q), the steady-state map used to build ``xbar``; ``C``, ``F`` the
-        regulated output, for the law's integrator (None without integral action).
-    settings : (int, float)
-        ``(max_iterations, tolerance)`` of each policy iteration.
+    options : LearningOptions, optional
+        ``max_iterations`` and ``tolerance`` of each policy iteration.
 
     Returns
     -------
-    law : ControlLaw
-        ``u_k = U w_k - K [xbar_k; ubar_(k-d); ...; ubar_(k-1)] - K_i z_k`` (history d).
-    P : ndarray, shape (nz, nz)
-        The value matrix of the last policy evaluated.
-    history : tuple of IterationRecord
-        Every policy-iteration step (all discounts).
+    LearnedController
+        ``u_k = U w_k - K [xbar_k; ubar_(k-d); ...; ubar_(k-1)] - K_i z_k`` (history d),
+        the value of the last policy evaluated (over zeta), every policy-iteration step
+        (all discounts); B is not estimated (None), and there is no verdict.
 
     Raises
     ------
-    ExcitationError, ConvergenceError
+    ExcitationError, ConvergenceError, InputError
     """
-    Q, R, Q_i = weights
-    h, n, m, d, r = data.h, data.n, data.m, data.delay, data.r
-    Qz = np.zeros((data.nz, data.nz))
-    Qz[:n, :n] = h * Q
-    if Q_i is not None:
-        Qz[data.nz - r :, data.nz - r :] = h * Q_i
-    scaled = _Weights(Qz=Qz, Rz=h * R)
-    X, C, F = regulation
-    K = _initial_policy(K0, data)
+    options = LearningOptions() if options is None else options
+    m, r = data.m, data.r
+    if (data.n, data.m, data.r) != (problem.n, problem.m, problem.r if r else 0):
+        raise InputError(
+            f"data: transitions of n = {data.n}, m = {data.m}, r = {data.r} do not fit the "
+            f"problem's Q, R, C ({problem.n}, {problem.m}, {problem.r})"
+        )
+    if r:
+        loop = SampledLoop(
+            data.h, data.delay, C=problem.C, F=problem.F, Q_i=problem.integral_weight
+        )
+    else:
+        loop = SampledLoop(data.h, data.delay)
+    weights = loop.weights(problem.Q, problem.R)
+    K = problem.initial_policy(K0, extra=data.nz - data.n)
 
     def step_at(gamma: float) -> PolicyStep:
-        return partial(_step, data, scaled, gamma)
+        return partial(_step, data, weights, gamma)
 
     schedule = DISCOUNTS if r else (1.0,)
+    settings = (options.max_iterations, options.tolerance)
     history, stages = discounted_policy_iteration(step_at, K, settings, schedule)
-    K = history[-1].K
     blocks = _blocks(history[-1].regression, data)
-    U = _feedforward(data, stages[-1].evaluated, blocks, scaled) if data.q else np.zeros((m, 0))
-    K_state, K_i = K[:, : data.nz - r], (K[:, data.nz - r :] if r else None)
-    integrator = {"K_i": K_i, "C": C, "F": F, "h": h} if r else {}
-    law = ControlLaw(K_state, X, U, history=d, **integrator)  # type: ignore[arg-type]
-    return law, history[-1].P, tuple(history)
+    U = _feedforward(data, stages[-1].evaluated, blocks, weights) if data.q else np.zeros((m, 0))
+    return LearnedController(
+        law=loop.law(history[-1].K, steady_state_map(problem), U),
+        P=history[-1].P,
+        B=None,
+        history=tuple(history),
+        target="digital",
+        h=data.h,
+        input_delay=data.delay,
+    )

@@ -385,15 +385,5 @@ def reduced_problem(problem: LearningProblem, extra: int) -> LearningProblem:
     """
     if not extra:
         return problem
-    assert problem.C is not None and problem.F is not None
-    F = np.hstack([problem.F, np.zeros((problem.r, extra))])
-    return LearningProblem(
-        problem.Q,
-        problem.R,
-        problem.K0,
-        C=problem.C,
-        E=np.zeros((F.shape[1], F.shape[1])),
-        F=F,
-        integral_action=problem.integral_weight is not None,
-        integral_weight=problem.integral_weight,
-    )
+    assert problem.F is not None
+    return problem.with_F(np.hstack([problem.F, np.zeros((problem.r, extra))]))

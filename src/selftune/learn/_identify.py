@@ -102,7 +102,7 @@ def design_digital(
     """
     loop = _loop(problem, model.h, delay)
     plant = (model.Ad, model.Bd)
-    K, P = loop.optimum(plant, loop.weights(plant, problem.Q, problem.R, cost))
+    K, P = loop.optimum(plant, loop.weights(problem.Q, problem.R, cost, plant=plant))
     held = np.zeros((problem.q, problem.q))
     X, U = _regulator(problem, model.Ad - np.eye(problem.n), model.Bd, model.Ed, held)
     return Design(law=loop.law(K, X, U), P=P, B=model.Bd)
@@ -126,7 +126,7 @@ def design_continuous(model: DiscreteModel, problem: LearningProblem) -> Design:
     """
     A, B, D = continuous_from_discrete(model.Ad, model.Bd, model.h, model.Ed)
     loop = _loop(problem, 0.0, 0)
-    K, P = loop.optimum((A, B), loop.weights((A, B), problem.Q, problem.R))
+    K, P = loop.optimum((A, B), loop.weights(problem.Q, problem.R))
     E = np.zeros((problem.q, problem.q)) if problem.E is None else problem.E
     X, U = _regulator(problem, A, B, D, E)
     return Design(law=loop.law(K, X, U, h=model.h), P=P, B=B)

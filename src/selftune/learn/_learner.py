@@ -25,28 +25,37 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from ..core import Array, ControlLaw, WithLaw
+from ..core import Array, ControlLaw
 from ..errors import (
     ConsistencyError,
     ExcitationError,
     InputError,
+    SelftuneDeprecationWarning,
     SelftuneError,
     UnsolvableError,
 )
-from ._alignment import Alignment, applied_inputs
-from ._continuous import lqr_from_moments, regulator_from_moments, solutions_of_output_equation
-from ._digital import DigitalTransitions, digital_transitions, learn_digital_adp
+from ._alignment import applied_inputs
+from ._continuous import lqr_from_moments, regulator_from_moments
+from ._digital import (
+    DigitalTransitions,
+    digital_transitions,
+    learn_digital_adp,
+    steady_state_map,
+)
 from ._evidence import Evidence, gather_evidence, reduced_problem
 from ._moments import IntervalMoments, WKind, interval_moments
 from ._output_error import simulated_trajectories
 from ._policy_iteration import IterationRecord
 from ._problem import LearningOptions, LearningProblem
-from ._quality import TOO_LITTLE_DATA, Quality, check_precision, check_safety
+from ._quality import TOO_LITTLE_DATA, check_precision, check_safety
+from ._result import LearnedController
 from ._servo import servo_from_moments
 from ._trajectory import Trajectory, as_trajectories
 from ._verdict import (
@@ -68,47 +77,6 @@ __all__ = [
     "assess",
     "learn_controller",
 ]
-
-
-@dataclass(frozen=True)
-class LearnedController(WithLaw):
-    """A controller learned from data, what it is, how it was learned, and how good it is.
-
-    Attributes
-    ----------
-    law : ControlLaw
-        The controller a drive runs (``u_k = U w_k - K [...] - K_i z_k``).
-    P : ndarray
-        Its value matrix (over the law's state, :attr:`state`).
-    B : ndarray
-        The estimated input matrix: B (continuous target) or Bd of the exact discrete
-        model (digital target).
-    target : str
-        ``"continuous"`` or ``"digital"``.
-    method : str
-        ``"adp"`` or ``"identify"``.
-    h : float
-        Sampling period of the data, s.
-    input_delay : int
-        d, the computation delay the digital target accounts for, samples.
-    quality : Quality
-        Standard errors, noise, alignment, consistency and stability margin.
-    alignment : Alignment
-        The alignment of the logged inputs used, and what the data said about it.
-    history : tuple of IterationRecord
-        Policy-iteration steps (empty for identify-then-design).
-    """
-
-    law: ControlLaw
-    P: Array
-    B: Array
-    target: str
-    method: str
-    h: float
-    input_delay: int
-    quality: Quality
-    alignment: Alignment = field(repr=False)
-    history: tuple[IterationRecord, ...] = field(default=(), repr=False)
 
 
 def aligned_trajectory(episode: Trajectory, shift: int) -> Trajectory:
@@ -139,8 +107,8 @@ def _check_data(episodes: Sequence[Trajectory], problem: LearningProblem) -> Non
     first = episodes[0]
     if (first.n, first.m) != (problem.n, problem.m):
         raise InputError(
-            f"K0: is {problem.m}x{problem.n}, but the data have n = {first.n} states and "
-            f"m = {first.m} inputs"
+            f"Q, R: are {problem.n}x{problem.n} and {problem.m}x{problem.m}, but the data "
+            f"have n = {first.n} states and m = {first.m} inputs"
         )
     if problem.q and first.q != problem.q:
         raise InputError(
@@ -151,6 +119,7 @@ def _check_data(episodes: Sequence[Trajectory], problem: LearningProblem) -> Non
 def learn_controller(
     data: Trajectory | Sequence[Trajectory],
     problem: LearningProblem,
+    K0: ArrayLike | LearningOptions | None = None,
     options: LearningOptions | None = None,
 ) -> LearnedController:
     """Learn the optimal controller of ``options.target`` from logs, by ``options.method``.
@@ -161,7 +130,12 @@ def learn_controller(
         The logs (one or more episodes, uniform sampling, ``w`` held over each sample for
         the digital target and identify-then-design).
     problem : LearningProblem
-        What the learner knows: C, E, F, the cost weights, K0, integral action.
+        What the learner knows: C, E, F, the cost weights, integral action.
+    K0 : array_like, shape (m, n)
+        The stabilizing feedback the data were taken under (the drive's controller, on
+        x): policy iteration starts from it. (The deprecated order
+        ``learn_controller(data, problem, options)``, with K0 in the problem, still works,
+        with a deprecation warning.)
     options : LearningOptions, optional
         Target, method, input delay, log alignment, noise handling, iteration settings
         (defaults: the paper's continuous ADP on an applied-voltage log).
@@ -186,7 +160,7 @@ def learn_controller(
     UnsolvableError, InputError
         As the learners raise them.
     """
-    options = LearningOptions() if options is None else options
+    K0_, options = _initial_policy(problem, K0, options)
     try:
         evidence, known, errors = _precise(data, problem, options)
     except (ConsistencyError, UnsolvableError, ExcitationError) as error:
@@ -199,13 +173,40 @@ def learn_controller(
         history: tuple[IterationRecord, ...] = ()
     elif options.target == "digital":
         law, P, B, history = _digital_adp(
-            _regression_data(evidence, options), evidence, known, options
+            _regression_data(evidence, options), evidence, (known, K0_), options
         )
     else:
         law, P, B, history = _continuous_adp(
-            _regression_data(evidence, options), evidence, known, options
+            _regression_data(evidence, options), evidence, (known, K0_), options
         )
     return _judged((without_extra(law, problem.q), P, B, history), evidence, errors, options)
+
+
+def _initial_policy(
+    problem: LearningProblem,
+    K0: ArrayLike | LearningOptions | None,
+    options: LearningOptions | None,
+) -> tuple[Array, LearningOptions]:
+    """K0 validated, and the options; the deprecated order (data, problem, options) with
+    K0 in the problem is read with a deprecation warning."""
+    if isinstance(K0, LearningOptions) and options is None:
+        K0, options = None, K0
+    options = LearningOptions() if options is None else options
+    if K0 is None:
+        if problem.K0 is None:
+            raise InputError(
+                "K0: missing: give the stabilizing feedback the data were taken under, "
+                "learn_controller(data, problem, K0, options)"
+            )
+        warnings.warn(
+            "learn_controller(data, problem, options) with K0 in the problem is deprecated: "
+            "call learn_controller(data, problem, K0, options)",
+            SelftuneDeprecationWarning,
+            stacklevel=3,
+        )
+        K0 = problem.K0
+    assert not isinstance(K0, LearningOptions)
+    return problem.initial_policy(K0), options
 
 
 def assess(
@@ -259,6 +260,7 @@ def assess(
     errors = replace(errors, U=law.U, U_se=np.full_like(law.U, np.nan))
     judged = _judged((law, value, model.Bd, history), evidence, errors, options)
     note = "the feedforward U was not learned, so it is not judged (U_se is NaN)"
+    assert judged.quality is not None
     quality = replace(judged.quality, notes=(*judged.quality.notes, note))
     return replace(judged, quality=quality)
 
@@ -377,22 +379,14 @@ def _interval(options: LearningOptions, episodes: Sequence[Trajectory], unknowns
     return max(1, min(options.interval, samples // (2 * unknowns)))
 
 
-def _unique_X(problem: LearningProblem) -> Array:
-    if problem.C is None or problem.F is None:
-        return np.zeros((problem.n, 0))
-    X, null_basis = solutions_of_output_equation(problem.C, problem.F)
-    if null_basis:
-        raise InputError(
-            "C: the digital ADP learner needs a unique X from C X + F = 0 (C of full column "
-            "rank); use method = 'identify' for this problem"
-        )
-    return X
-
-
 def _digital_adp(
-    logs: _Logs, evidence: Evidence, problem: LearningProblem, options: LearningOptions
+    logs: _Logs,
+    evidence: Evidence,
+    known: tuple[LearningProblem, Array],
+    options: LearningOptions,
 ) -> tuple[ControlLaw, Array, Array, tuple[IterationRecord, ...]]:
-    X = _unique_X(problem)
+    problem, K0 = known
+    X = steady_state_map(problem)
     integrator = problem.C if problem.integral_weight is not None else None
     episodes, instruments = logs
     nz = problem.n + options.input_delay * problem.m + (problem.r if integrator is not None else 0)
@@ -414,20 +408,18 @@ def _digital_adp(
     transitions = transitions_of(episodes)
     if instruments is not None:
         transitions = replace(transitions, instruments=transitions_of(instruments))
-    law, P, history = learn_digital_adp(
-        transitions,
-        problem.K0,
-        (problem.Q, problem.R, problem.integral_weight),
-        (X, problem.C, problem.F),
-        (options.max_iterations, options.tolerance),
-    )
+    learned = learn_digital_adp(transitions, problem, K0, options)
     model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
-    return law, P, model.Bd, history
+    return learned.law, learned.P, model.Bd, learned.history
 
 
 def _continuous_adp(
-    logs: _Logs, evidence: Evidence, problem: LearningProblem, options: LearningOptions
+    logs: _Logs,
+    evidence: Evidence,
+    known: tuple[LearningProblem, Array],
+    options: LearningOptions,
 ) -> tuple[ControlLaw, Array, Array, tuple[IterationRecord, ...]]:
+    problem, K0 = known
     episodes, instruments = logs
     w_kind: WKind = "held" if problem.held else "exosystem"
     shift = evidence.alignment.shift
@@ -461,26 +453,18 @@ def _continuous_adp(
             moments = moments.with_instruments(of(instruments_aligned))
         return moments
 
-    cost = (problem.Q, problem.R, problem.K0)
+    cost = (problem.Q, problem.R, K0)
     settings = (options.max_iterations, options.tolerance)
     if problem.C is None:
-        plain = lqr_from_moments(moments_at(0.0), cost, settings)
-        law = ControlLaw.regulator(plain.K, np.zeros((problem.n, 0)), np.zeros((problem.m, 0)))
-        return law, plain.P, plain.B, plain.history
-    assert problem.E is not None and problem.F is not None
-    output = (problem.C, problem.E, problem.F)
-    if problem.integral_weight is not None:
-        servo = servo_from_moments(
-            moments_at,
-            output,
-            (problem.Q, problem.R, problem.integral_weight, problem.K0),
-            settings,
-        )
-        law = ControlLaw(
-            servo.K, servo.X, servo.U, K_i=servo.K_i, C=problem.C, F=problem.F,
-            h=evidence.alignment.model.h,
-        )  # fmt: skip
-        return law, servo.P, servo.B, servo.history
-    learned = regulator_from_moments(moments_at(0.0), output, cost, "auto", settings)
-    law = ControlLaw.regulator(learned.K, learned.X, learned.U)
-    return law, learned.P, learned.B, learned.history
+        learned = lqr_from_moments(moments_at(0.0), cost, settings)
+    else:
+        assert problem.E is not None and problem.F is not None
+        output = (problem.C, problem.E, problem.F)
+        if problem.integral_weight is not None:
+            h = evidence.alignment.model.h
+            servo_cost = (problem.Q, problem.R, problem.integral_weight, K0)
+            learned = servo_from_moments(moments_at, output, servo_cost, settings, h)
+        else:
+            learned = regulator_from_moments(moments_at(0.0), output, cost, "auto", settings)
+    assert learned.B is not None
+    return learned.law, learned.P, learned.B, learned.history

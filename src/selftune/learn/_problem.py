@@ -9,6 +9,7 @@ says which controller to learn (``target``), how (``method``), how the log is al
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Literal
 
@@ -24,7 +25,7 @@ from ..core import (
     positive_finite,
     positive_integer,
 )
-from ..errors import InputError
+from ..errors import InputError, SelftuneDeprecationWarning
 from ._alignment import LoggedInput, stated_shift
 from ._policy_iteration import check_iteration_settings
 
@@ -40,13 +41,15 @@ INTEGRAL_BANDWIDTH = 200.0
 
 @dataclass(frozen=True, init=False)
 class LearningProblem:
-    """What the learner knows: the output to regulate, the cost, a stabilizing policy.
+    """What the learner knows of the problem: the output to regulate and the cost.
 
     The plant ``x' = A x + B u + D w`` (A, B, D unknown) is to be regulated so that
     ``e = C x + F w -> 0``, with ``w`` held over each sample (``E = 0``) or an exosystem
     ``w' = E w``, at the least cost ``integral of xbar' Q xbar + ubar' R ubar`` (continuous
     target) or ``sum_k h (xbar_k' Q xbar_k + ubar_k' R ubar_k)`` (digital target), plus
-    ``z' Q_i z`` with integral action, ``z`` the integral of ``e``.
+    ``z' Q_i z`` with integral action, ``z`` the integral of ``e``. Every learner takes
+    the data, this problem, the stabilizing feedback K0 the data start from, and the
+    options, in that order.
 
     Parameters
     ----------
@@ -54,8 +57,6 @@ class LearningProblem:
         State weight, symmetric positive semidefinite.
     R : array_like, shape (m, m)
         Input weight, symmetric positive definite.
-    K0 : array_like, shape (m, n)
-        The stabilizing feedback the data start from (the drive's controller), on x.
     C : array_like, shape (r, n), optional
         Regulated output; None for plain optimal state feedback (no ``w``).
     E : array_like, shape (q, q), optional
@@ -68,6 +69,10 @@ class LearningProblem:
     integral_weight : array_like, shape (r, r), optional
         ``Q_i``, symmetric positive definite; default ``(200 rad/s)^2 C Q C'`` regularized
         (:data:`INTEGRAL_BANDWIDTH`), i.e. an integral corner near 200 rad/s.
+    K0 : array_like, optional
+        Deprecated: give K0 to the learner (``learn_controller(data, problem, K0,
+        options)``). Still kept here, with a deprecation warning, for code written for
+        ``learn_controller(data, problem, options)``.
 
     Attributes
     ----------
@@ -77,33 +82,42 @@ class LearningProblem:
 
     Q: Array
     R: Array
-    K0: Array
     C: Array | None
     E: Array | None
     F: Array | None
     integral_weight: Array | None
+    K0: Array | None
 
     def __init__(
         self,
         Q: ArrayLike,
         R: ArrayLike,
-        K0: ArrayLike,
         C: ArrayLike | None = None,
         E: ArrayLike | None = None,
         F: ArrayLike | None = None,
         integral_action: bool = False,
         integral_weight: ArrayLike | None = None,
+        *,
+        K0: ArrayLike | None = None,
     ) -> None:
         R_ = as_matrix(R, "R")
         m = R_.shape[0]
-        K0_ = as_matrix(K0, "K0", (m, None))
-        n = K0_.shape[1]
-        Q_, R_ = check_weights(Q, R_, n, m)
-        values: dict[str, Array | None] = {"Q": Q_, "R": R_, "K0": K0_}
+        Q_ = as_matrix(Q, "Q")
+        n = Q_.shape[0]
+        Q_, R_ = check_weights(Q_, R_, n, m)
+        values: dict[str, Array | None] = {"Q": Q_, "R": R_, "K0": None}
         values.update(_regulation(C, E, F, n))
         values["integral_weight"] = _integral_weight(
             integral_action, integral_weight, values["C"], Q_
         )
+        if K0 is not None:
+            warnings.warn(
+                "LearningProblem(K0=...) is deprecated: give K0 to the learner, "
+                "learn_controller(data, problem, K0, options)",
+                SelftuneDeprecationWarning,
+                stacklevel=2,
+            )
+            values["K0"] = as_matrix(K0, "K0", (m, n))
         for name, value in values.items():
             if value is not None:
                 value.setflags(write=False)
@@ -112,12 +126,48 @@ class LearningProblem:
     @property
     def n(self) -> int:
         """State dimension."""
-        return int(self.K0.shape[1])
+        return int(self.Q.shape[0])
 
     @property
     def m(self) -> int:
         """Input dimension."""
-        return int(self.K0.shape[0])
+        return int(self.R.shape[0])
+
+    def with_F(self, F: ArrayLike | None) -> LearningProblem:
+        """This problem with another F (and E = 0: ``w`` held), the rest kept.
+
+        Parameters
+        ----------
+        F : array_like, shape (r, q'), or None
+            The new reference part of the regulated output.
+        """
+        q = 0 if F is None else np.shape(F)[1]
+        problem = LearningProblem(
+            self.Q, self.R, C=self.C, E=None if F is None else np.zeros((q, q)), F=F,
+            integral_action=self.integral_weight is not None,
+            integral_weight=self.integral_weight,
+        )  # fmt: skip
+        object.__setattr__(problem, "K0", self.K0)  # the deprecated K0 travels with it
+        return problem
+
+    def initial_policy(self, K0: ArrayLike, extra: int = 0) -> Array:
+        """K0 validated for this problem, over x and ``extra`` more states (a delay's past
+        inputs, an integrator): given ``(m, n)`` it is padded with zeros (no feedback of
+        the extra states); ``(m, n + extra)`` is taken as it is.
+
+        Parameters
+        ----------
+        K0 : array_like
+            The stabilizing feedback the data start from (V/A on the motor's currents).
+        extra : int
+            The augmented state's extra columns (0: none).
+
+        Raises
+        ------
+        InputError
+            Naming K0 and the shapes it may have.
+        """
+        return padded_policy(as_matrix(K0, "K0", (self.m, None)), self.n, self.n + extra)
 
     @property
     def q(self) -> int:
@@ -133,6 +183,31 @@ class LearningProblem:
     def held(self) -> bool:
         """Whether ``w`` is held over each sample (E = 0)."""
         return self.E is None or not np.any(self.E)
+
+
+def padded_policy(K0: Array, n: int, width: int) -> Array:
+    """``[K0, 0]`` over a state of ``width`` (the first n: x), or K0 if already that wide.
+
+    Parameters
+    ----------
+    K0 : ndarray, shape (m, n) or (m, width)
+        A policy on x, or on the whole state.
+    n : int
+        The dimension of x.
+    width : int
+        The dimension of the whole state.
+
+    Raises
+    ------
+    InputError
+        If K0 has another number of columns.
+    """
+    if K0.shape[1] == width:
+        return K0
+    if K0.shape[1] != n:
+        shapes = f"({K0.shape[0]}, {n})" + (f" or ({K0.shape[0]}, {width})" if width != n else "")
+        raise InputError(f"K0: expected shape {shapes}, got {K0.shape}")
+    return np.hstack([K0, np.zeros((K0.shape[0], width - n))])
 
 
 def _regulation(

@@ -93,7 +93,6 @@ of noise on the same 30 ms it is 8e-5 off, while the instrumental-variable estim
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from itertools import pairwise
 
 import numpy as np
@@ -102,29 +101,27 @@ from numpy.typing import ArrayLike
 
 from ..core import (
     Array,
-    as_matrix,
-    check_positive_definite,
-    check_weights,
+    ControlLaw,
     finite_float,
     theta_sizes,
     unpack_theta,
 )
 from ..errors import ConvergenceError, ExcitationError, InputError
+from ._alignment import sampling_period
 from ._continuous import solutions_of_output_equation
 from ._moments import IntervalMoments, WKind, interval_moments
 from ._policy_iteration import (
-    IterationRecord,
     NextDiscount,
-    PolicyIterationFacts,
     PolicyStep,
     Stage,
-    check_iteration_settings,
     discounted_policy_iteration,
     estimated_B,
     feedforward,
     moments_step,
     policy_step,
 )
+from ._problem import LearningOptions, LearningProblem, padded_policy
+from ._result import DiscountStage, LearnedController
 from ._trajectory import Trajectory, as_trajectories
 
 __all__ = [
@@ -132,7 +129,6 @@ __all__ = [
     "FIRST_DISCOUNT",
     "MAX_DISCOUNTS",
     "DiscountStage",
-    "LearnedServo",
     "learn_servo",
     "servo_from_moments",
 ]
@@ -147,112 +143,34 @@ FIRST_DISCOUNT = 0.1
 MAX_DISCOUNTS = 60
 
 
-@dataclass(frozen=True)
-class DiscountStage:
-    """Policy iteration at one discount of the schedule.
-
-    Attributes
-    ----------
-    discount : float
-        ``gamma``, 1/s (0: undiscounted).
-    K : ndarray, shape (m, n + r)
-        The converged policy ``K_(j+1)`` over ``xi = [xbar; z]``.
-    P : ndarray, shape (n + r, n + r)
-        The value at this discount of the last policy evaluated.
-    iterations : int
-        Policy-iteration steps at this discount.
-    rate : float
-        ``mu``, the smallest eigenvalue of ``P^-1 W`` (module docstring), 1/s: the
-        discount may fall by less than this with ``K`` still stabilizing.
-    """
-
-    discount: float
-    K: Array
-    P: Array
-    iterations: int
-    rate: float
-
-
-@dataclass(frozen=True)
-class LearnedServo(PolicyIterationFacts):
-    """The optimal servo controller ``u = U w - K xbar - K_i z`` learned from data.
-
-    Attributes
-    ----------
-    K : ndarray, shape (m, n)
-        Feedback gain on ``xbar = x - X w``.
-    K_i : ndarray, shape (m, r)
-        Integral gain on ``z``, the integral of ``e = C x + F w``.
-    P : ndarray, shape (n + r, n + r)
-        Value matrix over ``xi = [xbar; z]`` (of the last policy evaluated).
-    X : ndarray, shape (n, q)
-        Steady-state map, the unique solution of ``C X + F = 0``.
-    U : ndarray, shape (m, q)
-        Feedforward map.
-    B : ndarray, shape (n, m)
-        Estimated input matrix.
-    exogenous_block : ndarray, shape (q, n + r)
-        ``M = G'P``, ``G = [D + A X - X E; 0]``.
-    history : tuple of IterationRecord
-        Every policy-iteration step of every discount (each discount's steps count from 0).
-    stages : tuple of DiscountStage
-        The schedule, the last one undiscounted.
-    converged : bool
-    """
-
-    K: Array
-    K_i: Array
-    P: Array
-    X: Array
-    U: Array
-    B: Array
-    exogenous_block: Array
-    history: tuple[IterationRecord, ...]
-    stages: tuple[DiscountStage, ...]
-    converged: bool
-
-    @property
-    def discounts(self) -> tuple[float, ...]:
-        """The schedule's discounts, 1/s, in the order run."""
-        return tuple(stage.discount for stage in self.stages)
-
-
 MomentsAt = Callable[[float], IntervalMoments]
 
 
 def learn_servo(
     data: Trajectory | Sequence[Trajectory],
-    output: tuple[ArrayLike, ArrayLike, ArrayLike],
-    cost: tuple[ArrayLike, ArrayLike, ArrayLike],
+    problem: LearningProblem,
     K0: ArrayLike,
+    options: LearningOptions | None = None,
     *,
-    interval: int = 10,
-    max_iterations: int = 50,
-    tolerance: float = 1e-9,
     discounts: Sequence[float] | None = None,
-) -> LearnedServo:
+) -> LearnedController:
     """Learn the optimal servo controller of an unknown plant from data.
 
     Parameters
     ----------
     data : Trajectory or sequence of Trajectory
         Samples with ``w`` (held over each sample when E = 0, the exosystem state at every
-        sample time otherwise), the applied input in row k.
-    output : (C, E, F)
-        Regulated output ``e = C x + F w`` (C: r x n of full column rank) and exosystem
-        (E: q x q).
-    cost : (Q, R, Q_i)
-        Weights of ``xbar`` (positive semidefinite), ``ubar`` and ``z`` (positive
-        definite).
+        sample time otherwise), the applied input in row k, uniformly sampled (the drive
+        runs the integrator at that period).
+    problem : LearningProblem
+        Regulated output ``e = C x + F w`` (C: r x n of full column rank), exosystem E,
+        the weights Q, R and, with ``integral_action``, ``Q_i`` (the weight of z).
     K0 : array_like, shape (m, n) or (m, n + r)
         The stabilizing feedback the data start from (on ``xbar``; zeros on ``z`` when
         only m x n is given).
-    interval : int
-        Samples per regression interval.
-    max_iterations : int
-        Upper bound on the policy-iteration steps at each discount.
-    tolerance : float
-        Relative change of P at which policy iteration stops at each discount.
+    options : LearningOptions, optional
+        ``interval`` (samples per regression row), ``max_iterations`` and ``tolerance``
+        of the policy iteration at each discount.
     discounts : sequence of float, optional
         The schedule (1/s, decreasing, each >= 0); by default chosen from the data (see
         the module docstring). A schedule that does not end with 0 learns the discounted
@@ -260,31 +178,32 @@ def learn_servo(
 
     Returns
     -------
-    LearnedServo
+    LearnedController
+        With ``stages`` (the schedule) and ``exogenous_block``; no verdict.
 
     Raises
     ------
     ExcitationError, ConvergenceError, InputError
     """
+    options = LearningOptions() if options is None else options
     episodes = as_trajectories(data)
-    first = episodes[0]
-    n, m, q = first.n, first.m, first.q
-    C = as_matrix(output[0], "C", (None, n))
-    r = C.shape[0]
-    E = as_matrix(output[1], "E", (q, q))
-    F = as_matrix(output[2], "F", (r, q))
-    Q, R = check_weights(cost[0], cost[1], n, m)
-    Q_i = check_positive_definite(as_matrix(cost[2], "Q_i", (r, r)), "Q_i")
-    K0_ = as_matrix(K0, "K0", (m, None))
-    settings = check_iteration_settings(max_iterations, tolerance)
+    if problem.C is None or problem.E is None or problem.F is None:
+        raise InputError("C: the servo controller needs the regulated output (C, E, F)")
+    if problem.integral_weight is None:
+        raise InputError("integral_action: learn_servo learns integral action; set it on")
+    C, E, F = problem.C, problem.E, problem.F
+    K0_ = problem.initial_policy(K0, extra=problem.r)
+    settings = (options.max_iterations, options.tolerance)
     w_kind: WKind = "exosystem" if np.any(E) else "held"
 
     def moments_at(discount: float) -> IntervalMoments:
         return interval_moments(
-            episodes, interval, w_kind=w_kind, integrator=(C, F), discount=discount
+            episodes, options.interval, w_kind=w_kind, integrator=(C, F), discount=discount
         )
 
-    return servo_from_moments(moments_at, (C, E, F), (Q, R, Q_i, K0_), settings, discounts)
+    cost = (problem.Q, problem.R, problem.integral_weight, K0_)
+    h = sampling_period(episodes)
+    return servo_from_moments(moments_at, (C, E, F), cost, settings, h, discounts)
 
 
 def servo_from_moments(
@@ -292,8 +211,9 @@ def servo_from_moments(
     output: tuple[Array, Array, Array],
     cost: tuple[Array, Array, Array, Array],
     settings: tuple[int, float],
+    h: float,
     discounts: Sequence[float] | None = None,
-) -> LearnedServo:
+) -> LearnedController:
     """:func:`learn_servo` on moments computed once per discount (validated inputs).
 
     Parameters
@@ -308,12 +228,14 @@ def servo_from_moments(
         Weights and the stabilizing initial policy (m x n, or m x (n + r)).
     settings : (int, float)
         ``(max_iterations, tolerance)`` of the policy iteration at each discount.
+    h : float
+        The sampling period the drive runs the integrator at, s.
     discounts : sequence of float, optional
         The schedule; by default chosen from the data (see the module docstring).
 
     Returns
     -------
-    LearnedServo
+    LearnedController
 
     Raises
     ------
@@ -346,7 +268,7 @@ def servo_from_moments(
         )
     Q_a = scipy.linalg.block_diag(Q, Q_i)
     X_a = np.vstack([X, np.zeros((r, q))])
-    K = _initial_policy(K0, n, r)
+    K = padded_policy(K0, n, n + r)
 
     def step_at(gamma: float) -> PolicyStep:
         moments = undiscounted if gamma == 0.0 else moments_at(gamma)
@@ -370,27 +292,16 @@ def servo_from_moments(
     # B_a and G have zero integrator rows, so P B_a = (R K)' and P G = M' give B and
     # G_x = D + A X - X E from the plant's columns alone (the best-determined ones)
     P_x, K_x, M_x = P[:n, :n], K[:, :n], M[:, :n]
-    return LearnedServo(
-        K=K_x,
-        K_i=K[:, n:],
+    U = feedforward(P_x, K_x, M_x, R)
+    return LearnedController(
+        law=ControlLaw(K_x, X, U, K_i=K[:, n:], C=C, F=F, h=h),
         P=P,
-        X=X,
-        U=feedforward(P_x, K_x, M_x, R),
         B=estimated_B(P_x, K_x, R),
-        exogenous_block=M,
         history=tuple(history),
+        h=h,
+        exogenous_block=M,
         stages=tuple(stages),
-        converged=True,
     )
-
-
-def _initial_policy(K0: Array, n: int, r: int) -> Array:
-    """``[K0, 0]`` over ``xi = [xbar; z]``, or K0 itself if it is already that wide."""
-    if K0.shape[1] == n + r:
-        return K0
-    if K0.shape[1] != n:
-        raise InputError(f"K0: expected {n} or {n + r} columns, got {K0.shape[1]}")
-    return np.hstack([K0, np.zeros((K0.shape[0], r))])
 
 
 def _checked_schedule(discounts: Sequence[float] | None) -> tuple[float, ...]:

@@ -251,28 +251,30 @@ class SampledLoop:
 
     def weights(
         self,
-        plant: tuple[ArrayLike, ArrayLike],
         Q: ArrayLike,
         R: ArrayLike,
         cost: Cost = "digital",
         *,
+        plant: tuple[ArrayLike, ArrayLike] | None = None,
         continuous_plant: tuple[ArrayLike, ArrayLike] | None = None,
     ) -> LoopWeights:
         """The weights of the loop's cost over ``(zeta_k, ubar_k)`` (the module docstring).
 
         Parameters
         ----------
-        plant : (Ad, Bd)
-            The sampled plant ((A, B) when h = 0).
         Q : array_like, shape (n, n)
             Continuous state weight, symmetric positive semidefinite.
         R : array_like, shape (m, m)
             Continuous input weight, symmetric positive definite.
         cost : {"digital", "sampled"}
-            The cost (the continuous loop has one: its integral).
+            The cost (the continuous loop has one: its integral). The digital cost needs
+            no plant: a learner computes it from samples.
+        plant : (Ad, Bd), optional
+            The sampled plant: needed for the sampled cost only.
         continuous_plant : (A, B), optional
-            The continuous plant for the sampled cost; default: recovered from (Ad, Bd)
-            by the matrix logarithm (:func:`~selftune.core.continuous_from_discrete`).
+            The continuous plant for the sampled cost; default: recovered from the
+            sampled plant by the matrix logarithm
+            (:func:`~selftune.core.continuous_from_discrete`).
 
         Returns
         -------
@@ -281,29 +283,30 @@ class SampledLoop:
         Raises
         ------
         InputError
-            An unknown cost, or a loop with integral action but no ``Q_i``.
+            An unknown cost, the sampled cost without the plant, or a loop with integral
+            action but no ``Q_i``.
         """
         if cost not in get_args(Cost):
             raise InputError(f"cost: expected 'digital' or 'sampled', got {cost!r}")
-        Az, _ = delay_augmented(*plant, self.input_delay)
         Q_ = np.asarray(Q, dtype=float)
         R_ = np.asarray(R, dtype=float)
-        n, m, size = Q_.shape[0], R_.shape[0], Az.shape[0]
+        n, m = Q_.shape[0], R_.shape[0]
+        size = n + self.input_delay * m
         Qz, Nz, first = np.zeros((size, size)), np.zeros((size, m)), np.zeros((size, size))
-        if self.continuous:
-            Qz[:n, :n] = Q_
-            Rz = R_.copy()
-        elif cost == "digital":
-            Qz[:n, :n] = self.h * Q_
-            Rz = self.h * R_
+        if self.continuous or cost == "digital":
+            scale = 1.0 if self.continuous else self.h
+            Qz[:n, :n] = scale * Q_
+            Rz = scale * R_
         else:
+            if plant is None:
+                raise InputError("plant: the sampled cost needs the sampled plant (Ad, Bd)")
             A, B = continuous_plant if continuous_plant is not None else (None, None)
             if A is None or B is None:
                 A, B, _ = continuous_from_discrete(*plant, self.h)
             Qd, Rz, N = sampled_data_weights(A, B, Q_, R_, self.h)
             W = np.block([[Qd, N], [N.T, Rz]])
-            ahead = np.linalg.matrix_power(Az, self.input_delay)
-            Cz = ahead[:n]
+            Az, _ = delay_augmented(*plant, self.input_delay)
+            Cz = np.linalg.matrix_power(Az, self.input_delay)[:n]
             Qz, Nz = Cz.T @ Qd @ Cz, Cz.T @ N
             power = np.eye(size)
             for _ in range(self.input_delay):  # stage j: first n + m rows of Az^j zeta_0

@@ -248,7 +248,7 @@ def solve_digital_regulation(
         loop = SampledLoop(period, delay)
     else:
         loop = SampledLoop(period, delay, C=problem.C, F=problem.F, Q_i=Q_i)
-    weights = loop.weights((Ad, Bd), Q_, R_, cost, continuous_plant=(problem.A, problem.B))
+    weights = loop.weights(Q_, R_, cost, plant=(Ad, Bd), continuous_plant=(problem.A, problem.B))
     K, P = loop.optimum((Ad, Bd), weights)
     for matrix in (P, Ad, Bd, Ed, Q_, R_):
         matrix.setflags(write=False)

@@ -137,10 +137,10 @@ def _optimal_gain(
     plant = (problem.A, problem.B)
     if Q_i is None:
         loop = SampledLoop(0.0)
-        return loop.optimum(plant, loop.weights(plant, Q, R))
+        return loop.optimum(plant, loop.weights(Q, R))
     loop = SampledLoop(0.0, C=problem.C, F=problem.F, Q_i=Q_i)
     try:
-        return loop.optimum(plant, loop.weights(plant, Q, R))
+        return loop.optimum(plant, loop.weights(Q, R))
     except UnsolvableError as exc:
         raise UnsolvableError(
             f"integral action (the plant augmented with z' = C x): {exc}; it needs rank"

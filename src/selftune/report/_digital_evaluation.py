@@ -117,7 +117,7 @@ def feedback_excess_cost(optimum: DigitalSolution, law: ControlLaw, w: Array) ->
     loop, plant = optimum.loop, (optimum.Ad, optimum.Bd)
     if law.history != loop.input_delay or law.r != loop.r:
         return float("nan")
-    weights = loop.weights(plant, optimum.Q, optimum.R, "digital")
+    weights = loop.weights(optimum.Q, optimum.R, "digital")
     steady = [-optimum.X @ w, np.tile(-optimum.U @ w, loop.input_delay), np.zeros(loop.r)]
     zeta0 = np.concatenate(steady)
     try:

@@ -213,7 +213,7 @@ def learner_integral_weight(motor: SPMSM, settings: TuningSettings) -> Array | N
         Cost weights and K0.
     """
     C, _, F, _ = known_flux_form(motor.p, settings.speed, settings.torque, motor.phi_pm)
-    problem = LearningProblem(settings.Q, settings.R, settings.K0, C=C, F=F, integral_action=True)
+    problem = LearningProblem(settings.Q, settings.R, C=C, F=F, integral_action=True)
     return problem.integral_weight
 
 

@@ -39,7 +39,6 @@ __all__ = [
     "from_learned",
     "learning_options",
     "learning_problem",
-    "replace_F",
 ]
 
 #: The relative agreement of the drive's sampling period with the settings' required.
@@ -84,28 +83,7 @@ def learning_problem(drive: Drive, settings: TuningSettings, phi_pm: float) -> L
     """
     C, _, F, _ = known_flux_form(drive.pole_pairs, settings.speed, settings.torque, phi_pm)
     return LearningProblem(
-        settings.Q, settings.R, settings.K0, C=C, F=F, integral_action=settings.integral_action
-    )
-
-
-def replace_F(problem: LearningProblem, F: Array | None) -> LearningProblem:
-    """``problem`` with another F (and the matching E = 0).
-
-    Parameters
-    ----------
-    problem : LearningProblem
-        The problem.
-    F : ndarray or None
-        The new F.
-    """
-    return LearningProblem(
-        problem.Q,
-        problem.R,
-        problem.K0,
-        C=problem.C,
-        F=F,
-        integral_action=problem.integral_weight is not None,
-        integral_weight=problem.integral_weight,
+        settings.Q, settings.R, C=C, F=F, integral_action=settings.integral_action
     )
 
 
@@ -154,6 +132,7 @@ def from_learned(
     """A :class:`TuningResult` of a controller learned off-policy from ``seconds`` of data."""
     history = _history(learned.history, learned, settings, seconds)
     theta = history[-1].theta if learned.target == "continuous" and history else None
+    assert learned.B is not None  # learn_controller estimates it
     return TuningResult(
         algorithm=algorithm,
         law=learned.law,
@@ -163,7 +142,7 @@ def from_learned(
         history=history,
         data_seconds=seconds,
         feedforward_learned=True,
-        quality=learned.quality,
+        quality=learned.verdict,
         target=learned.target,
         theta=theta,
         identified={} if identified is None else identified,

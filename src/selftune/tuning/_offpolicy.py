@@ -77,7 +77,6 @@ def offpolicy(
         assumed_flux=phi_pm,
     )
     checked(batch, settings.K0, settings)
-    learned = learn_controller(
-        batch, learning_problem(drive, settings, phi_pm), learning_options(drive, settings)
-    )
+    problem = learning_problem(drive, settings, phi_pm)
+    learned = learn_controller(batch, problem, settings.K0, learning_options(drive, settings))
     return from_learned(algorithm, learned, w, batch.duration, settings, identified)

@@ -34,7 +34,7 @@ from ._drive import Drive
 from ._episodes import iteration_record, known_form, learning_step, relative_change, settled
 from ._flux import identify_flux
 from ._knowledge import reference_perturbation
-from ._learning import aligned, check_drive, learning_options, learning_problem, replace_F
+from ._learning import aligned, check_drive, learning_options, learning_problem
 from ._offpolicy import offpolicy
 from ._results import TuningIteration, TuningResult
 from ._settings import Perturbation, TuningSettings
@@ -177,7 +177,7 @@ class _Session:
                     for e in self.episodes
                     if e.w is not None
                 ],
-                replace_F(problem, problem.F[:, :1] if problem.F is not None else None),
+                problem.with_F(None if problem.F is None else problem.F[:, :1]),
                 options, P=last.P, feedforward=False,
             )  # fmt: skip
         return TuningResult(
@@ -189,7 +189,7 @@ class _Session:
             history=tuple(self.history),
             data_seconds=self.seconds,
             feedforward_learned=feedforward_learned,
-            quality=judged.quality,
+            quality=judged.verdict,
             theta=last.theta,
             notes=notes,
         )
