@@ -403,11 +403,11 @@ def reproduce_command(out: str, seed: int) -> int:
     """
     from tqdm import tqdm
 
-    from .report import ALGORITHMS, report, reproduce, write_outputs
+    from .report import ALGORITHM_LABELS, report, reproduce, write_outputs
 
     check_output_directory(out, REPRODUCE_OUTPUTS, "selftune reproduce output")
     with tqdm(
-        total=len(ALGORITHMS) + 2,
+        total=len(ALGORITHM_LABELS) + 2,
         desc="reproduce",
         file=sys.stderr,
         disable=None,

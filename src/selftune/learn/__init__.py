@@ -48,7 +48,7 @@ from ._digital import (
 )
 from ._discrete_model import DiscreteModel, Transitions, fit_discrete_model
 from ._evidence import ConsistencyTest, Evidence, gather_evidence
-from ._identify import Design, design_continuous, design_digital
+from ._identify import design_continuous, design_digital
 from ._io import load_csv, load_npz, load_trajectory, save_csv, save_npz, save_trajectory
 from ._learner import aligned_trajectory, assess, learn_controller
 from ._moments import IntervalMoments, WKind, interval_moments
@@ -85,7 +85,6 @@ __all__ = [
     "TOO_LITTLE_DATA",
     "Alignment",
     "ConsistencyTest",
-    "Design",
     "DigitalTransitions",
     "DiscountStage",
     "DiscreteModel",

@@ -20,13 +20,10 @@ from ``C X + F = 0`` weighted as the model-based optimum weights it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..core import (
     Array,
-    ControlLaw,
     continuous_from_discrete,
     is_positive_definite,
     solve_regulator,
@@ -34,27 +31,9 @@ from ..core import (
 from ..loop import Cost, SampledLoop
 from ._discrete_model import DiscreteModel
 from ._problem import LearningProblem
+from ._result import LearnedController
 
-__all__ = ["Design", "design_continuous", "design_digital"]
-
-
-@dataclass(frozen=True)
-class Design:
-    """A controller designed on an identified model.
-
-    Attributes
-    ----------
-    law : ControlLaw
-        The controller.
-    P : ndarray
-        Its value matrix (of the augmented state for the digital targets).
-    B : ndarray
-        The identified input matrix: Bd (digital targets) or B (continuous target).
-    """
-
-    law: ControlLaw
-    P: Array
-    B: Array
+__all__ = ["design_continuous", "design_digital"]
 
 
 def _weights_X(problem: LearningProblem) -> Array:
@@ -81,7 +60,7 @@ def _loop(problem: LearningProblem, h: float, delay: int) -> SampledLoop:
 
 def design_digital(
     model: DiscreteModel, problem: LearningProblem, delay: int, cost: Cost = "digital"
-) -> Design:
+) -> LearnedController:
     """The optimal digital controller of the identified sampled loop with its delay.
 
     Parameters
@@ -98,17 +77,21 @@ def design_digital(
 
     Returns
     -------
-    Design
+    LearnedController
+        The law, its value (over the augmented state) and the identified Bd; no verdict.
     """
     loop = _loop(problem, model.h, delay)
     plant = (model.Ad, model.Bd)
     K, P = loop.optimum(plant, loop.weights(problem.Q, problem.R, cost, plant=plant))
     held = np.zeros((problem.q, problem.q))
     X, U = _regulator(problem, model.Ad - np.eye(problem.n), model.Bd, model.Ed, held)
-    return Design(law=loop.law(K, X, U), P=P, B=model.Bd)
+    return LearnedController(
+        law=loop.law(K, X, U), P=P, B=model.Bd, target="digital", method="identify",
+        h=model.h, input_delay=delay,
+    )  # fmt: skip
 
 
-def design_continuous(model: DiscreteModel, problem: LearningProblem) -> Design:
+def design_continuous(model: DiscreteModel, problem: LearningProblem) -> LearnedController:
     """The continuous-time optimum of the plant whose exact discretization is the model.
 
     Parameters
@@ -120,7 +103,7 @@ def design_continuous(model: DiscreteModel, problem: LearningProblem) -> Design:
 
     Returns
     -------
-    Design
+    LearnedController
         The law ``u = -K (x - X w) + U w`` (with ``- K_i z`` for integral action, the
         integrator run at the sampling period).
     """
@@ -129,4 +112,5 @@ def design_continuous(model: DiscreteModel, problem: LearningProblem) -> Design:
     K, P = loop.optimum((A, B), loop.weights(problem.Q, problem.R))
     E = np.zeros((problem.q, problem.q)) if problem.E is None else problem.E
     X, U = _regulator(problem, A, B, D, E)
-    return Design(law=loop.law(K, X, U, h=model.h), P=P, B=B)
+    law = loop.law(K, X, U, h=model.h)
+    return LearnedController(law=law, P=P, B=B, method="identify", h=model.h)

@@ -51,6 +51,7 @@ def design_target(
         design = design_digital(model, problem, options.input_delay)
     else:
         design = design_continuous(model, problem)
+    assert design.B is not None  # identify-then-design estimates it
     return design.law, design.P, design.B
 
 

@@ -30,7 +30,7 @@ from ._evaluate import (
     steady_state,
 )
 from ._reproduce import (
-    ALGORITHMS,
+    ALGORITHM_LABELS,
     Reproduction,
     report,
     reproduce,
@@ -47,7 +47,7 @@ from ._tune_report import (
 )
 
 __all__ = [
-    "ALGORITHMS",
+    "ALGORITHM_LABELS",
     "HOT_RESISTANCE",
     "STEADY_SECONDS",
     "Reproduction",

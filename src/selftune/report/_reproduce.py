@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -24,12 +25,12 @@ from ..core import Array, finite_or_null, fixed, scientific, to_jsonable, write_
 from ..core._atomic import output_directory
 from ..learn import Trajectory
 from ..model import SPMSM, ModelBasedSolution
-from ..tuning import TuningResult, TuningSettings, run_algorithm
+from ..tuning import AlgorithmName, TuningResult, TuningSettings, run_algorithm
 from ._documents import history_document, regulator_document
 from ._evaluate import TuningEvaluation, closed_loop_response, evaluate
 
 __all__ = [
-    "ALGORITHMS",
+    "ALGORITHM_LABELS",
     "Reproduction",
     "report",
     "reproduce",
@@ -37,12 +38,9 @@ __all__ = [
     "write_outputs",
 ]
 
-#: The algorithms, in the order of the table: key, label.
-ALGORITHMS: tuple[tuple[str, str], ...] = (
-    ("1", "Alg. 1"),
-    ("2", "Alg. 2"),
-    ("3", "Alg. 3"),
-    ("offpolicy", "off-policy"),
+#: The label of each algorithm (:data:`selftune.tuning.ALGORITHMS`) in tables and figures.
+ALGORITHM_LABELS: Mapping[AlgorithmName, str] = MappingProxyType(
+    {"1": "Alg. 1", "2": "Alg. 2", "3": "Alg. 3", "offpolicy": "off-policy"}
 )
 
 #: Length of the simulated torque step of Figs. 1-3, s.
@@ -121,9 +119,9 @@ def reproduce(
     start = time.perf_counter()
     results: dict[str, TuningResult] = {}
     evaluations: dict[str, TuningEvaluation] = {}
-    for key, label in ALGORITHMS:
+    for key, label in ALGORITHM_LABELS.items():
         announce(f"{label}: learning")
-        results[key] = run_algorithm(key, motor, settings)  # type: ignore[arg-type]
+        results[key] = run_algorithm(key, motor, settings)
         evaluations[key] = evaluate(results[key], motor, settings)
     optimum = evaluations["2"].optimum
     assert isinstance(optimum, ModelBasedSolution), "the paper's algorithms are continuous"
@@ -181,8 +179,9 @@ def report(reproduction: Reproduction) -> str:
         What :func:`reproduce` computed.
     """
     results, evaluations = reproduction.results, reproduction.evaluations
-    keys = [key for key, _ in ALGORITHMS]
-    header = f"{'':>16}{'Theta*':>10}" + "".join(f"{label:>12}" for _, label in ALGORITHMS)
+    keys = list(ALGORITHM_LABELS)
+    labels = "".join(f"{label:>12}" for label in ALGORITHM_LABELS.values())
+    header = f"{'':>16}{'Theta*':>10}" + labels
     lines = [
         "Self-tuning torque control (Wang 2022, Sec. V) on the paper's motor:",
         f"  R_s = {reproduction.motor.R_s} ohm, L_s = {reproduction.motor.L_s} H, "
@@ -229,7 +228,7 @@ def report(reproduction: Reproduction) -> str:
         f"[{reproduction.optimum.U[1, 0]:.4f}, {reproduction.optimum.U[1, 1]:.4f}]]; true "
         f"phi_pm = {reproduction.motor.phi_pm} Wb"
     )
-    for key, label in ALGORITHMS:
+    for key, label in ALGORITHM_LABELS.items():
         for note in results[key].notes:
             lines.append(f"{label}: {note}")
     return "\n".join(lines)
@@ -261,7 +260,7 @@ def results_document(reproduction: Reproduction) -> dict[str, Any]:
         "algorithms": {},
         "wall_seconds": reproduction.wall_seconds,
     }
-    for key, _ in ALGORITHMS:
+    for key in ALGORITHM_LABELS:
         result, evaluation = reproduction.results[key], reproduction.evaluations[key]
         document["algorithms"][key] = {
             **regulator_document(result),

@@ -27,6 +27,7 @@ from ..core import (
 )
 from ..core._validation import LIMITS, check_entries, check_range
 from ..errors import DataFileError, InputError
+from ..learn import Target
 
 __all__ = [
     "DRIVE_DEFAULTS",
@@ -41,8 +42,6 @@ __all__ = [
 #: :func:`~selftune.tuning.reference_perturbation`).
 Perturbation = Literal["paper", "torque", "steps"]
 
-#: Which controller a session learns: the paper's (continuous) or the sampled loop's.
-Target = Literal["continuous", "digital"]
 
 
 @dataclass(frozen=True)
