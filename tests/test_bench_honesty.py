@@ -1,12 +1,10 @@
-"""The honesty sweep's pieces: its cases are reproducible and not the tests', its refusal
-causes are read off the learners' messages, and a case's log is what its hazard says."""
+"""The honesty sweep's pieces: its cases are reproducible and not the tests', and a case's
+log is what its hazard says (its refusal causes are counted by class: test_refusals.py)."""
 
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from selftune.bench._causes import UNNAMED, refusal_cause
 from selftune.bench._honesty import (
     HAZARDS,
     _as_logged,
@@ -15,33 +13,6 @@ from selftune.bench._honesty import (
     _settings,
     honesty_cases,
 )
-from selftune.errors import (
-    ConsistencyError,
-    ConvergenceError,
-    ExcitationError,
-    InputError,
-    SelftuneError,
-)
-
-
-@pytest.mark.parametrize(
-    ("error", "cause"),
-    [
-        (ConsistencyError("the logged voltages act 1 sample later than the configuration says"),
-         "alignment"),
-        (ConsistencyError("the model cannot explain the data: ..."), "consistency"),
-        (ExcitationError("too little data for this noise level: ... about 2 s ..."),
-         "too little data"),
-        (ExcitationError("the regression has rank 9 of 11 needed"), "excitation"),
-        (ConvergenceError("the learned controller does not stabilize every plant the data "
-                          "allow"), "instability"),
-        (InputError("Trajectory.t: ... too coarse for sampling steps of 1e-4 s"),
-         "time resolution"),
-        (SelftuneError("something else"), UNNAMED),
-    ],
-)  # fmt: skip
-def test_refusal_causes_are_read_off_the_message(error: SelftuneError, cause: str) -> None:
-    assert refusal_cause(error) == cause
 
 
 def test_the_cases_are_reproducible_balanced_and_use_no_test_seed() -> None:

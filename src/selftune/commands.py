@@ -122,7 +122,7 @@ def _numerics(source: str) -> Iterator[list[warnings.WarningMessage]]:
         try:
             yield caught
         except SelftuneError as exc:
-            raise type(exc)(f"{source}: {exc}") from None
+            raise exc.retold(f"{source}: {exc}") from None
         except (np.linalg.LinAlgError, FloatingPointError, OverflowError) as exc:
             raise InputError(f"{source}: the computation failed ({exc}); {_ADVICE}") from None
 

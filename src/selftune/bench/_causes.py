@@ -1,46 +1,50 @@
-"""What a refusal says: the error's class and a short cause key read off its message.
+"""What a refusal says: the cause key of its class.
 
-The learners refuse data that do not support a controller with an exception whose message
-names the cause (:mod:`selftune.learn`). The studies of the bench count refusals by cause;
-:func:`refusal_cause` reads the key off the message. A message no pattern recognizes is
-``"unnamed"``: the bench reports those as refusals that do not name their cause.
+The learners refuse data that do not support a controller with a
+:class:`~selftune.errors.Refusal`, one class per cause. The studies of the bench count
+refusals by cause; :func:`refusal_cause` gives the key of the error's class. An error of
+no class here is ``"unnamed"``: the bench reports those as refusals that do not name
+their cause.
 """
 
 from __future__ import annotations
 
 from ..errors import (
-    ConsistencyError,
-    ConvergenceError,
-    ExcitationError,
-    InputError,
+    CoarseTimeResolution,
+    ConfigurationMismatch,
+    MisalignedLog,
+    ModelMissesEffect,
+    NotExciting,
+    NotStabilizing,
+    PolicyIterationFailure,
+    SamplingJitter,
     SelftuneError,
+    TooLittleData,
+    TooShort,
     UnsolvableError,
 )
 from ..learn import TOO_LITTLE_DATA
 
 __all__ = ["CAUSE_TITLES", "UNNAMED", "refusal_cause"]
 
-#: The key of a refusal whose message names no recognizable cause.
+#: The key of a refusal whose class names no cause.
 UNNAMED = "unnamed"
 
-#: (error class, phrase in the message, cause key), the first match wins.
-_PATTERNS: tuple[tuple[type[SelftuneError], str, str], ...] = (
-    (ConsistencyError, "than the configuration says", "alignment"),
-    (ConsistencyError, "cannot explain the data", "consistency"),
-    (SelftuneError, "misses an effect", "consistency"),
-    (ConsistencyError, "likely cause", "consistency"),
-    (ExcitationError, TOO_LITTLE_DATA, "too little data"),
-    (ExcitationError, "rank", "excitation"),
-    (ExcitationError, "too short", "too short"),
-    (ExcitationError, "too few", "too short"),
-    (ExcitationError, "only", "too short"),
-    (ConvergenceError, "does not stabilize every plant", "instability"),
-    (ConvergenceError, "did not behave as theory says", "policy iteration"),
-    (ConvergenceError, "not positive", "policy iteration"),
-    (InputError, "too coarse for sampling steps", "time resolution"),
-    (InputError, "sampling steps vary", "sampling jitter"),
-    (UnsolvableError, "", "unsolvable"),
-)
+#: The cause key of each class; an error takes that of the first of its classes (in method
+#: resolution order) found here, so a subclass may have its own.
+_KEYS: dict[type[SelftuneError], str] = {
+    MisalignedLog: "alignment",
+    ConfigurationMismatch: "consistency",
+    ModelMissesEffect: "consistency",
+    TooLittleData: "too little data",
+    NotExciting: "excitation",
+    TooShort: "too short",
+    NotStabilizing: "instability",
+    PolicyIterationFailure: "policy iteration",
+    CoarseTimeResolution: "time resolution",
+    SamplingJitter: "sampling jitter",
+    UnsolvableError: "unsolvable",
+}
 
 #: What each cause key means, for the tables.
 CAUSE_TITLES = {
@@ -60,15 +64,15 @@ CAUSE_TITLES = {
 
 
 def refusal_cause(error: SelftuneError) -> str:
-    """The cause key of a learner's refusal (:data:`CAUSE_TITLES`), or :data:`UNNAMED`.
+    """The cause key of a learner's refusal (:data:`CAUSE_TITLES`) by its class, or
+    :data:`UNNAMED`.
 
     Parameters
     ----------
     error : SelftuneError
         What the learner raised.
     """
-    message = str(error)
-    for kind, phrase, key in _PATTERNS:
-        if isinstance(error, kind) and phrase in message:
-            return key
+    for kind in type(error).__mro__:
+        if kind in _KEYS:
+            return _KEYS[kind]
     return UNNAMED

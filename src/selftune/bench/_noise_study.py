@@ -23,7 +23,6 @@ data; the issue's target is <= 0.6).
 from __future__ import annotations
 
 import math
-import re
 import statistics
 import time
 from collections import Counter
@@ -34,8 +33,8 @@ import numpy as np
 from tqdm import tqdm
 
 from ..core import Array
-from ..errors import ExcitationError, SelftuneError
-from ..learn import TOO_LITTLE_DATA, LearningOptions, Trajectory, learn_controller
+from ..errors import SelftuneError, TooLittleData
+from ..learn import LearningOptions, Trajectory, learn_controller
 from ..sim import DriveSettings
 from ._causes import UNNAMED, refusal_cause
 from ._common import progress_bar, relative
@@ -61,8 +60,6 @@ NOISE_METHODS: tuple[tuple[str, str, LearningOptions], ...] = (
      LearningOptions(target="digital", method="identify", input_delay=1, structure="spmsm",
                      electrical_speed=REFERENCE.electrical_speed, voltage_hold="rotor")),
 )  # fmt: skip
-#: The length a refusal of a log too short for its noise asks for.
-_NEEDED = re.compile(r"about ([0-9.eE+-]+) s of the same kind of data")
 #: A result within this many stated standard errors of the truth is right (as in study 6).
 SE_MULTIPLE = 3.0
 
@@ -255,9 +252,7 @@ def _run(
             learned = learn_controller(log, experiment.known(), options)
     except SelftuneError as error:
         elapsed = time.perf_counter() - started
-        match = _NEEDED.search(str(error))
-        too_little = isinstance(error, ExcitationError) and TOO_LITTLE_DATA in str(error)
-        needed = float(match.group(1)) if match is not None and too_little else None
+        needed = error.needed_seconds if isinstance(error, TooLittleData) else None
         message = f"{type(error).__name__}: {error}"
         return _Run(math.inf, math.inf, elapsed, refusal_cause(error), False, needed, message)
     elapsed = time.perf_counter() - started

@@ -31,7 +31,7 @@ from types import MappingProxyType
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import InputError
+from ..errors import CoarseTimeResolution, InputError
 
 __all__ = [
     "DATA_VALUE_LIMIT",
@@ -414,11 +414,13 @@ def check_time_resolution(t: ArrayLike, name: str) -> None:
     if resolution > TIME_RESOLUTION_TOLERANCE * step:
         wider = "" if kind.itemsize >= 8 else " in float64"
         why = f" (every time is a {rounded} number: they were rounded to it)" if rounded else ""
-        raise InputError(
+        raise CoarseTimeResolution(
             f"{name}: the times reach {float(largest):.6g} s, where {kind.name} numbers are"
             f" {resolution:.2g} s apart{why}: too coarse for sampling steps of {step:.2g} s (the"
             f" resolution must be at most {TIME_RESOLUTION_TOLERANCE:g} of the smallest step);"
-            f" store the times relative to the first sample{wider}"
+            f" store the times relative to the first sample{wider}",
+            resolution=resolution,
+            step=step,
         )
 
 

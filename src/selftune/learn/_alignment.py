@@ -12,7 +12,7 @@ The data show the shift: only the right one makes ``x_(k+1) = Ad x_k + Bd a_k + 
 hold (:mod:`._discrete_model`); a wrong one leaves a residual that no noise explains,
 whatever method then learns from the data. :func:`check_alignment` fits every shift from
 -1 to +3, compares the stated one with the best, and either confirms it, uses the best
-(``logged_input = "auto"``), or raises :class:`~selftune.errors.ConsistencyError` naming
+(``logged_input = "auto"``), or raises :class:`~selftune.errors.MisalignedLog` naming
 the shift the data show and the likely logging mistake.
 """
 
@@ -25,7 +25,7 @@ from typing import Literal
 import numpy as np
 
 from ..core import Array, positive_integer
-from ..errors import ConsistencyError, ExcitationError, InputError
+from ..errors import InputError, MisalignedLog, SamplingJitter, TooShort
 from ._discrete_model import DiscreteModel, Transitions, fit_discrete_model
 from ._trajectory import Trajectory, as_trajectories
 
@@ -75,9 +75,12 @@ def sampling_period(episodes: Sequence[Trajectory]) -> float:
         h = float(steps.mean())
         spread = float(np.max(np.abs(steps - h))) / h
         if spread > SAMPLING_JITTER:
-            raise InputError(
+            raise SamplingJitter(
                 f"episode {index}: the sampling steps vary by {spread:.2g} of the period "
-                f"{h:.6g} s; digital learning needs a uniform sampling period"
+                f"{h:.6g} s; digital learning needs a uniform sampling period",
+                episode=index,
+                spread=spread,
+                max_spread=SAMPLING_JITTER,
             )
         periods.append(h)
     if max(periods) - min(periods) > SAMPLING_JITTER * max(periods):
@@ -124,7 +127,7 @@ def applied_inputs(episode: Trajectory, shift: int) -> tuple[Array, int]:
     N = episode.num_samples
     first, last = max(0, shift), min(N - 1, N - 1 + shift)
     if last < first:
-        raise ExcitationError(f"the log has {N} samples, too few for a shift of {shift}")
+        raise TooShort(f"the log has {N} samples, too few for a shift of {shift}", samples=N)
     return episode.u[first - shift : last - shift + 1], first
 
 
@@ -164,7 +167,7 @@ def aligned_transitions(
         w = _w_held(episode)
         parts.append((episode.x[k], episode.x[k + 1], episode.u[k - shift], w[k]))
     if not parts:
-        raise ExcitationError(f"the logs are too short for a shift of {shift} samples")
+        raise TooShort(f"the logs are too short for a shift of {shift} samples")
     x, x_next, a, w = (np.concatenate([part[i] for part in parts]) for i in range(4))
     return Transitions(x=x, x_next=x_next, a=a, w=w, h=h)
 
@@ -253,9 +256,9 @@ def check_alignment(
 
     Raises
     ------
-    ConsistencyError
-        If the data contradict the stated alignment: the message names the shift the data
-        show and the likely logging mistake.
+    MisalignedLog
+        If the data contradict the stated alignment (a ConsistencyError): the message names
+        the shift the data show and the likely logging mistake.
     ExcitationError
         If the data do not excite the model enough to fit it.
     """
@@ -271,8 +274,11 @@ def check_alignment(
     if stated is not None and best != stated:
         worse = residuals[stated] / max(residuals[best], 1e-300)
         if worse > _threshold(models[best].transitions):
-            raise ConsistencyError(
-                _misalignment_message(stated, best, input_delay, worse, residuals)
+            raise MisalignedLog(
+                _misalignment_message(stated, best, input_delay, worse, residuals),
+                key="input_delay" if stated > 0 and best > 0 else "logged_input",
+                stated_shift=stated,
+                found_shift=best,
             )
     return Alignment(
         logged_input=logged_input,

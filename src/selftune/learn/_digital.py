@@ -45,7 +45,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core import RANK_TOLERANCE, Array, unvec, unvecs, vecs_hat, vecs_hat_from_outer
-from ..errors import ConvergenceError, ExcitationError, InputError
+from ..errors import InputError, PolicyIterationFailure, TooShort
 from ..loop import LoopWeights, SampledLoop
 from ._alignment import applied_inputs
 from ._continuous import solutions_of_output_equation
@@ -175,7 +175,7 @@ def digital_transitions(
     rows = [_episode_rows(episode, shift, delay, X, C) for episode in episodes]
     kept = [row for row in rows if row is not None]
     if not kept:
-        raise ExcitationError("the logs are too short for the input delay and alignment")
+        raise TooShort("the logs are too short for the input delay and alignment")
     zeta, zeta_next, command, w = (np.concatenate([row[i] for row in kept]) for i in range(4))
     offsets = np.cumsum([0] + [row[0].shape[0] for row in kept])
     starts = np.concatenate(
@@ -272,11 +272,13 @@ def _step(
     eigenvalues = np.linalg.eigvalsh(blocks.P)
     # P is positive semidefinite: delayed inputs the plant does not feel cost nothing
     if eigenvalues[-1] <= 0.0 or eigenvalues[0] < -RANK_TOLERANCE * eigenvalues[-1]:
-        raise ConvergenceError(
+        raise PolicyIterationFailure(
             f"digital policy iteration step {iteration}: the learned P is not positive "
             f"semidefinite (eigenvalues from {eigenvalues[0]:.3g} to {eigenvalues[-1]:.3g}); "
             "K0 may not stabilize the sampled loop with its delay, or the data are too "
-            "noisy or too short"
+            "noisy or too short",
+            step=iteration,
+            symptom="P not positive semidefinite",
         )
     K_next = np.asarray(np.linalg.solve(weights.Rz + blocks.S_uu, blocks.S_K), dtype=np.float64)
     return IterationRecord(
@@ -303,9 +305,11 @@ def _feedforward(
         B_P_B, G_P_B = A_P_A[oldest, oldest], blocks.S_wz[:, oldest]
     B_P_B = 0.5 * (B_P_B + B_P_B.T)
     if np.min(np.linalg.eigvalsh(B_P_B)) <= 0.0:
-        raise ConvergenceError(
+        raise PolicyIterationFailure(
             "the learned Bd' P Bd is not positive definite: the inputs do not act "
-            "independently on the state, so the feedforward U is not determined"
+            "independently on the state, so the feedforward U is not determined",
+            step=None,
+            symptom="Bd' P Bd not positive definite",
         )
     return np.asarray(-np.linalg.solve(B_P_B, G_P_B.T), dtype=np.float64)
 

@@ -24,7 +24,7 @@ import numpy as np
 import scipy.linalg
 
 from ..core import RANK_TOLERANCE, Array
-from ..errors import ExcitationError, InputError
+from ..errors import NotExciting, NumericalFailure, TooShort
 
 __all__ = ["DiscreteModel", "Transitions", "fit_discrete_model"]
 
@@ -153,21 +153,25 @@ def fit_discrete_model(transitions: Transitions) -> DiscreteModel:
 
     Raises
     ------
-    ExcitationError
-        If there are fewer transitions than regressors or the regressors lack rank (the
-        data do not excite every state, input and exogenous channel independently).
-    InputError
-        If the data are not finite.
+    TooShort
+        If there are fewer transitions than regressors (an ExcitationError).
+    NotExciting
+        If the regressors lack rank (an ExcitationError): the data do not excite every
+        state, input and exogenous channel independently.
+    NumericalFailure
+        If the data are not finite (an InputError).
     """
     Z = transitions.regressors
     Y = transitions.x_next
     count, size = Z.shape
     if not (np.all(np.isfinite(Z)) and np.all(np.isfinite(Y))):
-        raise InputError("the data are not finite")
+        raise NumericalFailure("the data are not finite", what="data")
     if count < size:
-        raise ExcitationError(
+        raise TooShort(
             f"only {count} transitions for {size} regressors (states, inputs and exogenous "
-            f"channels): use longer data (at least {size} samples)"
+            f"channels): use longer data (at least {size} samples)",
+            samples=count,
+            samples_needed=size,
         )
     scale = np.linalg.norm(Z, axis=0)
     scale[scale == 0.0] = 1.0
@@ -176,11 +180,14 @@ def fit_discrete_model(transitions: Transitions) -> DiscreteModel:
     rank = int(np.sum(singular > RANK_TOLERANCE * singular[0])) if singular[0] > 0 else 0
     if rank < size:
         n, m = transitions.x.shape[1], transitions.a.shape[1]
-        raise ExcitationError(
+        raise NotExciting(
             f"the transitions have rank {rank} of {size} (n = {n} states, m = {m} inputs, "
             f"q = {size - n - m} exogenous channels): some state, input or exogenous "
             "channel is not excited independently of the others; add exploration on every "
-            "input and perturb the reference"
+            "input and perturb the reference",
+            rank=rank,
+            rank_needed=size,
+            block=None,
         )
     theta = scipy.linalg.solve_triangular(R_, Q_.T @ Y, check_finite=False) / scale[:, None]
     n, m = transitions.x.shape[1], transitions.a.shape[1]

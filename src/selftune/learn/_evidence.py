@@ -40,7 +40,7 @@ import numpy as np
 import scipy.special
 
 from ..core import Array
-from ..errors import ConsistencyError, InputError
+from ..errors import ConfigurationMismatch, ConsistencyError, InputError, ModelMissesEffect
 from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
 from ._dead_time import DeadTimeModel, with_dead_time
 from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error
@@ -246,8 +246,13 @@ def gather_evidence(
 
     Raises
     ------
-    ConsistencyError
-        If the data contradict the stated alignment, or the model cannot explain them.
+    MisalignedLog
+        If the data contradict the stated alignment (a ConsistencyError).
+    ModelMissesEffect
+        If the model cannot explain the data (a ConsistencyError).
+    ConfigurationMismatch
+        If the structure the options state explains the data worse than none (a
+        ConsistencyError).
     """
     fitted, dead_time_model = _fitted(episodes, options, sign_width)
     alignment = check_alignment(fitted, options.logged_input, options.input_delay)
@@ -265,28 +270,45 @@ def gather_evidence(
         else _consistency(fitted, alignment.shift, fit)
     )
     if not test.passed:
-        raise ConsistencyError(
+        causes: tuple[str, ...] = (
+            "an input error the log does not show (inverter dead time: set dead_time = true)",
+            "a misaligned or late voltage log",
+            "a nonlinearity (saturation, the voltage limit)",
+            "a measurement resolution too coarse for the signal",
+        )
+        raise ModelMissesEffect(
             f"the model cannot explain the data: its output errors correlate with the "
             f"inputs before them (statistic {test.statistic:.4g}, threshold {test.threshold:.4g} "
             f"for {test.degrees_of_freedom} degrees of freedom), which the measurement "
-            "noise alone does not do; likely causes: an input error the log does not show "
-            "(inverter dead time: set dead_time = true), a misaligned or late voltage log, "
-            "a nonlinearity (saturation, the voltage limit), or a measurement resolution too "
-            "coarse for the signal"
+            f"noise alone does not do; likely causes: {_listed(causes)}",
+            statistic=test.statistic,
+            threshold=test.threshold,
+            causes=causes,
         )
     if structure is not None and (fit is None or not test.exact):  # exact: nothing to miss
         _check_structure(fitted, alignment, fit, relative, options.dead_time)
     if fit is not None and fit.correlation_inflation > INFLATION_LIMIT and not options.dead_time:
-        raise ConsistencyError(
+        causes = (
+            "an input error the log does not show (inverter dead time: set dead_time = true)",
+            "a nonlinearity (a saturated sensor or ADC, the voltage limit)",
+            "a misaligned voltage log",
+        )
+        raise ModelMissesEffect(
             f"the model misses an effect in the data: its output errors are correlated in "
             f"time, {fit.correlation_inflation:.3g} times the variance white noise gives (at "
-            f"most {INFLATION_LIMIT:g} without a dead-time model); likely causes: an input "
-            "error the log does not show (inverter dead time: set dead_time = true), a "
-            "nonlinearity (a saturated sensor or ADC, the voltage limit), or a misaligned "
-            "voltage log"
+            f"most {INFLATION_LIMIT:g} without a dead-time model); likely causes: "
+            f"{_listed(causes)}",
+            statistic=fit.correlation_inflation,
+            threshold=INFLATION_LIMIT,
+            causes=causes,
         )
     extra = problem.n if options.dead_time else 0
     return Evidence(fitted, alignment, fit, test, extra, precision, dead_time_model)
+
+
+def _listed(causes: tuple[str, ...]) -> str:
+    """The likely causes as a message lists them: "a, b, or c"."""
+    return ", or ".join([", ".join(causes[:-1]), causes[-1]]) if len(causes) > 1 else causes[0]
 
 
 def structure_statistic(fit: OutputErrorFit, free: OutputErrorFit) -> tuple[float, int]:
@@ -344,13 +366,14 @@ def _check_structure(
         statistic /= max(fit.correlation_inflation, 1.0)
     threshold = float(scipy.special.chdtri(freedom, TEST_LEVEL))
     if statistic > threshold:
-        raise ConsistencyError(
+        raise ConfigurationMismatch(
             f"structure: the SPMSM model explains the data worse than an unstructured one "
             f"(likelihood-ratio statistic {statistic:.4g}, threshold {threshold:.4g} for "
             f"{freedom} degrees of freedom); likely causes: its fit stopped in a wrong "
             "minimum (too few or too noisy samples), or the drive is not what the structure "
             "assumes (electrical_speed, voltage_hold, dead_time); structure = 'none' "
-            "assumes none of it"
+            "assumes none of it",
+            key="structure",
         )
 
 

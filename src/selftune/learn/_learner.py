@@ -39,6 +39,7 @@ from ..errors import (
     InputError,
     SelftuneDeprecationWarning,
     SelftuneError,
+    TooLittleData,
     UnsolvableError,
 )
 from ._alignment import applied_inputs
@@ -54,7 +55,7 @@ from ._moments import IntervalMoments, WKind, interval_moments
 from ._output_error import simulated_trajectories
 from ._policy_iteration import IterationRecord
 from ._problem import LearningOptions, LearningProblem
-from ._quality import TOO_LITTLE_DATA, check_precision, check_safety
+from ._quality import check_precision, check_safety
 from ._result import LearnedController
 from ._servo import servo_from_moments
 from ._trajectory import Trajectory, as_trajectories
@@ -148,15 +149,19 @@ def learn_controller(
     Raises
     ------
     ConsistencyError
-        If the data contradict the stated alignment of the logged inputs, or the model
-        cannot explain them (the message gives the statistic and the likely causes).
+        If the data contradict the stated alignment of the logged inputs
+        (:class:`~selftune.errors.MisalignedLog`), or the model cannot explain them
+        (:class:`~selftune.errors.ModelMissesEffect`: the statistic and the likely causes).
     ExcitationError
-        If the data do not excite the plant enough, or are too short for their noise
-        (the message says how much longer they should be). A structured fit
-        (``options.structure``) that is refused says what the data give without it.
+        If the data do not excite the plant enough (:class:`~selftune.errors.NotExciting`,
+        :class:`~selftune.errors.TooShort`), or are too short for their noise
+        (:class:`~selftune.errors.TooLittleData`: how much longer they should be). A
+        structured fit (``options.structure``) that is refused says what the data give
+        without it.
     ConvergenceError
-        If the learned controller does not stabilize every plant the data allow, or
-        policy iteration did not behave as theory says.
+        If the learned controller does not stabilize every plant the data allow
+        (:class:`~selftune.errors.NotStabilizing`), or policy iteration did not behave as
+        theory says (:class:`~selftune.errors.PolicyIterationFailure`).
     UnsolvableError, InputError
         As the learners raise them.
     """
@@ -164,7 +169,7 @@ def learn_controller(
     try:
         evidence, known, errors = _precise(data, problem, options)
     except (ConsistencyError, UnsolvableError, ExcitationError) as error:
-        if options.structure == "none" or TOO_LITTLE_DATA in str(error):
+        if options.structure == "none" or isinstance(error, TooLittleData):
             raise
         raise _without_structure(error, data, problem, options) from error
     if options.method == "identify":
@@ -287,20 +292,19 @@ def _without_structure(
 ) -> SelftuneError:
     """The refusal of a structured fit, told with what the same data give without the
     structure: "too little data" and the length that would do, if that is what they say
-    (the usual reason a short noisy log defeats the structured fit), or that they suffice
-    without it."""
+    (the usual reason a short noisy log defeats the structured fit: a
+    :class:`~selftune.errors.TooLittleData` with their fields), or that they suffice
+    without it (the refusal's own class and fields)."""
     try:
         _precise(data, problem, replace(options, structure="none"))
-    except ExcitationError as other:
-        if TOO_LITTLE_DATA not in str(other):
-            return error
-        return ExcitationError(
+    except TooLittleData as other:
+        return other.retold(
             f"without the structure, {other}; with it (structure = 'spmsm') the fit was "
             f"refused: {error}"
         )
     except SelftuneError:
         return error
-    return type(error)(f"{error}; without the structure (structure = 'none') these data suffice")
+    return error.retold(f"{error}; without the structure (structure = 'none') these data suffice")
 
 
 def _prepared(

@@ -29,7 +29,7 @@ from ..core import (
     unvec,
     vec,
 )
-from ..errors import ConvergenceError, InputError
+from ..errors import ConvergenceError, InputError, PolicyIterationFailure
 from ._moments import IntervalMoments
 from ._regression import RegressionSolution, regression, solve_regression
 
@@ -320,10 +320,12 @@ def policy_step(
     P, K_next, _ = unpack_theta(solution.theta, n, m, q)
     smallest = _smallest_eigenvalue(P)
     if smallest <= 0.0:
-        raise ConvergenceError(
+        raise PolicyIterationFailure(
             f"policy iteration step {iteration}: the learned P is not positive definite "
             f"(smallest eigenvalue {smallest:.3g}); K0 may not stabilize the plant, or the "
-            "data are too noisy or too short"
+            "data are too noisy or too short",
+            step=iteration,
+            symptom="P not positive definite",
         )
     return IterationRecord(
         iteration=iteration,

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import RANK_TOLERANCE, Array, ControlLaw
-from ..errors import ConvergenceError, ExcitationError
+from ..errors import NotStabilizing, PolicyIterationFailure, TooLittleData
 from ..loop import SampledLoop
 from ._discrete_model import DiscreteModel
 from ._evidence import INFLATION_LIMIT, Evidence
@@ -254,32 +254,42 @@ def check_safety(
 
     Raises
     ------
-    ConvergenceError
-        If the loop is not stable with margin on every plausible model, or the value did
-        not decrease as policy iteration requires.
-    ExcitationError
-        If the standard errors exceed ``limit``: too little data for the noise.
+    NotStabilizing
+        If the loop is not stable with margin on every plausible model (a
+        ConvergenceError).
+    PolicyIterationFailure
+        If the value did not decrease as policy iteration requires (a ConvergenceError).
+    TooLittleData
+        If the standard errors exceed ``limit``: too little data for the noise (an
+        ExcitationError).
     """
     if radii.size and float(np.max(radii)) > 1.0 - STABILITY_MARGIN:
-        raise ConvergenceError(
+        unstable = int(np.sum(radii > 1.0 - STABILITY_MARGIN))
+        raise NotStabilizing(
             f"the learned controller does not stabilize every plant the data allow: the "
             f"sampled loop's spectral radius reaches {float(np.max(radii)):.6f} on "
-            f"{int(np.sum(radii > 1.0 - STABILITY_MARGIN))} of {radii.size} plausible models "
-            "(1 is the stability limit); use longer or better-excited data, or a gentler cost"
+            f"{unstable} of {radii.size} plausible models "
+            "(1 is the stability limit); use longer or better-excited data, or a gentler cost",
+            spectral_radius=float(np.max(radii)),
+            max_radius=1.0 - STABILITY_MARGIN,
+            unstable=unstable,
+            plausible=int(radii.size),
         )
     # the precision first: a result too noisy to keep fails both, and this says why
     check_precision((quality.K_relative_se, quality.U_relative_se), evidence, limit, servo=servo)
     step = _monotone(history)
     if step is not None:
-        raise ConvergenceError(
+        raise PolicyIterationFailure(
             f"policy iteration did not behave as theory says: the learned value rose at "
             f"step {step} (it must fall at every step from a stabilizing policy); the data "
             "do not support the controller (too noisy, too short, or a plant that is not "
-            "linear)"
+            "linear)",
+            step=step,
+            symptom="value rose",
         )
 
 
-#: How :func:`check_precision` begins its refusal (callers recognise it by this).
+#: How :func:`check_precision` begins its refusal (:class:`~selftune.errors.TooLittleData`).
 TOO_LITTLE_DATA = "too little data for this noise level"
 
 #: With integral action the feedforward U only shapes the transient (the integrator
@@ -306,8 +316,9 @@ def check_precision(
 
     Raises
     ------
-    ExcitationError
-        "too little data for this noise level", with the length that would do; when the
+    TooLittleData
+        "too little data for this noise level" (an ExcitationError), with the length that
+        would do (its ``needed_seconds``); when the
         output errors are correlated in time far beyond white noise, it says the model
         misses part of the data too.
     """
@@ -331,13 +342,17 @@ def check_precision(
             f" {inflation:.3g} times the variance white noise gives): likely {missing} (a "
             "saturated sensor or ADC, the voltage limit) or a misaligned voltage log"
         )
-    raise ExcitationError(
+    raise TooLittleData(
         f"{TOO_LITTLE_DATA}: the standard error of K is {relative[0]:.2%} "
         f"and of U {relative[1]:.2%} of their size (the limits are {limit:.2%} and "
         f"{U_limit:.2%}) from {duration:.4g} s of data with about {_noise_text(evidence)} of "
         f"noise; about {needed:.3g} s of the same kind of data would bring them within the "
         f"limits (or richer excitation: more exploration, reference changes, another "
-        f"operating point){cause}"
+        f"operating point){cause}",
+        relative_se=(float(relative[0]), float(relative[1])),
+        max_relative_se=(float(limit), float(U_limit)),
+        data_seconds=duration,
+        needed_seconds=needed,
     )
 
 

@@ -18,7 +18,7 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from ..core import RANK_TOLERANCE, Array, theta_sizes, vecs_hat_from_outer
-from ..errors import ExcitationError, InputError
+from ..errors import InputError, NotExciting, NumericalFailure, TooShort
 from ._moments import IntervalMoments
 
 __all__ = [
@@ -229,10 +229,13 @@ def _factor(
     """Column scales, the triangular factor and projected right-hand side, and block ranks.
 
     Rows that are not finite (the data overflowed the data equation), or a factorization
-    that fails, are an :class:`InputError`: absurd data, never a result.
+    that fails, are a :class:`~selftune.errors.NumericalFailure` (an InputError): absurd
+    data, never a result.
     """
     if not (np.all(np.isfinite(Psi)) and np.all(np.isfinite(b))):
-        raise InputError(f"the data equation overflowed (not finite): {_ABSURD}")
+        raise NumericalFailure(
+            f"the data equation overflowed (not finite): {_ABSURD}", what="data equation"
+        )
     rows, unknowns = Psi.shape
     try:
         with np.errstate(over="raise", invalid="raise"):
@@ -249,7 +252,9 @@ def _factor(
         triangular, projected = factor[:size, :unknowns], factor[:size, unknowns]
         return scale, triangular, projected, _block_ranks(triangular, blocks)
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
-        raise InputError(f"the regression could not be solved ({exc}): {_ABSURD}") from None
+        raise NumericalFailure(
+            f"the regression could not be solved ({exc}): {_ABSURD}", what="factorization"
+        ) from None
 
 
 def _projected(
@@ -300,11 +305,13 @@ def solve_regression(
 
     Raises
     ------
-    ExcitationError
-        If there are fewer rows than unknowns, or a block not in ``allow_deficient`` lacks
-        rank: the message gives the rank found, the rank needed, the block, and what to
-        change in the experiment.
-    InputError
+    TooShort
+        If there are fewer rows than unknowns (an ExcitationError).
+    NotExciting
+        If a block not in ``allow_deficient`` lacks rank (an ExcitationError): the message
+        gives the rank found, the rank needed, the block, and what to change in the
+        experiment.
+    NumericalFailure
         If the rows are not finite (the data overflowed the data equation) or the
         factorization fails (an SVD that does not converge): non-finite or absurdly large
         data, never a result.
@@ -313,28 +320,37 @@ def solve_regression(
     Psi, b = _projected(problem, Psi_full, b_full, free_columns)
     rows, unknowns = Psi_full.shape
     if rows < unknowns and not allow_deficient:
-        raise ExcitationError(
+        raise TooShort(
             f"only {rows} regression intervals for {unknowns} unknowns: use longer data or a "
-            f"shorter interval (at least {unknowns} intervals are needed)"
+            f"shorter interval (at least {unknowns} intervals are needed)",
+            samples=rows,
+            samples_needed=unknowns,
         )
     scale, triangular, projected, block_ranks = _factor(Psi, b, blocks)
     try:
         left, singular_values, right = np.linalg.svd(triangular, full_matrices=False)
     except np.linalg.LinAlgError as exc:
-        raise InputError(f"the regression could not be solved ({exc}): {_ABSURD}") from None
+        raise NumericalFailure(
+            f"the regression could not be solved ({exc}): {_ABSURD}", what="factorization"
+        ) from None
     block_sizes = {name: columns.stop - columns.start for name, columns in blocks.items()}
     rank = _rank(singular_values)
     for name in blocks:
         if block_ranks[name] < block_sizes[name] and name not in allow_deficient:
             advice = BLOCK_ADVICE.get(name, "excite the plant more (longer data, more exploration)")
-            raise ExcitationError(
+            raise NotExciting(
                 f"the regression has rank {rank} of {unknowns} needed: the {name} block adds "
-                f"rank {block_ranks[name]} of {block_sizes[name]} ({rows} intervals); {advice}"
+                f"rank {block_ranks[name]} of {block_sizes[name]} ({rows} intervals); {advice}",
+                rank=rank,
+                rank_needed=unknowns,
+                block=name,
             )
     kept = singular_values[:rank]
     solved = right[:rank].T @ ((left[:, :rank].T @ projected) / kept) / scale
     if not np.all(np.isfinite(solved)):
-        raise InputError(f"the regression's solution is not finite: {_ABSURD}")
+        raise NumericalFailure(
+            f"the regression's solution is not finite: {_ABSURD}", what="solution"
+        )
     norm_b = float(np.linalg.norm(b_full))
     residual = float(np.linalg.norm(Psi_full @ solved - b_full)) / norm_b if norm_b > 0 else 0.0
     theta = np.empty(problem.Psi.shape[1])

@@ -106,7 +106,7 @@ from ..core import (
     theta_sizes,
     unpack_theta,
 )
-from ..errors import ConvergenceError, ExcitationError, InputError
+from ..errors import ConvergenceError, InputError, TooShort
 from ._alignment import sampling_period
 from ._continuous import solutions_of_output_equation
 from ._moments import IntervalMoments, WKind, interval_moments
@@ -261,10 +261,12 @@ def servo_from_moments(
         raise InputError(f"moments_at: the moments carry {undiscounted.r} integrator states, C {r}")
     unknowns = sum(theta_sizes(n + r, m, q))
     if undiscounted.intervals < unknowns:
-        raise ExcitationError(
+        raise TooShort(
             f"only {undiscounted.intervals} regression intervals for the {unknowns} unknowns of "
             f"the servo controller (integral action adds {r} states to the {n} of the plant): "
-            f"use longer data or a shorter interval (at least {unknowns} intervals are needed)"
+            f"use longer data or a shorter interval (at least {unknowns} intervals are needed)",
+            samples=undiscounted.intervals,
+            samples_needed=unknowns,
         )
     Q_a = scipy.linalg.block_diag(Q, Q_i)
     X_a = np.vstack([X, np.zeros((r, q))])
