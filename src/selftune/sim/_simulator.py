@@ -344,7 +344,7 @@ def _run(request: _Request) -> TrajectoryBatch:
         x = _propagate(s, E, grid, w, rho)
         u = rho - x[:, :count] @ s.K.transpose(0, 2, 1)
         u += w[:, :count] @ (s.U + s.K @ s.X).transpose(0, 2, 1)
-    _check_finite_states(x, grid.t)
+    check_finite_states(x, grid.t)
     w_out = None if q == 0 else np.broadcast_to(w, (plants, count + 1, q))
     for array in [grid.t, x, u, rho] + ([] if w_out is None else [w_out]):
         if array.flags.writeable:
@@ -364,7 +364,8 @@ def _check_exploration(drawn: ArrayLike, plants: int, count: int, m: int) -> Arr
     return np.broadcast_to(rho, (plants, count, m))
 
 
-def _check_finite_states(x: Array, t: Array) -> None:
+def check_finite_states(x: Array, t: Array) -> None:
+    """Raise if a state of ``x`` (P, N + 1, n) at the times ``t`` (N + 1,) overflowed."""
     if np.isfinite(x).all():
         return
     bad = ~np.all(np.isfinite(x), axis=2)
@@ -488,6 +489,41 @@ def _simulate_held_inputs(request: _Request, hold: int) -> Trajectory:
     updates = -(-count // hold)
     coarse = _run(replace(request, h=hold * period, num_samples=updates)).trajectory(0)
     E = None if exogenous is None else exogenous.E
+    return fill_held(coarse, (request.A, request.B, request.D, E), period, hold, count)
+
+
+def fill_held(
+    coarse: Trajectory,
+    plant: tuple[ArrayLike, ArrayLike, ArrayLike | None, ArrayLike | None],
+    period: float,
+    hold: int,
+    num_samples: int,
+) -> Trajectory:
+    """The trajectory sampled every ``period`` of a loop whose input is held ``hold`` samples.
+
+    ``coarse`` is the loop sampled at ``hold period``; the samples in between are filled
+    in exactly from the discretization over ``j period``, j = 1 .. hold - 1.
+
+    Parameters
+    ----------
+    coarse : Trajectory
+        The loop at the controller's period ``hold period``.
+    plant : (A, B, D, E)
+        The continuous plant (D None: no exogenous input; E None: w held).
+    period : float
+        The sampling period, s.
+    hold : int
+        Samples per controller update.
+    num_samples : int
+        N, samples of the result.
+
+    Returns
+    -------
+    Trajectory
+        ``t`` (N + 1,), ``x`` (N + 1, n), ``u`` (N, m), ``w`` (N + 1, q) or None.
+    """
+    A, B, D, E = plant
+    count, updates = num_samples, coarse.u.shape[0]
     n, q = coarse.n, coarse.q
     x = np.empty((updates * hold + 1, n))
     w = None if coarse.w is None else np.empty((updates * hold + 1, q))
@@ -496,7 +532,7 @@ def _simulate_held_inputs(request: _Request, hold: int) -> Trajectory:
         w[::hold] = coarse.w
     w_start = np.zeros((updates, 0)) if coarse.w is None else coarse.w[:-1]
     for step in range(1, hold):
-        exact = discretize(request.A, request.B, step * period, D=request.D, E=E)
+        exact = discretize(A, B, step * period, D=D, E=E)
         x[step::hold] = coarse.x[:-1] @ exact.Ad.T + coarse.u @ exact.Bd.T
         if w is not None:
             x[step::hold] += w_start @ exact.Ed.T
