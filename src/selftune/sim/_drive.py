@@ -16,9 +16,10 @@ from ..errors import InputError
 from ..learn import Trajectory
 from ..model import SPMSM
 from ._exploration import Exploration
-from ._loop import exploration_inputs, run_sampled_loop
+from ._loop import exploration_inputs
 from ._signals import ExogenousSignal, check_signal_values, constant
 from ._simulator import check_finite_states, fill_held
+from ._stepper import feedback_of, run_sampled_loop
 
 __all__ = ["SimulatedDrive"]
 
@@ -80,7 +81,7 @@ class SimulatedDrive:
         seed: int,
     ) -> Trajectory:
         """The loop of ``law`` on ``x' = A x + B u + D w`` from rest, by the one stepper
-        (:func:`~selftune.sim._loop.run_sampled_loop`) at the controller's period, the
+        (:func:`~selftune.sim._stepper.run_sampled_loop`) at the controller's period, the
         samples in between filled in exactly (:func:`~selftune.sim._simulator.fill_held`)."""
         A, B, D = plant
         hold = positive_integer(self.input_hold, "input_hold")
@@ -98,11 +99,11 @@ class SimulatedDrive:
         w = check_signal_values(reference.values(t), updates + 1, "reference")
         rho = exploration_inputs(law, exploration, t, seed)
         with np.errstate(over="ignore", invalid="ignore"):
-            x, _, applied = run_sampled_loop(
-                (exact.Ad, exact.Bd, exact.Ed), law, w, rho, self.input_delay
+            x, loop = run_sampled_loop(
+                (exact.Ad, exact.Bd, exact.Ed), feedback_of([law]), w, rho, self.input_delay
             )
         check_finite_states(x[np.newaxis], t)
-        coarse = Trajectory(t=t, x=x, u=applied, w=w)
+        coarse = Trajectory(t=t, x=x, u=loop.applied[0], w=w)
         if hold == 1:
             return coarse
         return fill_held(coarse, (A, B, D, reference.E), self.sampling, hold, count)

@@ -23,9 +23,9 @@ from ..learn import Trajectory
 from ._checks import Seed, as_generator
 from ._exploration import Exploration
 from ._signals import ExogenousSignal, check_signal_values
-from ._stepper import SampledPlant, feedback_of, run_closed_loop
+from ._stepper import feedback_of, run_sampled_loop
 
-__all__ = ["LoopLogs", "run_sampled_loop", "simulate_loop"]
+__all__ = ["LoopLogs", "exploration_inputs", "simulate_loop"]
 
 
 @dataclass(frozen=True)
@@ -123,38 +123,11 @@ def simulate_loop(
         w = check_signal_values(reference, count + 1, "reference")
     rho = exploration_inputs(law, exploration, t, seed)
     with np.errstate(over="ignore", invalid="ignore"):
-        x, computed, applied = run_sampled_loop((Ad, Bd, Ed), law, w, rho, delay)
+        x, loop = run_sampled_loop((Ad, Bd, Ed), feedback_of([law]), w, rho, delay)
+    computed, applied = loop.computed[0], loop.applied[0]
     if not np.all(np.isfinite(x)):
         raise InputError("the state overflows: the law does not stabilize the sampled loop")
     held = None if w.shape[1] == 0 else w
     return LoopLogs(
         applied=Trajectory(t, x, applied, held), commanded=Trajectory(t, x, computed, held)
     )
-
-
-def run_sampled_loop(
-    sampled: tuple[Array, Array, Array], law: ControlLaw, w: Array, rho: Array, delay: int
-) -> tuple[Array, Array, Array]:
-    """The states, computed and applied inputs of ``law`` on an exactly sampled plant.
-
-    Parameters
-    ----------
-    sampled : (Ad, Bd, Ed)
-        The plant's exact discretization at the sampling period.
-    law : ControlLaw
-        The controller.
-    w : ndarray, shape (N + 1, q)
-        The reference the law and the plant see at each sample.
-    rho : ndarray, shape (N, m)
-        The exploration added to each computed input.
-    delay : int
-        d, samples between computing an input and applying it.
-
-    Returns
-    -------
-    x, computed, applied : ndarray, shapes (N + 1, n), (N, m), (N, m)
-        Not checked for overflow.
-    """
-    plant = SampledPlant(*sampled, w, rho.shape[0])
-    loop = run_closed_loop(plant, feedback_of([law]), w[np.newaxis], rho[np.newaxis], delay)
-    return plant.x, loop.computed[0], loop.applied[0]

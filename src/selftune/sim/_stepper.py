@@ -27,6 +27,7 @@ from typing import Protocol
 import numpy as np
 
 from ..core import Array, ControlLaw
+from ..core._propagate import propagate_uniform
 from ..errors import InputError
 
 __all__ = [
@@ -36,6 +37,7 @@ __all__ = [
     "SampledPlant",
     "feedback_of",
     "run_closed_loop",
+    "run_sampled_loop",
 ]
 
 
@@ -132,11 +134,14 @@ class ClosedLoop:
         Rows of zeros before the first command, ``max(H, d)``.
     delay : int
         d, samples between computing an input and applying it.
+    integrator : ndarray, shape (P, R)
+        The integrators after the last sample.
     """
 
     commands: Array
     pad: int
     delay: int
+    integrator: Array
 
     @property
     def computed(self) -> Array:
@@ -159,8 +164,9 @@ def run_closed_loop(
     rho: Array,
     delay: int,
     limit: Callable[[Array], Array] | None = None,
+    start: tuple[Array, Array] | None = None,
 ) -> ClosedLoop:
-    """Step the laws and the plant from rest (past inputs and integrators zero), N samples.
+    """Step the laws and the plant, N samples, from rest (past inputs and integrators zero).
 
     Parameters
     ----------
@@ -177,6 +183,9 @@ def run_closed_loop(
     limit : callable, optional
         Maps the computed inputs (P, m) to what the drive can apply (e.g. its voltage
         limit); what it returns is logged and fed back.
+    start : (past, z), optional
+        The ``max(H, d)`` inputs computed before the first sample (P, max(H, d), m), oldest
+        first, and the integrators (P, R) at it (default zeros).
 
     Returns
     -------
@@ -189,6 +198,8 @@ def run_closed_loop(
     pad = max(history, delay)
     commands = np.zeros((plants, count + pad, m))
     state = np.zeros((plants, feedback.gains.shape[2], 1))
+    if start is not None:
+        commands[:, :pad], state[:, state.shape[1] - integrators :, 0] = start
     past = slice(n + q, n + q + m * history)
     for k in range(count):
         state[:, :n, 0] = plant.measure(k)
@@ -201,12 +212,70 @@ def run_closed_loop(
             state[:, state.shape[1] - integrators :, 0] += output[:, m:]
         plant.advance(k, commands[:, pad + k - delay], k - delay)
     plant.measure(count)
-    return ClosedLoop(commands=commands, pad=pad, delay=delay)
+    integrator = state[:, state.shape[1] - integrators :, 0]
+    return ClosedLoop(commands=commands, pad=pad, delay=delay, integrator=integrator)
+
+
+def run_sampled_loop(
+    sampled: tuple[Array, Array, Array], feedback: Feedback, w: Array, rho: Array, delay: int
+) -> tuple[Array, ClosedLoop]:
+    """:func:`run_closed_loop` on one exactly sampled plant (:class:`SampledPlant`), all
+    samples at once.
+
+    The loop is then linear in ``xi = [x; the max(H, d) inputs computed before; z]``, ``w``
+    and ``rho``: its one-step map is read off one step of :func:`run_closed_loop` from the
+    unit vectors (as :func:`feedback_of` reads the law off its command), and the N steps
+    are propagated as :func:`~selftune.sim.simulate` propagates its loop
+    (:func:`selftune.core._propagate.propagate_uniform`), to rounding the samples the
+    stepper gives one by one.
+
+    Parameters
+    ----------
+    sampled : (Ad, Bd, Ed)
+        The plant's exact discretization at the sampling period.
+    feedback : Feedback
+        One law.
+    w : ndarray, shape (N + 1, q)
+        The reference the law and the plant see at each sample.
+    rho : ndarray, shape (N, m)
+        The exploration added to each computed input.
+    delay : int
+        d, samples between computing an input and applying it.
+
+    Returns
+    -------
+    x : ndarray, shape (N + 1, n)
+        The states from rest (not checked for overflow).
+    loop : ClosedLoop
+        The inputs computed (P = 1).
+    """
+    Ad, Bd, Ed = sampled
+    count = rho.shape[0]
+    n, m, q, integrators = feedback.n, feedback.m, feedback.q, feedback.integrators
+    pad = max(feedback.history, delay)
+    size = n + pad * m + integrators
+    basis = np.eye(size + q + m)  # the unit vectors of [xi; w; rho], one plant each
+    units = basis.shape[0]
+    w_unit, rho_unit = basis[:, np.newaxis, size : size + q], basis[:, np.newaxis, size + q :]
+    plant = SampledPlant(Ad, Bd, Ed, w_unit, 1, x0=basis[:, :n])
+    start = (basis[:, n : n + pad * m].reshape(units, pad, m), basis[:, size - integrators : size])
+    step = run_closed_loop(plant, feedback, w_unit, rho_unit, delay, start=start)
+    after = np.hstack([plant.x[:, 1], step.commands[0:, 1:].reshape(units, -1), step.integrator])
+    # acting on rows: xi_(k+1) = xi_k @ after[:size] + [w_k, rho_k] @ after[size:]
+    inputs = np.hstack([w[:count], rho])
+    forcing = inputs @ after[size:]
+    xi = propagate_uniform(
+        after[:size, :, np.newaxis], forcing[:, :, np.newaxis], np.zeros((size, 1))
+    )[:, :, 0]
+    commands = np.zeros((1, count + pad, m))
+    commands[0, pad:] = np.hstack([xi[:-1], inputs]) @ step.commands[:, pad]
+    integrator = xi[-1:, size - integrators :]
+    return xi[:, :n], ClosedLoop(commands=commands, pad=pad, delay=delay, integrator=integrator)
 
 
 class SampledPlant:
-    """One LTI plant sampled exactly: ``x_(k+1) = Ad x_k + Bd a_k + Ed w_k`` (a
-    :class:`LoopPlant`, P = 1).
+    """LTI plants sampled exactly: ``x_(k+1) = Ad x_k + Bd a_k + Ed w_k`` (a
+    :class:`LoopPlant`).
 
     ``(Ad, Bd, Ed)`` is the plant's exact discretization at the sampling period
     (:func:`selftune.core.discretize`), ``a_k`` the input applied over sample k and ``w_k``
@@ -216,25 +285,31 @@ class SampledPlant:
     ----------
     Ad, Bd, Ed : ndarray, shapes (n, n), (n, m), (n, q)
         The sampled plant.
-    w : ndarray, shape (N or N + 1, q)
-        The exogenous input the plant sees at each sample.
+    w : ndarray, shape (P or 1, N or N + 1, q)
+        The exogenous input each plant sees at each sample.
     num_samples : int
         N.
+    x0 : ndarray, shape (P, n), optional
+        The initial states (default: one plant at rest).
 
     Attributes
     ----------
-    x : ndarray, shape (N + 1, n)
-        The states, from rest; filled as the loop runs.
+    x : ndarray, shape (P, N + 1, n)
+        The states; filled as the loop runs.
     """
 
-    def __init__(self, Ad: Array, Bd: Array, Ed: Array, w: Array, num_samples: int) -> None:
+    def __init__(
+        self, Ad: Array, Bd: Array, Ed: Array, w: Array, num_samples: int, x0: Array | None = None
+    ) -> None:
         self.Ad, self.Bd, self.Ed, self.w = Ad, Bd, Ed, w
-        self.x = np.zeros((num_samples + 1, Ad.shape[0]))
+        start = np.zeros((1, Ad.shape[0])) if x0 is None else x0
+        self.x = np.zeros((start.shape[0], num_samples + 1, Ad.shape[0]))
+        self.x[:, 0] = start
 
     def measure(self, k: int) -> Array:
-        """``x_k``, shape (1, n)."""
-        return self.x[k][np.newaxis]
+        """``x_k``, shape (P, n)."""
+        return self.x[:, k]
 
     def advance(self, k: int, applied: Array, computed_at: int) -> None:
-        """``x_(k+1)`` from ``x_k`` and ``a_k = applied[0]``."""
-        self.x[k + 1] = self.Ad @ self.x[k] + self.Bd @ applied[0] + self.Ed @ self.w[k]
+        """``x_(k+1)`` from ``x_k`` and the applied inputs ``a_k`` (P, m)."""
+        self.x[:, k + 1] = self.x[:, k] @ self.Ad.T + applied @ self.Bd.T + self.w[:, k] @ self.Ed.T
