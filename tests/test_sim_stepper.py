@@ -17,7 +17,7 @@ from scipy.signal import dlsim
 from selftune import SPMSM
 from selftune.core import Array, ControlLaw
 from selftune.learn import Trajectory
-from selftune.sim import SimulatedDrive, held, simulate, uniform
+from selftune.sim import ExogenousSignal, SimulatedDrive, held, simulate, simulate_loop, uniform
 
 MOTOR = SPMSM.paper()
 SPEED = 10.0
@@ -36,7 +36,7 @@ def _sampled_plant() -> tuple[Array, Array, Array]:
     return exp[:n, :n], exp[:n, n : n + m], exp[:n, n + m :]
 
 
-def _reference() -> object:
+def _reference() -> ExogenousSignal:
     w_base = MOTOR.exogenous(speed=SPEED, torque=5.0)
     return held(lambda t: w_base + np.column_stack([0.0 * t, 2.0 * np.sin(300.0 * t)]))
 
@@ -48,7 +48,7 @@ def _drive_run(law: ControlLaw) -> tuple[Trajectory, Array, Array]:
     data = drive.run(law, reference, num_samples=SAMPLES, exploration=uniform(2.0), seed=SEED)
     t = SAMPLING * np.arange(SAMPLES + 1)
     rho = uniform(2.0).sample(t, 2, np.random.default_rng(SEED))
-    return data, reference.values(t), rho  # type: ignore[attr-defined]
+    return data, reference.values(t), rho
 
 
 def _augmented_run(Phi: Array, Gamma_w: Array, Gamma_rho: Array, w: Array, rho: Array) -> Array:
@@ -126,16 +126,53 @@ def test_regulator_runs_as_simulate(hold: int) -> None:
     reference = _reference()
     data = drive.run(
         ControlLaw.regulator(K, X, U),
-        reference,  # type: ignore[arg-type]
+        reference,
         num_samples=SAMPLES,
         exploration=uniform(2.0),
         seed=SEED,
     )
     expected = simulate(
-        problem.A, problem.B, D=problem.D, exogenous=reference,  # type: ignore[arg-type]
+        problem.A, problem.B, D=problem.D, exogenous=reference,
         K=K, X=X, U=U, exploration=uniform(2.0), h=SAMPLING, num_samples=SAMPLES,
         seed=SEED, input_hold=hold,
     )  # fmt: skip
     np.testing.assert_allclose(data.x, expected.x, rtol=0.0, atol=_tolerance(expected.x))
     np.testing.assert_allclose(data.u, expected.u, rtol=0.0, atol=_tolerance(expected.u))
     np.testing.assert_array_equal(data.w, expected.w)
+
+
+def test_digital_loop_with_a_delay_matches_augmented_state() -> None:
+    """With a computation delay of one sample, ``x_(k+1) = Ad x_k + Bd u_(k-1) + Ed w_k``
+    under the law with one past input: the state ``[x_k; u_(k-1)]`` again, the applied and
+    the computed logs one row apart."""
+    Ad, Bd, Ed = _sampled_plant()
+    K_x = 0.2 * MOTOR.L_s / SAMPLING * np.eye(2)
+    K_u = np.array([[0.2, 0.05], [-0.05, 0.2]])
+    X = np.array([[0.0, 0.0], [0.0, 1.0 / (1.5 * MOTOR.p * MOTOR.phi_pm)]])
+    U = np.array([[0.0, 0.0], [1.0, MOTOR.R_s / (1.5 * MOTOR.p * MOTOR.phi_pm)]])
+    law = ControlLaw(np.hstack([K_x, K_u]), X, U, history=1)
+    L = U + K_x @ X + K_u @ U
+    Phi = np.block([[Ad, Bd], [-K_x, -K_u]])
+    assert np.abs(np.linalg.eigvals(Phi)).max() < 1.0
+    Gamma_w = np.vstack([Ed, L])
+    Gamma_rho = np.vstack([np.zeros((2, 2)), np.eye(2)])
+    problem = MOTOR.regulation_problem(SPEED)
+    reference = _reference()
+    logs = simulate_loop(
+        (problem.A, problem.B, problem.D),
+        law,
+        reference,
+        h=SAMPLING,
+        num_samples=SAMPLES,
+        delay=1,
+        exploration=uniform(2.0),
+        seed=SEED,
+    )
+    t = SAMPLING * np.arange(SAMPLES + 1)
+    rho = uniform(2.0).sample(t, 2, np.random.default_rng(SEED))
+    xi = _augmented_run(Phi, Gamma_w, Gamma_rho, reference.values(t), rho)
+    np.testing.assert_allclose(logs.applied.x, xi[:, :2], rtol=0.0, atol=_tolerance(xi[:, :2]))
+    u = xi[:, 2:]
+    np.testing.assert_allclose(logs.applied.u, u[:-1], rtol=0.0, atol=_tolerance(u))
+    np.testing.assert_allclose(logs.commanded.u, u[1:], rtol=0.0, atol=_tolerance(u))
+    assert np.abs(u).max() > 1.0
