@@ -64,7 +64,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..core import Array, augmented, discretize, expm_stack, positive_finite, positive_integer
+from ..core import (
+    Array,
+    ControlLaw,
+    augmented,
+    discretize,
+    expm_stack,
+    positive_finite,
+    positive_integer,
+)
 from ..core._propagate import (
     plant_last,
     propagate_steps,
@@ -77,6 +85,7 @@ from ..learn import Trajectory
 from ._checks import Seed, TimeGrid, as_float_array, as_generator, as_stack, square_stack, time_grid
 from ._exploration import Exploration
 from ._signals import ExogenousSignal, check_signal_values
+from ._stepper import feedback_of, one_step_map
 
 __all__ = ["TrajectoryBatch", "simulate", "simulate_batch"]
 
@@ -285,13 +294,11 @@ def _exploration(
     return _check_exploration(drawn, plants, count, m)
 
 
-def _propagate(s: _Stacks, E: Array | None, grid: TimeGrid, w: Array, rho: Array) -> Array:
-    """The states (P, N + 1, n) of the sampled closed loop, exactly (ZOH by expm).
-
-    ``x[k+1] = (Ad - Bd K) x[k] + (Bd L + Ed) w[k] + Bd rho[k]`` with ``L = U + K X``.
-    """
+def _loop_map(s: _Stacks, E: Array | None, periods: Array, uniform: bool) -> tuple[Array, Array]:
+    """The sampled loop of each plant at each period as the stepper's matrices
+    (:func:`~selftune.sim._stepper.one_step_map`): ``step`` (P'', S, n + q + m, n) and
+    ``command`` (P'', n + q + m, m), acting on the rows ``[x_k, w_k, rho_k]``."""
     n, m, q = s.dimensions
-    count, plants = grid.num_samples, rho.shape[0]
     plant_count = max(s.A.shape[0], s.B.shape[0], s.D.shape[0])
     M = augmented(
         np.broadcast_to(s.A, (plant_count, n, n)),
@@ -299,28 +306,65 @@ def _propagate(s: _Stacks, E: Array | None, grid: TimeGrid, w: Array, rho: Array
         np.broadcast_to(s.D, (plant_count, n, q)),
         E,
     )
+    exp = expm_stack(M, periods, uniform=uniform)  # (P', S, k, k)
+    count = max(plant_count, s.K.shape[0], s.X.shape[0], s.U.shape[0])
+    steps = periods.shape[0]
+    laws = [
+        ControlLaw.regulator(
+            s.K[min(i, len(s.K) - 1)], s.X[min(i, len(s.X) - 1)], s.U[min(i, len(s.U) - 1)]
+        )
+        for i in range(max(len(s.K), len(s.X), len(s.U)))
+    ]
+    feedback = feedback_of(laws)
+
+    def each(matrix: Array) -> Array:
+        """A stack (P'' or 1, [S,] a, b) as one matrix per plant and period, (P'' S, a, b)."""
+        if matrix.ndim == 3:
+            matrix = matrix[:, np.newaxis]
+        rows, columns = matrix.shape[-2:]
+        stack = np.broadcast_to(matrix, (count, steps, rows, columns))
+        return stack.reshape(count * steps, rows, columns)
+
+    sampled = (each(exp[..., :n, :n]), each(exp[..., :n, n : n + m]), each(exp[..., :n, n + m :]))
+    step, command = one_step_map(sampled, replace(feedback, gains=each(feedback.gains)), 0)
+    return step.reshape(count, steps, *step.shape[1:]), command[::steps]
+
+
+def _propagate(
+    s: _Stacks, E: Array | None, grid: TimeGrid, w: Array, rho: Array
+) -> tuple[Array, Array]:
+    """The states (P, N + 1, n) of the sampled closed loop, exactly (ZOH by expm), and the
+    inputs (P, N, m): ``x[k+1] = x[k] @ step_x + w[k] @ step_w + rho[k] @ step_rho``,
+    the stepper's matrices (:func:`_loop_map`)."""
+    n, _, q = s.dimensions
+    count, plants = grid.num_samples, rho.shape[0]
     if grid.h is not None:
         periods, index = np.array([grid.h]), np.zeros(count, dtype=np.intp)
     else:
         periods, index = np.unique(grid.steps, return_inverse=True)
-    exp = expm_stack(M, periods, uniform=grid.h is not None)  # (P', S, k, k)
-    Ad, Bd, Ed = exp[..., :n, :n], exp[..., :n, n : n + m], exp[..., :n, n + m :]
-    L = s.U + s.K @ s.X  # (P'', m, q): u = -K x + L w + rho
-    closed = Ad - Bd @ s.K[:, np.newaxis]  # (P'', S, n, n)
-    w_gain = Bd @ L[:, np.newaxis] + Ed  # (P'', S, n, q)
+    step, command = _loop_map(s, E, periods, uniform=grid.h is not None)
+    # acting on rows, (P'', S, rows, n): the state's, the reference's and rho's parts
+    step_x, step_w, step_rho = step[:, :, :n], step[:, :, n : n + q], step[:, :, n + q :]
     # forcing plant-major (a matmul per plant), the propagation plant-last (see _propagate)
     x0 = np.ascontiguousarray(np.broadcast_to(s.x0, (plants, n)).T)
     if grid.h is not None:
-        forcing = w[:, :count] @ w_gain[:, 0].transpose(0, 2, 1)
-        forcing = forcing + rho @ Bd[:, 0].transpose(0, 2, 1)
-        x = propagate_uniform(plant_last(closed[:, 0]), to_plant_last(forcing), x0)
+        forcing = w[:, :count] @ step_w[:, 0] + rho @ step_rho[:, 0]
+        x = propagate_uniform(
+            plant_last(step_x[:, 0].transpose(0, 2, 1)), to_plant_last(forcing), x0
+        )
     else:
         w_steps = w[:, :count, np.newaxis, :]  # (P_w, N, 1, q)
-        forcing = (w_steps @ w_gain[:, index].transpose(0, 1, 3, 2))[:, :, 0]
-        forcing = forcing + (rho[:, :, np.newaxis, :] @ Bd[:, index].transpose(0, 1, 3, 2))[:, :, 0]
-        closed_steps = np.ascontiguousarray(closed.transpose(1, 3, 2, 0))  # (S, b, a, P'')
+        forcing = (w_steps @ step_w[:, index])[:, :, 0]
+        forcing = forcing + (rho[:, :, np.newaxis, :] @ step_rho[:, index])[:, :, 0]
+        closed_steps = np.ascontiguousarray(step_x.transpose(1, 2, 3, 0))  # (S, b, a, P'')
         x = propagate_steps(closed_steps, index, to_plant_last(forcing), x0)
-    return to_plant_major(x)
+    x = to_plant_major(x)
+    u = (
+        x[:, :count] @ command[:, :n]
+        + w[:, :count] @ command[:, n : n + q]
+        + rho @ command[:, n + q :]
+    )
+    return x, u
 
 
 def _run(request: _Request) -> TrajectoryBatch:
@@ -341,9 +385,7 @@ def _run(request: _Request) -> TrajectoryBatch:
     plants = _batch_size(named, num_plants)
     rho = _exploration(request, given, grid, m, plants)
     with np.errstate(over="ignore", invalid="ignore"):
-        x = _propagate(s, E, grid, w, rho)
-        u = rho - x[:, :count] @ s.K.transpose(0, 2, 1)
-        u += w[:, :count] @ (s.U + s.K @ s.X).transpose(0, 2, 1)
+        x, u = _propagate(s, E, grid, w, rho)
     check_finite_states(x, grid.t)
     w_out = None if q == 0 else np.broadcast_to(w, (plants, count + 1, q))
     for array in [grid.t, x, u, rho] + ([] if w_out is None else [w_out]):

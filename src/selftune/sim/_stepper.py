@@ -21,7 +21,7 @@ equations stay the law's own.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -36,6 +36,7 @@ __all__ = [
     "LoopPlant",
     "SampledPlant",
     "feedback_of",
+    "one_step_map",
     "run_closed_loop",
     "run_sampled_loop",
 ]
@@ -216,17 +217,62 @@ def run_closed_loop(
     return ClosedLoop(commands=commands, pad=pad, delay=delay, integrator=integrator)
 
 
+def one_step_map(
+    sampled: tuple[Array, Array, Array], feedback: Feedback, delay: int
+) -> tuple[Array, Array]:
+    """The loop on exactly sampled plants as matrices, read off one step of the stepper.
+
+    On a :class:`SampledPlant` the loop is linear in ``xi = [x; the max(H, d) inputs
+    computed before, oldest first; z]``, ``w`` and ``rho``: one step of
+    :func:`run_closed_loop` from each unit vector of ``[xi_k; w_k; rho_k]`` gives its
+    matrices (as :func:`feedback_of` reads the law off its command).
+
+    Parameters
+    ----------
+    sampled : (Ad, Bd, Ed)
+        The exact discretizations, shapes (P or 1, n, n), (P or 1, n, m), (P or 1, n, q),
+        or one plant's (2-D).
+    feedback : Feedback
+        One law or P.
+    delay : int
+        d, samples between computing an input and applying it.
+
+    Returns
+    -------
+    step : ndarray, shape (P, size + q + m, size)
+        Acting on rows: ``xi_(k+1) = [xi_k, w_k, rho_k] @ step[i]`` for plant i.
+    command : ndarray, shape (P, size + q + m, m)
+        ``u_k = [xi_k, w_k, rho_k] @ command[i]``, the input computed at sample k.
+    """
+    Ad, Bd, Ed = sampled
+    plants = max(Ad.shape[0] if Ad.ndim == 3 else 1, feedback.gains.shape[0])
+    n, m, q, integrators = feedback.n, feedback.m, feedback.q, feedback.integrators
+    pad = max(feedback.history, delay)
+    size = n + pad * m + integrators
+    units = size + q + m
+
+    def each_unit(matrix: Array) -> Array:
+        stack = np.broadcast_to(matrix, (plants, *matrix.shape[-2:]))
+        return np.repeat(stack, units, axis=0)
+
+    basis = np.tile(np.eye(units), (plants, 1))  # plant i's unit vectors, then plant i + 1's
+    count = basis.shape[0]
+    w_unit, rho_unit = basis[:, np.newaxis, size : size + q], basis[:, np.newaxis, size + q :]
+    plant = SampledPlant(each_unit(Ad), each_unit(Bd), each_unit(Ed), w_unit, 1, basis[:, :n])
+    start = (basis[:, n : n + pad * m].reshape(count, pad, m), basis[:, size - integrators : size])
+    gains = replace(feedback, gains=each_unit(feedback.gains))
+    one = run_closed_loop(plant, gains, w_unit, rho_unit, delay, start=start)
+    after = np.hstack([plant.x[:, 1], one.commands[:, 1:].reshape(count, pad * m), one.integrator])
+    return after.reshape(plants, units, size), one.commands[:, pad].reshape(plants, units, m)
+
+
 def run_sampled_loop(
     sampled: tuple[Array, Array, Array], feedback: Feedback, w: Array, rho: Array, delay: int
 ) -> tuple[Array, ClosedLoop]:
     """:func:`run_closed_loop` on one exactly sampled plant (:class:`SampledPlant`), all
-    samples at once.
-
-    The loop is then linear in ``xi = [x; the max(H, d) inputs computed before; z]``, ``w``
-    and ``rho``: its one-step map is read off one step of :func:`run_closed_loop` from the
-    unit vectors (as :func:`feedback_of` reads the law off its command), and the N steps
-    are propagated as :func:`~selftune.sim.simulate` propagates its loop
-    (:func:`selftune.core._propagate.propagate_uniform`), to rounding the samples the
+    samples at once: the matrices of :func:`one_step_map`, propagated as
+    :func:`~selftune.sim.simulate` propagates its loop
+    (:func:`selftune.core._propagate.propagate_uniform`); to rounding, the samples the
     stepper gives one by one.
 
     Parameters
@@ -249,28 +295,17 @@ def run_sampled_loop(
     loop : ClosedLoop
         The inputs computed (P = 1).
     """
-    Ad, Bd, Ed = sampled
-    count = rho.shape[0]
-    n, m, q, integrators = feedback.n, feedback.m, feedback.q, feedback.integrators
+    step, command = (matrix[0] for matrix in one_step_map(sampled, feedback, delay))
+    count, size, m = rho.shape[0], step.shape[1], feedback.m
     pad = max(feedback.history, delay)
-    size = n + pad * m + integrators
-    basis = np.eye(size + q + m)  # the unit vectors of [xi; w; rho], one plant each
-    units = basis.shape[0]
-    w_unit, rho_unit = basis[:, np.newaxis, size : size + q], basis[:, np.newaxis, size + q :]
-    plant = SampledPlant(Ad, Bd, Ed, w_unit, 1, x0=basis[:, :n])
-    start = (basis[:, n : n + pad * m].reshape(units, pad, m), basis[:, size - integrators : size])
-    step = run_closed_loop(plant, feedback, w_unit, rho_unit, delay, start=start)
-    after = np.hstack([plant.x[:, 1], step.commands[0:, 1:].reshape(units, -1), step.integrator])
-    # acting on rows: xi_(k+1) = xi_k @ after[:size] + [w_k, rho_k] @ after[size:]
     inputs = np.hstack([w[:count], rho])
-    forcing = inputs @ after[size:]
     xi = propagate_uniform(
-        after[:size, :, np.newaxis], forcing[:, :, np.newaxis], np.zeros((size, 1))
+        step[:size, :, np.newaxis], (inputs @ step[size:])[:, :, np.newaxis], np.zeros((size, 1))
     )[:, :, 0]
     commands = np.zeros((1, count + pad, m))
-    commands[0, pad:] = np.hstack([xi[:-1], inputs]) @ step.commands[:, pad]
-    integrator = xi[-1:, size - integrators :]
-    return xi[:, :n], ClosedLoop(commands=commands, pad=pad, delay=delay, integrator=integrator)
+    commands[0, pad:] = np.hstack([xi[:-1], inputs]) @ command
+    integrator = xi[-1:, size - feedback.integrators :]
+    return xi[:, : feedback.n], ClosedLoop(commands, pad, delay, integrator)
 
 
 class SampledPlant:
@@ -283,8 +318,8 @@ class SampledPlant:
 
     Parameters
     ----------
-    Ad, Bd, Ed : ndarray, shapes (n, n), (n, m), (n, q)
-        The sampled plant.
+    Ad, Bd, Ed : ndarray, shapes (P or 1, n, n), (P or 1, n, m), (P or 1, n, q)
+        The sampled plants (2-D: one for all).
     w : ndarray, shape (P or 1, N or N + 1, q)
         The exogenous input each plant sees at each sample.
     num_samples : int
@@ -302,8 +337,8 @@ class SampledPlant:
         self, Ad: Array, Bd: Array, Ed: Array, w: Array, num_samples: int, x0: Array | None = None
     ) -> None:
         self.Ad, self.Bd, self.Ed, self.w = Ad, Bd, Ed, w
-        start = np.zeros((1, Ad.shape[0])) if x0 is None else x0
-        self.x = np.zeros((start.shape[0], num_samples + 1, Ad.shape[0]))
+        start = np.zeros((1, Ad.shape[-1])) if x0 is None else x0
+        self.x = np.zeros((start.shape[0], num_samples + 1, Ad.shape[-1]))
         self.x[:, 0] = start
 
     def measure(self, k: int) -> Array:
@@ -312,4 +347,9 @@ class SampledPlant:
 
     def advance(self, k: int, applied: Array, computed_at: int) -> None:
         """``x_(k+1)`` from ``x_k`` and the applied inputs ``a_k`` (P, m)."""
-        self.x[:, k + 1] = self.x[:, k] @ self.Ad.T + applied @ self.Bd.T + self.w[:, k] @ self.Ed.T
+        x, a, w = (
+            self.x[:, k, :, np.newaxis],
+            applied[:, :, np.newaxis],
+            self.w[:, k, :, np.newaxis],
+        )
+        self.x[:, k + 1] = (self.Ad @ x + self.Bd @ a + self.Ed @ w)[:, :, 0]
