@@ -17,7 +17,8 @@ exponential of the augmented matrix (zero-order-hold discretization, Van Loan's 
           [0, 0, E]]         [0,  0,  Ew]]
 
 so ``x[k+1] = Ad x[k] + Bd u[k] + Ed w[k]`` with no ODE solver
-(:func:`selftune.core.discretize`). The exogenous
+(:func:`selftune.core.discretize`); the loop's matrices are those of the stepper every
+drive runs (:func:`~selftune.sim._stepper.one_step_map`). The exogenous
 signal ``w`` is of one of two kinds (:mod:`._signals`), matching
 :class:`~selftune.learn.Trajectory`:
 

@@ -15,7 +15,10 @@ knows :class:`LoopPlant`.
 
 The laws act through one linear map (:class:`Feedback`), read off
 :meth:`ControlLaw.command` (:func:`feedback_of`), so P different laws step at once and the
-equations stay the law's own.
+equations stay the law's own. On exactly sampled plants the whole loop is linear: its
+matrices are read off one step of the stepper (:func:`one_step_map`) and the samples
+propagated all at once (:func:`run_sampled_loop`, and :func:`~selftune.sim.simulate`),
+without a Python loop over the samples.
 """
 
 from __future__ import annotations
