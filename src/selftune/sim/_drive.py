@@ -15,11 +15,11 @@ from ..core import Array, ControlLaw, discretize, positive_integer
 from ..errors import InputError
 from ..learn import Trajectory
 from ..model import SPMSM
+from ._checks import check_finite_states
 from ._exploration import Exploration
 from ._loop import exploration_inputs
 from ._signals import ExogenousSignal, check_signal_values, constant
-from ._simulator import check_finite_states, fill_held
-from ._stepper import feedback_of, run_sampled_loop
+from ._stepper import feedback_of, fill_held, run_sampled_loop
 
 __all__ = ["SimulatedDrive"]
 
@@ -82,7 +82,7 @@ class SimulatedDrive:
     ) -> Trajectory:
         """The loop of ``law`` on ``x' = A x + B u + D w`` from rest, by the one stepper
         (:func:`~selftune.sim._stepper.run_sampled_loop`) at the controller's period, the
-        samples in between filled in exactly (:func:`~selftune.sim._simulator.fill_held`)."""
+        samples in between filled in exactly (:func:`~selftune.sim._stepper.fill_held`)."""
         A, B, D = plant
         hold = positive_integer(self.input_hold, "input_hold")
         count = positive_integer(num_samples, "num_samples")

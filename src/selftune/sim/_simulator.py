@@ -65,15 +65,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..core import (
-    Array,
-    ControlLaw,
-    augmented,
-    discretize,
-    expm_stack,
-    positive_finite,
-    positive_integer,
-)
+from ..core import Array, ControlLaw, augmented, expm_stack, positive_finite, positive_integer
 from ..core._propagate import (
     plant_last,
     propagate_steps,
@@ -83,10 +75,19 @@ from ..core._propagate import (
 )
 from ..errors import InputError
 from ..learn import Trajectory
-from ._checks import Seed, TimeGrid, as_float_array, as_generator, as_stack, square_stack, time_grid
+from ._checks import (
+    Seed,
+    TimeGrid,
+    as_float_array,
+    as_generator,
+    as_stack,
+    check_finite_states,
+    square_stack,
+    time_grid,
+)
 from ._exploration import Exploration
 from ._signals import ExogenousSignal, check_signal_values
-from ._stepper import feedback_of, one_step_map
+from ._stepper import feedback_of, fill_held, one_step_map
 
 __all__ = ["TrajectoryBatch", "simulate", "simulate_batch"]
 
@@ -310,21 +311,15 @@ def _loop_map(s: _Stacks, E: Array | None, periods: Array, uniform: bool) -> tup
     exp = expm_stack(M, periods, uniform=uniform)  # (P', S, k, k)
     count = max(plant_count, s.K.shape[0], s.X.shape[0], s.U.shape[0])
     steps = periods.shape[0]
-    laws = [
-        ControlLaw.regulator(
-            s.K[min(i, len(s.K) - 1)], s.X[min(i, len(s.X) - 1)], s.U[min(i, len(s.U) - 1)]
-        )
-        for i in range(max(len(s.K), len(s.X), len(s.U)))
-    ]
-    feedback = feedback_of(laws)
+    K, X, U = (np.broadcast_to(a, (count, *a.shape[1:])) for a in (s.K, s.X, s.U))
+    laws = max(len(s.K), len(s.X), len(s.U))  # 1 or P'': a law per plant, or one for all
+    feedback = feedback_of([ControlLaw.regulator(K[i], X[i], U[i]) for i in range(laws)])
 
     def each(matrix: Array) -> Array:
         """A stack (P'' or 1, [S,] a, b) as one matrix per plant and period, (P'' S, a, b)."""
-        if matrix.ndim == 3:
-            matrix = matrix[:, np.newaxis]
-        rows, columns = matrix.shape[-2:]
-        stack = np.broadcast_to(matrix, (count, steps, rows, columns))
-        return stack.reshape(count * steps, rows, columns)
+        stack = matrix if matrix.ndim == 4 else matrix[:, np.newaxis]
+        shape = matrix.shape[-2:]
+        return np.broadcast_to(stack, (count, steps, *shape)).reshape(count * steps, *shape)
 
     sampled = (each(exp[..., :n, :n]), each(exp[..., :n, n : n + m]), each(exp[..., :n, n + m :]))
     step, command = one_step_map(sampled, replace(feedback, gains=each(feedback.gains)), 0)
@@ -405,20 +400,6 @@ def _check_exploration(drawn: ArrayLike, plants: int, count: int, m: int) -> Arr
             f"got {rho.shape}"
         )
     return np.broadcast_to(rho, (plants, count, m))
-
-
-def check_finite_states(x: Array, t: Array) -> None:
-    """Raise if a state of ``x`` (P, N + 1, n) at the times ``t`` (N + 1,) overflowed."""
-    if np.isfinite(x).all():
-        return
-    bad = ~np.all(np.isfinite(x), axis=2)
-    if np.any(bad):
-        plant, k = (int(i) for i in np.argwhere(bad)[0])
-        where = f" of plant {plant}" if x.shape[0] > 1 else ""
-        raise InputError(
-            f"the simulated state{where} overflows at sample {k} (t = {t[k]:.6g} s): the "
-            "closed loop A - B K is unstable over this horizon; stabilize it or shorten the run"
-        )
 
 
 def simulate(
@@ -533,60 +514,6 @@ def _simulate_held_inputs(request: _Request, hold: int) -> Trajectory:
     coarse = _run(replace(request, h=hold * period, num_samples=updates)).trajectory(0)
     E = None if exogenous is None else exogenous.E
     return fill_held(coarse, (request.A, request.B, request.D, E), period, hold, count)
-
-
-def fill_held(
-    coarse: Trajectory,
-    plant: tuple[ArrayLike, ArrayLike, ArrayLike | None, ArrayLike | None],
-    period: float,
-    hold: int,
-    num_samples: int,
-) -> Trajectory:
-    """The trajectory sampled every ``period`` of a loop whose input is held ``hold`` samples.
-
-    ``coarse`` is the loop sampled at ``hold period``; the samples in between are filled
-    in exactly from the discretization over ``j period``, j = 1 .. hold - 1.
-
-    Parameters
-    ----------
-    coarse : Trajectory
-        The loop at the controller's period ``hold period``.
-    plant : (A, B, D, E)
-        The continuous plant (D None: no exogenous input; E None: w held).
-    period : float
-        The sampling period, s.
-    hold : int
-        Samples per controller update.
-    num_samples : int
-        N, samples of the result.
-
-    Returns
-    -------
-    Trajectory
-        ``t`` (N + 1,), ``x`` (N + 1, n), ``u`` (N, m), ``w`` (N + 1, q) or None.
-    """
-    A, B, D, E = plant
-    count, updates = num_samples, coarse.u.shape[0]
-    n, q = coarse.n, coarse.q
-    x = np.empty((updates * hold + 1, n))
-    w = None if coarse.w is None else np.empty((updates * hold + 1, q))
-    x[::hold] = coarse.x
-    if w is not None and coarse.w is not None:
-        w[::hold] = coarse.w
-    w_start = np.zeros((updates, 0)) if coarse.w is None else coarse.w[:-1]
-    for step in range(1, hold):
-        exact = discretize(A, B, step * period, D=D, E=E)
-        x[step::hold] = coarse.x[:-1] @ exact.Ad.T + coarse.u @ exact.Bd.T
-        if w is not None:
-            x[step::hold] += w_start @ exact.Ed.T
-            w[step::hold] = w_start @ exact.Ew.T
-    stop = count + 1
-    return Trajectory(
-        t=np.arange(stop) * period,
-        x=x[:stop],
-        u=np.repeat(coarse.u, hold, axis=0)[:count],
-        w=None if w is None else w[:stop],
-    )
 
 
 def simulate_batch(

@@ -28,10 +28,12 @@ from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from ..core import Array, ControlLaw
+from ..core import Array, ControlLaw, discretize
 from ..core._propagate import propagate_uniform
 from ..errors import InputError
+from ..learn import Trajectory
 
 __all__ = [
     "ClosedLoop",
@@ -39,6 +41,7 @@ __all__ = [
     "LoopPlant",
     "SampledPlant",
     "feedback_of",
+    "fill_held",
     "one_step_map",
     "run_closed_loop",
     "run_sampled_loop",
@@ -309,6 +312,60 @@ def run_sampled_loop(
     commands[0, pad:] = np.hstack([xi[:-1], inputs]) @ command
     integrator = xi[-1:, size - feedback.integrators :]
     return xi[:, : feedback.n], ClosedLoop(commands, pad, delay, integrator)
+
+
+def fill_held(
+    coarse: Trajectory,
+    plant: tuple[ArrayLike, ArrayLike, ArrayLike | None, ArrayLike | None],
+    period: float,
+    hold: int,
+    num_samples: int,
+) -> Trajectory:
+    """The trajectory sampled every ``period`` of a loop whose input is held ``hold`` samples.
+
+    ``coarse`` is the loop sampled at ``hold period``; the samples in between are filled
+    in exactly from the discretization over ``j period``, j = 1 .. hold - 1.
+
+    Parameters
+    ----------
+    coarse : Trajectory
+        The loop at the controller's period ``hold period``.
+    plant : (A, B, D, E)
+        The continuous plant (D None: no exogenous input; E None: w held).
+    period : float
+        The sampling period, s.
+    hold : int
+        Samples per controller update.
+    num_samples : int
+        N, samples of the result.
+
+    Returns
+    -------
+    Trajectory
+        ``t`` (N + 1,), ``x`` (N + 1, n), ``u`` (N, m), ``w`` (N + 1, q) or None.
+    """
+    A, B, D, E = plant
+    count, updates = num_samples, coarse.u.shape[0]
+    n, q = coarse.n, coarse.q
+    x = np.empty((updates * hold + 1, n))
+    w = None if coarse.w is None else np.empty((updates * hold + 1, q))
+    x[::hold] = coarse.x
+    if w is not None and coarse.w is not None:
+        w[::hold] = coarse.w
+    w_start = np.zeros((updates, 0)) if coarse.w is None else coarse.w[:-1]
+    for step in range(1, hold):
+        exact = discretize(A, B, step * period, D=D, E=E)
+        x[step::hold] = coarse.x[:-1] @ exact.Ad.T + coarse.u @ exact.Bd.T
+        if w is not None:
+            x[step::hold] += w_start @ exact.Ed.T
+            w[step::hold] = w_start @ exact.Ew.T
+    stop = count + 1
+    return Trajectory(
+        t=np.arange(stop) * period,
+        x=x[:stop],
+        u=np.repeat(coarse.u, hold, axis=0)[:count],
+        w=None if w is None else w[:stop],
+    )
 
 
 class SampledPlant:
