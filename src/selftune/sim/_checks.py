@@ -178,3 +178,17 @@ def time_grid(h: float | None, num_samples: int | None, t: ArrayLike | None) -> 
     count = positive_integer(num_samples, "num_samples")
     times = period * np.arange(count + 1, dtype=float)
     return TimeGrid(t=times, h=period, steps=np.full(count, period))
+
+
+def check_finite_states(x: Array, t: Array) -> None:
+    """Raise if a state of ``x`` (P, N + 1, n) at the times ``t`` (N + 1,) overflowed."""
+    if np.isfinite(x).all():
+        return
+    bad = ~np.all(np.isfinite(x), axis=2)
+    if np.any(bad):
+        plant, k = (int(i) for i in np.argwhere(bad)[0])
+        where = f" of plant {plant}" if x.shape[0] > 1 else ""
+        raise InputError(
+            f"the simulated state{where} overflows at sample {k} (t = {t[k]:.6g} s): the "
+            "closed loop A - B K is unstable over this horizon; stabilize it or shorten the run"
+        )

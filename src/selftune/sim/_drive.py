@@ -11,13 +11,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import Array, ControlLaw
+from ..core import Array, ControlLaw, discretize, positive_integer
 from ..errors import InputError
 from ..learn import Trajectory
 from ..model import SPMSM
+from ._checks import check_finite_states
 from ._exploration import Exploration
-from ._signals import ExogenousSignal, constant
-from ._simulator import simulate
+from ._loop import exploration_inputs
+from ._signals import ExogenousSignal, check_signal_values, constant
+from ._stepper import feedback_of, fill_held, run_sampled_loop
 
 __all__ = ["SimulatedDrive"]
 
@@ -28,7 +30,9 @@ class SimulatedDrive:
 
     It stands in for a real drive: the algorithms only call :meth:`run` and
     :meth:`run_no_load` and only read the trajectories they return. Episodes start from
-    rest (``x(0) = 0``).
+    rest (``x(0) = 0``, past inputs and integrator 0). It runs every
+    :class:`~selftune.core.ControlLaw` (past inputs fed back, integral action) by the
+    stepper every drive shares (:mod:`._stepper`), the plant sampled exactly.
 
     Parameters
     ----------
@@ -67,13 +71,42 @@ class SimulatedDrive:
         """``"rotor"``: the dq voltage is held over each sample (zero-order hold)."""
         return "rotor"
 
-    def _regulator(self, law: ControlLaw) -> tuple[Array, Array, Array]:
-        if law.history or law.K_i is not None:
+    def _episode(
+        self,
+        plant: tuple[Array, Array, Array],
+        law: ControlLaw,
+        reference: ExogenousSignal,
+        num_samples: int,
+        exploration: Exploration | None,
+        seed: int,
+    ) -> Trajectory:
+        """The loop of ``law`` on ``x' = A x + B u + D w`` from rest, by the one stepper
+        (:func:`~selftune.sim._stepper.run_sampled_loop`) at the controller's period, the
+        samples in between filled in exactly (:func:`~selftune.sim._stepper.fill_held`)."""
+        A, B, D = plant
+        hold = positive_integer(self.input_hold, "input_hold")
+        count = positive_integer(num_samples, "num_samples")
+        q = D.shape[1]
+        if (law.n, law.m, law.q) != (B.shape[0], B.shape[1], q):
             raise InputError(
-                "law: the ideal simulated drive runs u = -K (x - X w) + U w only (no past "
-                "inputs, no integral action); use selftune.sim.RealisticDrive for those"
+                f"law: has (n, m, q) = {(law.n, law.m, law.q)}; the drive needs "
+                f"{(B.shape[0], B.shape[1], q)} (currents, voltages, the reference's channels)"
             )
-        return law.K, law.X, law.U
+        updates = -(-count // hold)
+        period = hold * self.sampling
+        t = period * np.arange(updates + 1, dtype=float)
+        exact = discretize(A, B, period, D=D, E=reference.E)
+        w = check_signal_values(reference.values(t), updates + 1, "reference")
+        rho = exploration_inputs(law, exploration, t, seed)
+        with np.errstate(over="ignore", invalid="ignore"):
+            x, loop = run_sampled_loop(
+                (exact.Ad, exact.Bd, exact.Ed), feedback_of([law]), w, rho, self.input_delay
+            )
+        check_finite_states(x[np.newaxis], t)
+        coarse = Trajectory(t=t, x=x, u=loop.applied[0], w=w)
+        if hold == 1:
+            return coarse
+        return fill_held(coarse, (A, B, D, reference.E), self.sampling, hold, count)
 
     def run(
         self,
@@ -96,7 +129,7 @@ class SimulatedDrive:
         Parameters
         ----------
         law : ControlLaw
-            The controller ``u = -K (x - X w) + U w`` (no past inputs, no integrator).
+            The controller (n = m = 2, q = 2), with its past inputs and integrator.
         reference : ExogenousSignal
             The controller's ``w = [p speed phi, T*]`` (held).
         num_samples : int
@@ -108,7 +141,6 @@ class SimulatedDrive:
         assumed_flux : float, optional
             Flux linkage the controller's ``w`` assumes, Wb (default: the true one).
         """
-        K, X, U = self._regulator(law)
         problem = self.motor.regulation_problem(self.speed)
         D = problem.D
         if assumed_flux is not None and assumed_flux != self.motor.phi_pm:
@@ -119,19 +151,8 @@ class SimulatedDrive:
                     "reference: with an assumed flux, the back-EMF channel w_1 must be "
                     "constant (perturb the torque reference only)"
                 )
-        return simulate(
-            problem.A,
-            problem.B,
-            D=D,
-            exogenous=reference,
-            K=K,
-            X=X,
-            U=U,
-            exploration=exploration,
-            h=self.sampling,
-            num_samples=num_samples,
-            seed=seed,
-            input_hold=self.input_hold,
+        return self._episode(
+            (problem.A, problem.B, D), law, reference, num_samples, exploration, seed
         )
 
     def run_no_load(
@@ -155,19 +176,8 @@ class SimulatedDrive:
         seed : int
             Seed of the exploration.
         """
-        K, X, U = self._regulator(law)
         problem = self.motor.no_load_problem(self.speed)
-        return simulate(
-            problem.A,
-            problem.B,
-            D=problem.D,
-            exogenous=constant(self.motor.no_load_exogenous(self.speed)),
-            K=K,
-            X=X,
-            U=U,
-            exploration=exploration,
-            h=self.sampling,
-            num_samples=num_samples,
-            seed=seed,
-            input_hold=self.input_hold,
+        reference = constant(self.motor.no_load_exogenous(self.speed))
+        return self._episode(
+            (problem.A, problem.B, problem.D), law, reference, num_samples, exploration, seed
         )

@@ -61,6 +61,7 @@ from ..model import SPMSM
 from ._checks import as_float_array, as_generator
 from ._exploration import Exploration
 from ._signals import ExogenousSignal, check_signal_values, constant
+from ._stepper import feedback_of, run_closed_loop
 
 __all__ = ["GEM_ENVIRONMENT", "GEM_SOLVERS", "GemDrive"]
 
@@ -189,6 +190,31 @@ class _Plant:
             )
         observation, _, _, _, _ = self.env.step(action)
         return self.read(observation)
+
+
+class _GemLoop:
+    """A GEM environment as the stepper's plant (a ``LoopPlant``, P = 1): the dq currents
+    it measures, the voltages it applied and the rotor angles, sample by sample."""
+
+    def __init__(
+        self, plant: _Plant, caught: list[warnings.WarningMessage], solver: str, count: int
+    ) -> None:
+        self.plant, self.caught, self.solver = plant, caught, solver
+        self.x, self.u = np.empty((count + 1, 2)), np.empty((count, 2))
+        self.angles = np.empty(count + 1)
+        self.x[0], self.angles[0] = plant.reset()
+
+    def measure(self, k: int) -> Array:
+        """``i_dq`` at sample k, shape (1, 2)."""
+        return self.x[k][np.newaxis]
+
+    def advance(self, k: int, applied: Array, computed_at: int) -> None:
+        """One ``env.step`` with the dq voltage ``applied[0]``."""
+        self.x[k + 1], self.u[k], self.angles[k + 1] = self.plant.step(
+            applied[0], self.angles[k], k
+        )
+        if self.caught:
+            _check_solver(self.caught, self.solver, k)
 
 
 @dataclass(frozen=True)
@@ -340,25 +366,12 @@ class GemDrive:
 
     def _episode(self, law: ControlLaw, t: Array, w: Array, rho: Array) -> Trajectory:
         """Step GEM sample by sample under ``law`` plus ``rho``; log what it measured."""
-        count, delay, history = rho.shape[0], self.input_delay, law.history
-        pad = max(history, delay)
-        commands = np.zeros((pad + count, 2))  # computed commands; zeros before the first
-        x, u = np.empty((count + 1, 2)), np.empty((count, 2))
-        angles = np.empty(count + 1)
-        z = np.zeros(law.r)
         with _quiet() as caught, self._plant() as plant:
-            x[0], angle = plant.reset()
-            angles[0] = angle
-            for k in range(count):
-                past = commands[pad + k - history : pad + k]
-                commands[pad + k] = law.command(x[k], w[k], past, z) + rho[k]
-                if law.K_i is not None and law.C is not None and law.F is not None and law.h:
-                    z = z + law.h * (law.C @ x[k] + law.F @ w[k])
-                x[k + 1], u[k], angle = plant.step(commands[pad + k - delay], angle, k)
-                angles[k + 1] = angle
-                if caught:
-                    _check_solver(caught, self.ode_solver, k)
-        return Trajectory(t=t, x=x, u=u, w=w, angle=angles)
+            loop = _GemLoop(plant, caught, self.ode_solver, rho.shape[0])
+            run_closed_loop(
+                loop, feedback_of([law]), w[np.newaxis], rho[np.newaxis], self.input_delay
+            )
+        return Trajectory(t=t, x=loop.x, u=loop.u, w=w, angle=loop.angles)
 
     @contextmanager
     def _plant(self) -> Iterator[_Plant]:

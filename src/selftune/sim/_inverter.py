@@ -40,11 +40,12 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core import Array, ControlLaw
+from ..core import Array
 from ..errors import InputError
 from ..model import SPMSM
 from ._checks import as_float_array, as_generator
 from ._exploration import Exploration
+from ._stepper import Feedback, run_closed_loop
 
 __all__ = [
     "CLARKE",
@@ -52,7 +53,6 @@ __all__ = [
     "MAGNET_COEFFICIENT",
     "ComplexArray",
     "CurrentSensor",
-    "Feedback",
     "LoopInputs",
     "LoopOutputs",
     "Modulator",
@@ -60,7 +60,6 @@ __all__ = [
     "PwmSegments",
     "carrier_segments",
     "dead_time_voltage",
-    "feedback_of",
     "from_phases",
     "leg_duties",
     "phasor_mean",
@@ -340,23 +339,6 @@ class Modulator:
 
 
 @dataclass(frozen=True, eq=False)
-class Feedback:
-    """The controllers as one linear map: ``gains @ [x; w; past; z] = [u; z_(k+1) - z_k]``.
-
-    Attributes
-    ----------
-    gains : ndarray, shape (P, 2 + R, 2 + q + 2 H + R)
-        The map (``u`` without exploration, V).
-    history, integrators : int
-        H, past commands fed back, and R, integrator states (the most of the laws').
-    """
-
-    gains: Array
-    history: int
-    integrators: int
-
-
-@dataclass(frozen=True, eq=False)
 class LoopInputs:
     """Everything the time loop needs, over P motors and N samples.
 
@@ -480,65 +462,51 @@ def _measure(
     return measured * np.conj(inputs.rotor[:, k]), extra
 
 
+class _Inverter:
+    """The inverter, the motors and the sensor as the stepper's plant (a ``LoopPlant``)."""
+
+    def __init__(self, inputs: LoopInputs) -> None:
+        count, plants = inputs.rho.shape[1], inputs.rotor.shape[0]
+        self.inputs = inputs
+        self.measured = np.empty((plants, count + 1), dtype=complex)
+        self.currents = np.empty((plants, count + 1), dtype=complex)
+        self.applied = np.empty((plants, count), dtype=complex)
+        self.extras = np.zeros((plants, count + 1), dtype=complex)
+        self.current = np.zeros(plants, dtype=complex)
+
+    def measure(self, k: int) -> Array:
+        """The measured ``i_dq`` (P, 2) at sample k; keeps the compensation it asks for."""
+        self.currents[:, k] = self.current
+        self.measured[:, k], self.extras[:, k] = _measure(self.inputs, k, self.current)
+        return np.stack([self.measured[:, k].real, self.measured[:, k].imag], axis=-1)
+
+    def advance(self, k: int, applied: Array, computed_at: int) -> None:
+        """Modulate the command computed at ``computed_at`` over sample k."""
+        command = self.inputs.modulation[:, k] * (applied[:, 0] + 1j * applied[:, 1])
+        extra = self.extras[:, computed_at] if computed_at >= 0 else np.zeros_like(command)
+        self.current, self.applied[:, k] = _step(self.inputs, k, self.current, command, extra)
+
+
 def run_loop(inputs: LoopInputs) -> LoopOutputs:
-    """The time loop: measure, compute, limit, modulate, propagate, all motors at once.
+    """The time loop: measure, compute, limit, modulate, propagate, all motors at once
+    (:func:`~selftune.sim._stepper.run_closed_loop` on the inverter).
 
     Parameters
     ----------
     inputs : LoopInputs
         The motors, the drive and the controllers.
     """
-    count, plants = inputs.rho.shape[1], inputs.rotor.shape[0]
-    delay, feedback, q = inputs.modulator.delay, inputs.feedback, inputs.w.shape[-1]
-    history, integrators = feedback.history, feedback.integrators
-    pad = max(history, delay)
-    commands = np.zeros((plants, count + pad, 2))
-    extras = np.zeros((plants, count + pad), dtype=complex)
-    measured = np.empty((plants, count + 1), dtype=complex)
-    currents = np.empty((plants, count + 1), dtype=complex)
-    applied = np.empty((plants, count), dtype=complex)
-    state = np.zeros((plants, feedback.gains.shape[2], 1))
-    past = slice(2 + q, 2 + q + 2 * history)
-    current = np.zeros(plants, dtype=complex)
-    for k in range(count + 1):
-        currents[:, k] = current
-        measured[:, k], extra = _measure(inputs, k, current)
-        if k == count:
-            break
-        state[:, 0, 0], state[:, 1, 0] = measured[:, k].real, measured[:, k].imag
-        state[:, 2 : 2 + q, 0] = inputs.w[:, k]
-        state[:, past, 0] = commands[:, pad + k - history : pad + k].reshape(plants, 2 * history)
-        output = (feedback.gains @ state)[:, :, 0]
-        commands[:, pad + k] = _limit(output[:, :2] + inputs.rho[:, k], inputs.modulator.limit)
-        if integrators:
-            state[:, state.shape[1] - integrators :, 0] += output[:, 2:]
-        extras[:, pad + k] = extra
-        now = pad + k - delay
-        command = inputs.modulation[:, k] * (commands[:, now, 0] + 1j * commands[:, now, 1])
-        current, applied[:, k] = _step(inputs, k, current, command, extras[:, now])
-    return LoopOutputs(measured, currents, commands, applied, pad)
-
-
-def feedback_of(laws: Sequence[ControlLaw], q: int) -> Feedback:
-    """The laws as one linear map (:class:`Feedback`), read off by applying
-    :meth:`ControlLaw.command` to the unit vectors (the law is linear), so the equations
-    stay the law's own; shorter histories and fewer integrators are padded with zeros."""
-    history = max(law.history for law in laws)
-    integrators = max(law.r for law in laws)
-    size = 2 + q + 2 * history + integrators
-    basis = np.eye(size)
-    x, w = basis[:, :2], basis[:, 2 : 2 + q]
-    past_all = basis[:, 2 + q : 2 + q + 2 * history].reshape(size, history, 2)
-    z_all = basis[:, size - integrators :]
-    gains = np.zeros((len(laws), 2 + integrators, size))
-    for index, law in enumerate(laws):
-        past = past_all[:, history - law.history :]
-        z = z_all[:, : law.r] if law.K_i is not None else None
-        gains[index, :2] = law.command(x, w, past, z).T
-        if law.K_i is not None and law.C is not None and law.F is not None and law.h:
-            gains[index, 2 : 2 + law.r, :2] = law.h * law.C
-            gains[index, 2 : 2 + law.r, 2 : 2 + q] = law.h * law.F
-    return Feedback(gains=gains, history=history, integrators=integrators)
+    plant = _Inverter(inputs)
+    limit = inputs.modulator.limit
+    loop = run_closed_loop(
+        plant,
+        inputs.feedback,
+        inputs.w,
+        inputs.rho,
+        inputs.modulator.delay,
+        limit=lambda u: _limit(u, limit),
+    )
+    return LoopOutputs(plant.measured, plant.currents, loop.commands, plant.applied, loop.pad)
 
 
 def _draws(

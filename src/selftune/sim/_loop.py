@@ -23,8 +23,9 @@ from ..learn import Trajectory
 from ._checks import Seed, as_generator
 from ._exploration import Exploration
 from ._signals import ExogenousSignal, check_signal_values
+from ._stepper import feedback_of, run_sampled_loop
 
-__all__ = ["LoopLogs", "simulate_loop"]
+__all__ = ["LoopLogs", "exploration_inputs", "simulate_loop"]
 
 
 @dataclass(frozen=True)
@@ -43,9 +44,11 @@ class LoopLogs:
     commanded: Trajectory
 
 
-def _inputs(
+def exploration_inputs(
     law: ControlLaw, exploration: Exploration | ArrayLike | None, t: Array, seed: Seed
 ) -> Array:
+    """``rho`` (N, m) for the times ``t`` (N + 1,): drawn from one generator made from
+    ``seed``, given as an array, or zeros (None)."""
     count = t.shape[0] - 1
     if exploration is None:
         return np.zeros((count, law.m))
@@ -118,31 +121,13 @@ def simulate_loop(
         w = check_signal_values(reference.values(t), count + 1, "reference")
     else:
         w = check_signal_values(reference, count + 1, "reference")
-    rho = _inputs(law, exploration, t, seed)
-    x = np.zeros((count + 1, law.n))
-    computed = np.zeros((count, law.m))
-    applied = np.zeros((count, law.m))
-    z = np.zeros(law.r)
+    rho = exploration_inputs(law, exploration, t, seed)
     with np.errstate(over="ignore", invalid="ignore"):
-        for k in range(count):
-            past = computed[k - law.history : k] if k >= law.history else _padded(computed, k, law)
-            computed[k] = law.command(x[k], w[k], past, z) + rho[k]
-            if law.K_i is not None:
-                assert law.C is not None and law.F is not None and law.h is not None
-                z = z + law.h * (law.C @ x[k] + law.F @ w[k])
-            applied[k] = computed[k - delay] if k >= delay else 0.0
-            x[k + 1] = Ad @ x[k] + Bd @ applied[k] + Ed @ w[k]
+        x, loop = run_sampled_loop((Ad, Bd, Ed), feedback_of([law]), w, rho, delay)
+    computed, applied = loop.computed[0], loop.applied[0]
     if not np.all(np.isfinite(x)):
         raise InputError("the state overflows: the law does not stabilize the sampled loop")
     held = None if w.shape[1] == 0 else w
     return LoopLogs(
         applied=Trajectory(t, x, applied, held), commanded=Trajectory(t, x, computed, held)
     )
-
-
-def _padded(computed: Array, k: int, law: ControlLaw) -> Array:
-    """The law's past inputs at sample k < history: zeros before the first."""
-    past = np.zeros((law.history, law.m))
-    if k:
-        past[law.history - k :] = computed[:k]
-    return past

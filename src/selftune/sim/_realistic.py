@@ -64,11 +64,11 @@ from ._inverter import (
     LoopOutputs,
     Modulator,
     MotorBatch,
-    feedback_of,
     random_inputs,
     run_loop,
 )
 from ._signals import ExogenousSignal, check_signal_values, constant
+from ._stepper import feedback_of
 
 __all__ = ["DriveRecord", "DriveSettings", "RealisticDrive", "run_drive_batch"]
 
@@ -336,7 +336,7 @@ def _loop_inputs(
     return LoopInputs(
         motor=motor,
         modulator=modulator,
-        feedback=feedback_of(laws, w.shape[-1]),
+        feedback=feedback_of(laws),
         sensor=_sensor(settings, noise),
         rotor=rotor,
         modulation=rotor[:, :-1] * np.exp(1j * offset),

@@ -17,7 +17,8 @@ exponential of the augmented matrix (zero-order-hold discretization, Van Loan's 
           [0, 0, E]]         [0,  0,  Ew]]
 
 so ``x[k+1] = Ad x[k] + Bd u[k] + Ed w[k]`` with no ODE solver
-(:func:`selftune.core.discretize`). The exogenous
+(:func:`selftune.core.discretize`); the loop's matrices are those of the stepper every
+drive runs (:func:`~selftune.sim._stepper.one_step_map`). The exogenous
 signal ``w`` is of one of two kinds (:mod:`._signals`), matching
 :class:`~selftune.learn.Trajectory`:
 
@@ -64,7 +65,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..core import Array, augmented, discretize, expm_stack, positive_finite, positive_integer
+from ..core import Array, ControlLaw, augmented, expm_stack, positive_finite, positive_integer
 from ..core._propagate import (
     plant_last,
     propagate_steps,
@@ -74,9 +75,19 @@ from ..core._propagate import (
 )
 from ..errors import InputError
 from ..learn import Trajectory
-from ._checks import Seed, TimeGrid, as_float_array, as_generator, as_stack, square_stack, time_grid
+from ._checks import (
+    Seed,
+    TimeGrid,
+    as_float_array,
+    as_generator,
+    as_stack,
+    check_finite_states,
+    square_stack,
+    time_grid,
+)
 from ._exploration import Exploration
 from ._signals import ExogenousSignal, check_signal_values
+from ._stepper import feedback_of, fill_held, one_step_map
 
 __all__ = ["TrajectoryBatch", "simulate", "simulate_batch"]
 
@@ -285,13 +296,11 @@ def _exploration(
     return _check_exploration(drawn, plants, count, m)
 
 
-def _propagate(s: _Stacks, E: Array | None, grid: TimeGrid, w: Array, rho: Array) -> Array:
-    """The states (P, N + 1, n) of the sampled closed loop, exactly (ZOH by expm).
-
-    ``x[k+1] = (Ad - Bd K) x[k] + (Bd L + Ed) w[k] + Bd rho[k]`` with ``L = U + K X``.
-    """
+def _loop_map(s: _Stacks, E: Array | None, periods: Array, uniform: bool) -> tuple[Array, Array]:
+    """The sampled loop of each plant at each period as the stepper's matrices
+    (:func:`~selftune.sim._stepper.one_step_map`): ``step`` (P'', S, n + q + m, n) and
+    ``command`` (P'', n + q + m, m), acting on the rows ``[x_k, w_k, rho_k]``."""
     n, m, q = s.dimensions
-    count, plants = grid.num_samples, rho.shape[0]
     plant_count = max(s.A.shape[0], s.B.shape[0], s.D.shape[0])
     M = augmented(
         np.broadcast_to(s.A, (plant_count, n, n)),
@@ -299,28 +308,59 @@ def _propagate(s: _Stacks, E: Array | None, grid: TimeGrid, w: Array, rho: Array
         np.broadcast_to(s.D, (plant_count, n, q)),
         E,
     )
+    exp = expm_stack(M, periods, uniform=uniform)  # (P', S, k, k)
+    count = max(plant_count, s.K.shape[0], s.X.shape[0], s.U.shape[0])
+    steps = periods.shape[0]
+    K, X, U = (np.broadcast_to(a, (count, *a.shape[1:])) for a in (s.K, s.X, s.U))
+    laws = max(len(s.K), len(s.X), len(s.U))  # 1 or P'': a law per plant, or one for all
+    feedback = feedback_of([ControlLaw.regulator(K[i], X[i], U[i]) for i in range(laws)])
+
+    def each(matrix: Array) -> Array:
+        """A stack (P'' or 1, [S,] a, b) as one matrix per plant and period, (P'' S, a, b)."""
+        stack = matrix if matrix.ndim == 4 else matrix[:, np.newaxis]
+        shape = matrix.shape[-2:]
+        return np.broadcast_to(stack, (count, steps, *shape)).reshape(count * steps, *shape)
+
+    sampled = (each(exp[..., :n, :n]), each(exp[..., :n, n : n + m]), each(exp[..., :n, n + m :]))
+    step, command = one_step_map(sampled, replace(feedback, gains=each(feedback.gains)), 0)
+    return step.reshape(count, steps, *step.shape[1:]), command[::steps]
+
+
+def _propagate(
+    s: _Stacks, E: Array | None, grid: TimeGrid, w: Array, rho: Array
+) -> tuple[Array, Array]:
+    """The states (P, N + 1, n) of the sampled closed loop, exactly (ZOH by expm), and the
+    inputs (P, N, m): ``x[k+1] = x[k] @ step_x + w[k] @ step_w + rho[k] @ step_rho``,
+    the stepper's matrices (:func:`_loop_map`)."""
+    n, _, q = s.dimensions
+    count, plants = grid.num_samples, rho.shape[0]
     if grid.h is not None:
         periods, index = np.array([grid.h]), np.zeros(count, dtype=np.intp)
     else:
         periods, index = np.unique(grid.steps, return_inverse=True)
-    exp = expm_stack(M, periods, uniform=grid.h is not None)  # (P', S, k, k)
-    Ad, Bd, Ed = exp[..., :n, :n], exp[..., :n, n : n + m], exp[..., :n, n + m :]
-    L = s.U + s.K @ s.X  # (P'', m, q): u = -K x + L w + rho
-    closed = Ad - Bd @ s.K[:, np.newaxis]  # (P'', S, n, n)
-    w_gain = Bd @ L[:, np.newaxis] + Ed  # (P'', S, n, q)
+    step, command = _loop_map(s, E, periods, uniform=grid.h is not None)
+    # acting on rows, (P'', S, rows, n): the state's, the reference's and rho's parts
+    step_x, step_w, step_rho = step[:, :, :n], step[:, :, n : n + q], step[:, :, n + q :]
     # forcing plant-major (a matmul per plant), the propagation plant-last (see _propagate)
     x0 = np.ascontiguousarray(np.broadcast_to(s.x0, (plants, n)).T)
     if grid.h is not None:
-        forcing = w[:, :count] @ w_gain[:, 0].transpose(0, 2, 1)
-        forcing = forcing + rho @ Bd[:, 0].transpose(0, 2, 1)
-        x = propagate_uniform(plant_last(closed[:, 0]), to_plant_last(forcing), x0)
+        forcing = w[:, :count] @ step_w[:, 0] + rho @ step_rho[:, 0]
+        x = propagate_uniform(
+            plant_last(step_x[:, 0].transpose(0, 2, 1)), to_plant_last(forcing), x0
+        )
     else:
         w_steps = w[:, :count, np.newaxis, :]  # (P_w, N, 1, q)
-        forcing = (w_steps @ w_gain[:, index].transpose(0, 1, 3, 2))[:, :, 0]
-        forcing = forcing + (rho[:, :, np.newaxis, :] @ Bd[:, index].transpose(0, 1, 3, 2))[:, :, 0]
-        closed_steps = np.ascontiguousarray(closed.transpose(1, 3, 2, 0))  # (S, b, a, P'')
+        forcing = (w_steps @ step_w[:, index])[:, :, 0]
+        forcing = forcing + (rho[:, :, np.newaxis, :] @ step_rho[:, index])[:, :, 0]
+        closed_steps = np.ascontiguousarray(step_x.transpose(1, 2, 3, 0))  # (S, b, a, P'')
         x = propagate_steps(closed_steps, index, to_plant_last(forcing), x0)
-    return to_plant_major(x)
+    x = to_plant_major(x)
+    u = (
+        x[:, :count] @ command[:, :n]
+        + w[:, :count] @ command[:, n : n + q]
+        + rho @ command[:, n + q :]
+    )
+    return x, u
 
 
 def _run(request: _Request) -> TrajectoryBatch:
@@ -341,10 +381,8 @@ def _run(request: _Request) -> TrajectoryBatch:
     plants = _batch_size(named, num_plants)
     rho = _exploration(request, given, grid, m, plants)
     with np.errstate(over="ignore", invalid="ignore"):
-        x = _propagate(s, E, grid, w, rho)
-        u = rho - x[:, :count] @ s.K.transpose(0, 2, 1)
-        u += w[:, :count] @ (s.U + s.K @ s.X).transpose(0, 2, 1)
-    _check_finite_states(x, grid.t)
+        x, u = _propagate(s, E, grid, w, rho)
+    check_finite_states(x, grid.t)
     w_out = None if q == 0 else np.broadcast_to(w, (plants, count + 1, q))
     for array in [grid.t, x, u, rho] + ([] if w_out is None else [w_out]):
         if array.flags.writeable:
@@ -362,19 +400,6 @@ def _check_exploration(drawn: ArrayLike, plants: int, count: int, m: int) -> Arr
             f"got {rho.shape}"
         )
     return np.broadcast_to(rho, (plants, count, m))
-
-
-def _check_finite_states(x: Array, t: Array) -> None:
-    if np.isfinite(x).all():
-        return
-    bad = ~np.all(np.isfinite(x), axis=2)
-    if np.any(bad):
-        plant, k = (int(i) for i in np.argwhere(bad)[0])
-        where = f" of plant {plant}" if x.shape[0] > 1 else ""
-        raise InputError(
-            f"the simulated state{where} overflows at sample {k} (t = {t[k]:.6g} s): the "
-            "closed loop A - B K is unstable over this horizon; stabilize it or shorten the run"
-        )
 
 
 def simulate(
@@ -488,26 +513,7 @@ def _simulate_held_inputs(request: _Request, hold: int) -> Trajectory:
     updates = -(-count // hold)
     coarse = _run(replace(request, h=hold * period, num_samples=updates)).trajectory(0)
     E = None if exogenous is None else exogenous.E
-    n, q = coarse.n, coarse.q
-    x = np.empty((updates * hold + 1, n))
-    w = None if coarse.w is None else np.empty((updates * hold + 1, q))
-    x[::hold] = coarse.x
-    if w is not None and coarse.w is not None:
-        w[::hold] = coarse.w
-    w_start = np.zeros((updates, 0)) if coarse.w is None else coarse.w[:-1]
-    for step in range(1, hold):
-        exact = discretize(request.A, request.B, step * period, D=request.D, E=E)
-        x[step::hold] = coarse.x[:-1] @ exact.Ad.T + coarse.u @ exact.Bd.T
-        if w is not None:
-            x[step::hold] += w_start @ exact.Ed.T
-            w[step::hold] = w_start @ exact.Ew.T
-    stop = count + 1
-    return Trajectory(
-        t=np.arange(stop) * period,
-        x=x[:stop],
-        u=np.repeat(coarse.u, hold, axis=0)[:count],
-        w=None if w is None else w[:stop],
-    )
+    return fill_held(coarse, (request.A, request.B, request.D, E), period, hold, count)
 
 
 def simulate_batch(
