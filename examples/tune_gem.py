@@ -22,7 +22,7 @@ drive = GemDrive(motor, speed, h, input_delay=1)  # a one-sample computation del
 settings = TuningSettings(
     speed=speed,
     torque=torque,
-    sampling=h,
+    h=h,
     episode_length=0.05,
     K0=1.0 * np.eye(2),  # V/A: a gentle initial controller
     exploration=10.0,  # V

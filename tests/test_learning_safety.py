@@ -59,14 +59,14 @@ def test_a_late_log_is_refused_and_auto_reads_it() -> None:
 
 
 def test_an_input_error_the_log_does_not_show_is_refused_with_its_likely_cause() -> None:
-    hardware = DriveSettings.hardware_like(sampling=1e-4)
+    hardware = DriveSettings.hardware_like(h=1e-4)
     log, _, known = reference_log(settings=hardware)
     with pytest.raises(ConsistencyError, match="dead time"):
         learn_controller(log, *known, digital(method="identify"))
 
 
 def test_dead_time_modelled_with_the_motor_structure_is_learned_and_reported() -> None:
-    hardware = DriveSettings.hardware_like(sampling=1e-4)
+    hardware = DriveSettings.hardware_like(h=1e-4)
     log, problem, known = reference_log(settings=hardware)
     options = digital(method="identify", structure="spmsm", electrical_speed=150.0, dead_time=True)
     learned = learn_controller(log, *known, options)
@@ -227,7 +227,7 @@ def test_the_structure_check_tolerates_the_dead_time_models_own_approximation(se
     # the dead-time model's error near zero current correlates the output errors (inflation
     # 4-7); the unstructured model absorbs more of it, which is no reason to refuse
     log, problem, known = reference_log(
-        settings=DriveSettings.hardware_like(sampling=1e-4), seed=seed
+        settings=DriveSettings.hardware_like(h=1e-4), seed=seed
     )
     options = digital(method="identify", structure="spmsm", electrical_speed=150.0, dead_time=True)
     learned = learn_controller(log, *known, options)

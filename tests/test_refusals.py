@@ -91,7 +91,7 @@ def test_a_late_voltage_log_is_a_misaligned_log_with_the_stated_and_found_shift(
 
 
 def test_an_input_error_the_log_does_not_show_is_an_effect_the_model_misses() -> None:
-    log, _, known = reference_log(settings=DriveSettings.hardware_like(sampling=1e-4))
+    log, _, known = reference_log(settings=DriveSettings.hardware_like(h=1e-4))
     error = refusal(ModelMissesEffect, learn_controller, log, *known, digital(method="identify"))
     assert isinstance(error, ConsistencyError)
     assert error.statistic > error.threshold

@@ -73,7 +73,7 @@ def test_off_policy_uses_far_less_data(paper_results: dict) -> None:  # type: ig
     # The documented claim (docs/bench.md): off-policy reaches 1e-4 on K and U from a batch
     # of a few dozen samples, at least 50 times less motor data than Algorithm 2 needs.
     algorithm2, paper_settings = paper_results["2"]
-    batch = replace(paper_settings, episode_length=40 * paper_settings.sampling, interval=1)
+    batch = replace(paper_settings, episode_length=40 * paper_settings.h, interval=1)
     result = run_algorithm("offpolicy", PAPER, batch)
     evaluation = evaluate(result, PAPER, batch)
     assert evaluation.K_error < 1e-4 and evaluation.U_error < 1e-4
@@ -144,7 +144,7 @@ def test_the_drive_is_what_the_algorithm_sees() -> None:
             calls.append(kwargs["num_samples"])
             return super().run(*args, **kwargs)
 
-    drive = Recording(motor=PAPER, speed=10.0, sampling=1e-5)
+    drive = Recording(motor=PAPER, speed=10.0, h=1e-5)
     # three episodes are too few to settle: the session says so instead of returning
     with pytest.raises(ConvergenceError, match="did not settle in 3 iterations"):
         algorithm1(drive, TuningSettings(max_iterations=3), PAPER.phi_pm)
@@ -158,7 +158,7 @@ def test_a_wrong_flux_never_simulates_a_motor_that_does_not_exist() -> None:
 
     from selftune.tuning import offpolicy
 
-    drive = SimulatedDrive(motor=PAPER, speed=10.0, sampling=1e-5)
+    drive = SimulatedDrive(motor=PAPER, speed=10.0, h=1e-5)
     with pytest.raises(InputError, match="back-EMF channel"):
         offpolicy(drive, TuningSettings(), phi_pm=0.5)
     result = offpolicy(drive, replace(TuningSettings(), perturbation="torque"), phi_pm=0.5)

@@ -28,7 +28,7 @@ from selftune.sim import DriveSettings, RealisticDrive, held, uniform
 HERE = Path(__file__).parent
 motor = selftune.SPMSM(R_s=0.6, L_s=8e-3, phi_pm=0.35, p=3)  # unknown to the learner
 speed, torque, h = 50.0, 5.0, 1e-4  # rad/s (150 rad/s electrical), N m, s
-settings = replace(DriveSettings.hardware_like(sampling=h), logged_input="commanded")
+settings = replace(DriveSettings.hardware_like(h=h), logged_input="commanded")
 drive = RealisticDrive(motor, speed, h, settings)
 
 w = motor.exogenous(speed, torque)  # [p speed phi_pm, T*], what the firmware knows

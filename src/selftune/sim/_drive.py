@@ -13,7 +13,8 @@ import numpy as np
 
 from ..core import Array, ControlLaw, discretize, positive_integer
 from ..errors import InputError
-from ..learn import Trajectory
+from ..learn import LoggedInput, Trajectory
+from ..loop import SampledLoop
 from ..model import SPMSM
 from ._checks import check_finite_states
 from ._exploration import Exploration
@@ -40,7 +41,7 @@ class SimulatedDrive:
         The true motor.
     speed : float
         Held mechanical speed, rad/s.
-    sampling : float
+    h : float
         Sampling period, s.
     input_hold : int
         The controller updates u every ``input_hold`` samples (1: every sample).
@@ -48,7 +49,7 @@ class SimulatedDrive:
 
     motor: SPMSM
     speed: float
-    sampling: float
+    h: float
     input_hold: int = 1
 
     @property
@@ -57,19 +58,15 @@ class SimulatedDrive:
         return self.motor.p
 
     @property
-    def input_delay(self) -> int:
-        """0: the voltage computed at a sample acts during it (the ideal drive)."""
-        return 0
+    def loop(self) -> SampledLoop:
+        """The ideal drive's loop: sampled at h, no delay (the voltage computed at a sample
+        acts during it), the dq voltage held over each sample (zero-order hold)."""
+        return SampledLoop(self.h, 0, "rotor")
 
     @property
-    def logged_input(self) -> str:
+    def logged_input(self) -> LoggedInput:
         """``"applied"``: row k of the log holds the voltage applied during sample k."""
         return "applied"
-
-    @property
-    def voltage_hold(self) -> str:
-        """``"rotor"``: the dq voltage is held over each sample (zero-order hold)."""
-        return "rotor"
 
     def _episode(
         self,
@@ -93,20 +90,20 @@ class SimulatedDrive:
                 f"{(B.shape[0], B.shape[1], q)} (currents, voltages, the reference's channels)"
             )
         updates = -(-count // hold)
-        period = hold * self.sampling
+        period = hold * self.h
         t = period * np.arange(updates + 1, dtype=float)
         exact = discretize(A, B, period, D=D, E=reference.E)
         w = check_signal_values(reference.values(t), updates + 1, "reference")
         rho = exploration_inputs(law, exploration, t, seed)
         with np.errstate(over="ignore", invalid="ignore"):
             x, loop = run_sampled_loop(
-                (exact.Ad, exact.Bd, exact.Ed), feedback_of([law]), w, rho, self.input_delay
+                (exact.Ad, exact.Bd, exact.Ed), feedback_of([law]), w, rho, self.loop.input_delay
             )
         check_finite_states(x[np.newaxis], t)
         coarse = Trajectory(t=t, x=x, u=loop.applied[0], w=w)
         if hold == 1:
             return coarse
-        return fill_held(coarse, (A, B, D, reference.E), self.sampling, hold, count)
+        return fill_held(coarse, (A, B, D, reference.E), self.h, hold, count)
 
     def run(
         self,
@@ -145,7 +142,7 @@ class SimulatedDrive:
         D = problem.D
         if assumed_flux is not None and assumed_flux != self.motor.phi_pm:
             D = D @ np.diag([self.motor.phi_pm / assumed_flux, 1.0])
-            values = reference.values(np.arange(num_samples + 1) * self.sampling)
+            values = reference.values(np.arange(num_samples + 1) * self.h)
             if np.ptp(values[:, 0]) > 0.0:
                 raise InputError(
                     "reference: with an assumed flux, the back-EMF channel w_1 must be "

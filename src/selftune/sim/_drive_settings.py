@@ -143,21 +143,21 @@ class DriveSettings:
         return cls(input_delay=0, voltage_hold="rotor")
 
     @classmethod
-    def hardware_like(cls, dc_voltage: float = 540.0, sampling: float = 1e-4) -> DriveSettings:
+    def hardware_like(cls, dc_voltage: float = 540.0, h: float = 1e-4) -> DriveSettings:
         """One-sample delay, carrier PWM, dead time, noise and a 12-bit ADC.
 
-        The dead time gives ``t_d f_sw V_dc = 2 V`` at ``f_sw = 1 / sampling``; noise of
+        The dead time gives ``t_d f_sw V_dc = 2 V`` at ``f_sw = 1 / h``; noise of
         10 mA rms per phase; a 12-bit ADC over +-50 A (24.4 mA per LSB).
 
         Parameters
         ----------
         dc_voltage : float
             DC-bus voltage, V.
-        sampling : float
+        h : float
             The drive's sampling (and switching) period, s.
         """
         dc = positive_finite(dc_voltage, "dc_voltage")
-        period = positive_finite(sampling, "sampling")
+        period = positive_finite(h, "h")
         return cls(
             input_delay=1,
             pwm="carrier",

@@ -56,7 +56,8 @@ import numpy as np
 from ..core import Array, ControlLaw, finite_float, positive_finite, positive_integer
 from ..core._validation import check_range
 from ..errors import InputError
-from ..learn import Trajectory
+from ..learn import LoggedInput, Trajectory
+from ..loop import SampledLoop
 from ..model import SPMSM
 from ._checks import as_float_array, as_generator
 from ._exploration import Exploration
@@ -99,7 +100,7 @@ def _check_solver(caught: list[warnings.WarningMessage], solver: str, k: int) ->
         message = str(item.message)
         if message.startswith(f"{solver}:"):
             raise InputError(
-                f"sampling: GEM's ODE solver failed within sample {k} ({message}); "
+                f"h: GEM's ODE solver failed within sample {k} ({message}); "
                 "shorten the sampling period (the rotor turns too far within one)"
             )
     caught.clear()
@@ -233,8 +234,8 @@ class GemDrive:
         1 kg m^2 if not given).
     speed : float
         Mechanical speed held by GEM's constant-speed load, rad/s.
-    sampling : float
-        Sampling period h, s: GEM's ``tau``, one ``env.step`` per sample.
+    h : float
+        Sampling period, s: GEM's ``tau``, one ``env.step`` per sample.
     dc_voltage : float
         DC-link voltage of GEM's supply, V (2 kV: nothing saturates in the usual runs;
         a command GEM would clip, ``|u_dq| > dc_voltage / 2``, is refused).
@@ -253,7 +254,7 @@ class GemDrive:
 
     motor: SPMSM
     speed: float
-    sampling: float
+    h: float
     dc_voltage: float = 2000.0
     input_delay: int = 0
     ode_solver: Literal["dop853", "dopri5", "euler"] = "dop853"
@@ -262,7 +263,7 @@ class GemDrive:
         if not isinstance(self.motor, SPMSM):
             raise InputError(f"motor: expected an SPMSM, got {type(self.motor).__name__}")
         object.__setattr__(self, "speed", check_range(finite_float(self.speed, "speed"), "speed"))
-        object.__setattr__(self, "sampling", positive_finite(self.sampling, "sampling"))
+        object.__setattr__(self, "h", positive_finite(self.h, "h"))
         object.__setattr__(self, "dc_voltage", positive_finite(self.dc_voltage, "dc_voltage"))
         delay = positive_integer(self.input_delay, "input_delay", minimum=0)
         object.__setattr__(self, "input_delay", delay)
@@ -278,14 +279,15 @@ class GemDrive:
         return self.motor.p
 
     @property
-    def logged_input(self) -> str:
-        """``"applied"``: row k of the log holds the dq voltage GEM applied during sample k."""
-        return "applied"
+    def loop(self) -> SampledLoop:
+        """GEM's loop: sampled at h with the given delay, the dq voltage held over each
+        step (see the module)."""
+        return SampledLoop(self.h, self.input_delay, "rotor")
 
     @property
-    def voltage_hold(self) -> str:
-        """``"rotor"``: GEM holds the dq voltage over each step (see the module)."""
-        return "rotor"
+    def logged_input(self) -> LoggedInput:
+        """``"applied"``: row k of the log holds the dq voltage GEM applied during sample k."""
+        return "applied"
 
     def run(
         self,
@@ -329,7 +331,7 @@ class GemDrive:
             argument is invalid, or a command exceeds the DC link's range.
         """
         count = positive_integer(num_samples, "num_samples")
-        t = self.sampling * np.arange(count + 1, dtype=float)
+        t = self.h * np.arange(count + 1, dtype=float)
         if not isinstance(reference, ExogenousSignal):
             raise InputError(
                 f"reference: expected an exogenous signal, got {type(reference).__name__}"
@@ -404,7 +406,7 @@ class GemDrive:
             load={"omega_fixed": self.speed},
             supply={"u_nominal": self.dc_voltage},
             ode_solver=_solver(systems, self.ode_solver),
-            tau=self.sampling,
+            tau=self.h,
             reference_generator=references.ConstReferenceGenerator("i_sq", 0.0),
             visualization=(),
             constraints=(),

@@ -50,7 +50,8 @@ from numpy.typing import ArrayLike
 
 from ..core import Array, ControlLaw, finite_float, positive_finite, positive_integer
 from ..errors import InputError
-from ..learn import Trajectory
+from ..learn import LoggedInput, Trajectory
+from ..loop import SampledLoop
 from ..model import SPMSM
 from ._checks import as_float_array
 from ._drive_settings import DriveSettings
@@ -116,23 +117,23 @@ class RealisticDrive:
         The true motor (nameplate values; ``settings.temperature_rise`` heats it).
     speed : float
         Held mechanical speed, rad/s.
-    sampling : float
-        Sampling period h, s (also the PWM period).
+    h : float
+        Sampling period, s (also the PWM period).
     settings : DriveSettings
         The drive's effects (default: one-sample delay, average PWM, nothing else).
     """
 
     motor: SPMSM
     speed: float
-    sampling: float
+    h: float
     settings: DriveSettings = field(default_factory=DriveSettings)
 
     def __post_init__(self) -> None:
         if not isinstance(self.motor, SPMSM):
             raise InputError(f"motor: expected an SPMSM, got {type(self.motor).__name__}")
         object.__setattr__(self, "speed", finite_float(self.speed, "speed"))
-        object.__setattr__(self, "sampling", positive_finite(self.sampling, "sampling"))
-        _check_settings(self.settings, self.sampling)
+        object.__setattr__(self, "h", positive_finite(self.h, "h"))
+        _check_settings(self.settings, self.h)
 
     @property
     def pole_pairs(self) -> int:
@@ -152,19 +153,14 @@ class RealisticDrive:
         )
 
     @property
-    def input_delay(self) -> int:
-        """d, the computation delay, samples (from the settings)."""
-        return self.settings.input_delay
+    def loop(self) -> SampledLoop:
+        """The drive's loop: sampled at h, the settings' computation delay and hold."""
+        return SampledLoop(self.h, self.settings.input_delay, self.settings.voltage_hold)
 
     @property
-    def logged_input(self) -> str:
+    def logged_input(self) -> LoggedInput:
         """What row k of the log's voltages holds (from the settings)."""
         return self.settings.logged_input
-
-    @property
-    def voltage_hold(self) -> str:
-        """What the inverter holds over a sample (from the settings)."""
-        return self.settings.voltage_hold
 
     def record(
         self,
@@ -191,7 +187,7 @@ class RealisticDrive:
             Seed of the one generator of the exploration and the noise.
         """
         return run_drive_batch(
-            [self.motor], self.speed, self.sampling, self.settings, law, reference,
+            [self.motor], self.speed, self.h, self.settings, law, reference,
             num_samples=num_samples, exploration=exploration, seed=seed,
         )[0]  # fmt: skip
 
@@ -247,12 +243,12 @@ class RealisticDrive:
         return self.run(law, reference, num_samples=num_samples, exploration=exploration, seed=seed)
 
 
-def _check_settings(settings: object, sampling: float) -> DriveSettings:
+def _check_settings(settings: object, h: float) -> DriveSettings:
     if not isinstance(settings, DriveSettings):
         raise InputError(f"settings: expected DriveSettings, got {type(settings).__name__}")
-    if settings.dead_time >= 0.5 * sampling:
+    if settings.dead_time >= 0.5 * h:
         raise InputError(
-            f"dead_time: {settings.dead_time!r} s is not under half of h = {sampling!r} s"
+            f"dead_time: {settings.dead_time!r} s is not under half of h = {h!r} s"
         )
     return settings
 
@@ -395,7 +391,7 @@ def _check_finite(values: ComplexArray, t: Array) -> None:
 def run_drive_batch(
     motors: Sequence[SPMSM],
     speed: ArrayLike,
-    sampling: float,
+    h: float,
     settings: DriveSettings,
     laws: ControlLaw | Sequence[ControlLaw],
     reference: ExogenousSignal,
@@ -416,7 +412,7 @@ def run_drive_batch(
         The P motors (nameplate values).
     speed : float or array_like, shape (P,)
         Held mechanical speed, rad/s (common or one per motor).
-    sampling : float
+    h : float
         Sampling (and PWM) period h, s.
     settings : DriveSettings
         The drives' effects (common).
@@ -442,7 +438,7 @@ def run_drive_batch(
     InputError
         Naming the argument, if a value is invalid or the currents overflow.
     """
-    h = positive_finite(sampling, "sampling")
+    h = positive_finite(h, "h")
     checked = _check_settings(settings, h)
     count = positive_integer(num_samples, "num_samples")
     given, speeds = _motors(motors, speed)

@@ -56,7 +56,7 @@ def run_algorithm(
         plant = SimulatedDrive(
             motor=motor,
             speed=settings.speed,
-            sampling=settings.h,
+            h=settings.h,
             input_hold=settings.input_hold,
         )
     else:
