@@ -31,7 +31,8 @@ from ..learn import LearnedController, learn_controller
 from ..sim import DriveSettings
 from ._causes import refusal_cause
 from ._common import progress_bar, table
-from ._experiment import MOTOR_RANGES_TEXT, Experiment, log_uniform, random_experiment
+from ._experiment import MOTOR_RANGES_TEXT, Experiment, random_experiment
+from ._motors import Span
 from ._noise_study import NOISE_METHODS
 from ._targets import TargetOutcome
 
@@ -184,7 +185,7 @@ def _judged(
 def _trials(index: int, rng: np.random.Generator) -> list[CalibrationTrial]:
     """Every method on trial ``index``'s log."""
     experiment = random_experiment(rng)
-    noise, seconds = log_uniform(rng, 2e-3, 5e-2), float(rng.uniform(0.2, 0.5))
+    noise, seconds = Span(2e-3, 5e-2, log=True).draw(rng), Span(0.2, 0.5).draw(rng)
     text = _text(index, experiment, noise, seconds)
     settings = replace(DriveSettings.ideal(), input_delay=1, current_noise=noise)
     log = experiment.logs(settings, seconds, [DRIVE_SEED_BASE + index])[0]

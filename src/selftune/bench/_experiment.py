@@ -37,14 +37,15 @@ from ..model import (
     solve_optimal_regulation,
 )
 from ..sim import DriveRecord, DriveSettings, held, run_drive_batch, uniform
+from ._motors import Choice, MotorRanges, Span, draw_motor
 
 __all__ = [
     "DC_VOLTAGE",
+    "EXPERIMENT_RANGES",
     "EXPLORATION_FRACTION",
     "MOTOR_RANGES_TEXT",
     "REFERENCE",
     "Experiment",
-    "log_uniform",
     "random_experiment",
     "truncated",
 ]
@@ -159,6 +160,19 @@ class Experiment:
 REFERENCE = Experiment(SPMSM(R_s=0.6, L_s=8e-3, phi_pm=0.35, p=3), speed=50.0, torque=5.0, h=1e-4)
 
 
+#: The ranges of :func:`random_experiment`, in the order drawn.
+EXPERIMENT_RANGES = MotorRanges(
+    draws=(
+        ("R_s_ohm", Span(0.05, 2.0, log=True)),
+        ("L_s_henry", Span(5e-4, 3e-2, log=True)),
+        ("phi_pm_weber", Span(0.02, 0.5, log=True)),
+        ("pole_pairs", Choice((2, 3, 4, 5, 6, 7, 8))),
+        ("current_amperes", Span(2.0, 15.0, log=True)),
+        ("electrical_speed_rad_per_second", Span(100.0, 2000.0, log=True)),
+        ("sampling_frequency_hz", Choice((1e4, 2e4))),
+    ),
+    speed_cap_volts=150.0,
+)
 #: The ranges of :func:`random_experiment`, in words.
 MOTOR_RANGES_TEXT = (
     "R_s 0.05-2 ohm, L_s 0.5-30 mH, phi_pm 0.02-0.5 Wb (log-uniform), p 2-8, i_q* 2-15 A, "
@@ -167,26 +181,17 @@ MOTOR_RANGES_TEXT = (
 )
 
 
-def log_uniform(rng: np.random.Generator, low: float, high: float) -> float:
-    """A number drawn log-uniformly from ``[low, high]``."""
-    return float(np.exp(rng.uniform(np.log(low), np.log(high))))
-
-
 def random_experiment(rng: np.random.Generator) -> Experiment:
-    """A plausible motor, operating point and sampling rate (:data:`MOTOR_RANGES_TEXT`).
+    """A plausible motor, operating point and sampling rate (:data:`EXPERIMENT_RANGES`).
 
     Parameters
     ----------
     rng : numpy.random.Generator
         The generator (the studies seed their own: their motors are not the tests').
     """
-    R_s, L_s = log_uniform(rng, 0.05, 2.0), log_uniform(rng, 5e-4, 3e-2)
-    phi_pm, p = log_uniform(rng, 0.02, 0.5), int(rng.integers(2, 9))
-    current = log_uniform(rng, 2.0, 15.0)
-    w_e = min(log_uniform(rng, 100.0, 2000.0), 150.0 / phi_pm, 150.0 / (L_s * current))
-    f_s = float(rng.choice([1e4, 2e4]))
-    motor = SPMSM(R_s=R_s, L_s=L_s, phi_pm=phi_pm, p=p)
-    return Experiment(motor, speed=w_e / p, torque=1.5 * p * phi_pm * current, h=1.0 / f_s)
+    drawn = draw_motor(rng, EXPERIMENT_RANGES)
+    assert drawn.sampling_frequency is not None
+    return Experiment(drawn.nameplate, drawn.speed, drawn.torque, h=1.0 / drawn.sampling_frequency)
 
 
 def truncated(log: Trajectory, samples: int) -> Trajectory:

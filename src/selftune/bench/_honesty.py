@@ -46,9 +46,9 @@ from ._experiment import (
     DC_VOLTAGE,
     MOTOR_RANGES_TEXT,
     Experiment,
-    log_uniform,
     random_experiment,
 )
+from ._motors import Choice, Span
 from ._targets import TargetOutcome
 
 __all__ = [
@@ -309,10 +309,10 @@ def honesty_cases(logs_per_hazard: int, short: bool = False) -> list[HonestyCase
         hazard = HAZARDS[index % len(HAZARDS)][0]
         experiment = random_experiment(rng)
         motor = experiment.motor
-        noise = log_uniform(rng, 1e-3, 5e-2)
-        seconds = rng.uniform(0.05, 0.1) if short else rng.uniform(0.1, 0.4)
+        noise = Span(1e-3, 5e-2, log=True).draw(rng)
+        seconds = (Span(0.05, 0.1) if short else Span(0.1, 0.4)).draw(rng)
         if hazard == "short":
-            seconds = rng.uniform(0.005, 0.05)
+            seconds = Span(0.005, 0.05).draw(rng)
         current = float(motor.current_reference(experiment.torque)[1])
         offset, bits, full_scale, volts = _sizes(hazard, rng, current)
         cases.append(
@@ -322,7 +322,7 @@ def honesty_cases(logs_per_hazard: int, short: bool = False) -> list[HonestyCase
                 pole_pairs_count=motor.p, speed_rad_per_second=experiment.speed,
                 torque_newton_meters=experiment.torque, sampling_frequency_hz=1.0 / experiment.h,
                 input_delay_samples=2 if hazard == "shift 2" else 1,
-                data_seconds=float(seconds), current_noise_amperes=noise,
+                data_seconds=seconds, current_noise_amperes=noise,
                 method_text=("adp", "identify")[(index // len(HAZARDS)) % 2],
                 clock_offset_seconds=offset, adc_bits_count=bits, adc_range_amperes=full_scale,
                 dead_time_volts=volts,
@@ -336,14 +336,14 @@ def _sizes(
 ) -> tuple[float, int, float, float]:
     """The hazard's size, drawn: clock offset (s), ADC bits and range (A), dead time (V)."""
     if hazard == "clock offset":
-        sign = float(rng.choice([-1.0, 1.0]))
-        return sign * log_uniform(rng, 1e-3, 1e6), 0, 0.0, 0.0
+        sign = Choice((-1.0, 1.0)).draw(rng)
+        return sign * Span(1e-3, 1e6, log=True).draw(rng), 0, 0.0, 0.0
     if hazard == "ADC":
-        lsb = log_uniform(rng, 0.01, 0.05)
-        bits = 12 if 2**9 * lsb < 3.0 * current else int(rng.choice([10, 12]))
+        lsb = Span(0.01, 0.05, log=True).draw(rng)
+        bits = 12 if 2**9 * lsb < 3.0 * current else int(Choice((10, 12)).draw(rng))
         return 0.0, bits, lsb * 2 ** (bits - 1), 0.0
     if hazard.startswith("dead time"):
-        return 0.0, 0, 0.0, float(rng.uniform(0.5, 3.0))
+        return 0.0, 0, 0.0, Span(0.5, 3.0).draw(rng)
     return 0.0, 0, 0.0, 0.0
 
 

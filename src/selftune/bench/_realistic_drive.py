@@ -6,7 +6,7 @@ carrier PWM, 2 V dead time, 10 mA noise, 12-bit ADC over +-50 A, 540 V bus), the
 :data:`TEMPERATURE_RISE` = 40 K above its nameplate temperature (R_s +15.6%, phi_pm -4%).
 
 **The motors** (:func:`~._drive_designs.drive_cases`): drawn by a seeded generator from
-plausible ranges (:data:`~._drive_designs.MOTOR_RANGES`: L_s 1.5-12 mH, L_s/R_s 3-15 ms,
+plausible ranges (:func:`~._drive_designs.motor_ranges`: L_s 1.5-12 mH, L_s/R_s 3-15 ms,
 back-EMF 40-120 V, i_q* 3-12 A, 2-5 pole pairs), the first at 1,000-1,500 rad/s
 electrical, none of them a motor of the tests. Each is built within
 :data:`~._drive_designs.TOLERANCES` of its nameplate (R_s and L_s +-10%, phi_pm +-5%,
@@ -437,9 +437,9 @@ def measure_realistic_drive(
         sampling_seconds=SAMPLING_SECONDS,
         bandwidth_target_rad_per_second=2.0 * math.pi / (SAMPLING_SECONDS * BANDWIDTH_DIVISOR),
         hot_resistance_factor=HOT_RESISTANCE,
-        tolerance_R_s_relative=TOLERANCES["R_s"],
-        tolerance_L_s_relative=TOLERANCES["L_s"],
-        tolerance_phi_pm_relative=TOLERANCES["phi_pm"],
+        tolerance_R_s_relative=TOLERANCES[0],
+        tolerance_L_s_relative=TOLERANCES[1],
+        tolerance_phi_pm_relative=TOLERANCES[2],
         seeds=seeds,
         motors=tuple(motors),
         wall_seconds=time.perf_counter() - started,
