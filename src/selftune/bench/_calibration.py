@@ -26,12 +26,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..errors import SelftuneError
-from ..learn import LearnedController, learn_controller
+from ..learn import LearnedController
 from ..sim import DriveSettings
-from ._causes import refusal_cause
-from ._common import progress_bar, table
-from ._experiment import MOTOR_RANGES_TEXT, Experiment, random_experiment
+from ._common import table, with_progress
+from ._experiment import MOTOR_RANGES_TEXT, Experiment, Refused, attempt, random_experiment
 from ._motors import Span
 from ._noise_study import NOISE_METHODS
 from ._targets import TargetOutcome
@@ -195,15 +193,11 @@ def _trials(index: int, rng: np.random.Generator) -> list[CalibrationTrial]:
     for key, _, options in NOISE_METHODS:
         if options.structure == "spmsm":
             options = replace(options, electrical_speed=experiment.electrical_speed)
-        try:
-            with np.errstate(all="ignore"):  # the outcome is recorded, not its warnings
-                learned = learn_controller(log, experiment.known(), options)
-        except SelftuneError as error:
-            trials.append(
-                CalibrationTrial(index, key, text, refusal_cause(error), None, None, 0, 0, 0, 0)
-            )
+        tried = attempt(log, experiment.known(), options)
+        if isinstance(tried, Refused):
+            trials.append(CalibrationTrial(index, key, text, tried.cause, None, None, 0, 0, 0, 0))
             continue
-        trials.append(_judged(index, key, text, learned, truths[options.target]))
+        trials.append(_judged(index, key, text, tried.controller, truths[options.target]))
     return trials
 
 
@@ -252,11 +246,8 @@ def measure_calibration(trials_count: int, progress: bool = False) -> Calibratio
     """
     started = time.perf_counter()
     rng = np.random.default_rng(TRIALS_SEED)
-    trials: list[CalibrationTrial] = []
-    with progress_bar(trials_count, "calibration", progress) as bar:
-        for index in range(trials_count):
-            trials += _trials(index, rng)
-            bar.update(1)
+    each = with_progress(range(trials_count), lambda i: _trials(i, rng), "calibration", progress)
+    trials = [trial for group in each for trial in group]
     methods = [
         _method(key, [t for t in trials if t.method_text == key]) for key, _, _ in NOISE_METHODS
     ]

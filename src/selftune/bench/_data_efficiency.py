@@ -24,6 +24,7 @@ from ._common import (
     relative,
     sci,
     table,
+    with_progress,
 )
 
 
@@ -175,11 +176,12 @@ def measure_data_efficiency(config: BenchConfig, progress: bool = False) -> Data
     motor = SPMSM.paper()
     settings = TuningSettings.paper()
     optimum = model_optimum(motor, settings)
-    traces: list[list[tuple[float, float, float]]] = []
-    with progress_bar(len(config.seeds), "data efficiency: on-policy", progress) as bar:
-        for seed in config.seeds:
-            traces.append(_onpolicy_trace(motor, dataclasses.replace(settings, seed=seed), optimum))
-            bar.update(1)
+    traces = with_progress(
+        config.seeds,
+        lambda seed: _onpolicy_trace(motor, dataclasses.replace(settings, seed=seed), optimum),
+        "data efficiency: on-policy",
+        progress,
+    )
     first_met, onpolicy_seconds = _first_met(traces)
     grid, onpolicy_rows = _onpolicy_rows(traces, settings, optimum)
     offpolicy_rows = _offpolicy_rows(config, motor, settings, optimum, progress)

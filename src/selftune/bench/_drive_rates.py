@@ -21,13 +21,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import Array, ControlLaw, delay_augmented, discretize, dlqr, dpolicy_value, lqr
-from ..errors import SelftuneError, UnsolvableError
-from ..learn import LearningOptions, LearningProblem, learn_controller
+from ..errors import UnsolvableError
+from ..learn import LearningOptions, LearningProblem
 from ..model import SPMSM, solve_digital_regulation, solve_optimal_regulation
 from ..sim import simulate_loop
-from ._causes import refusal_cause
-from ._common import progress_bar, relative, sci, table
-from ._experiment import DC_VOLTAGE
+from ._common import progress_bar, sci, table
+from ._experiment import DC_VOLTAGE, Refused, attempt
 from ._targets import TargetOutcome
 
 __all__ = [
@@ -165,13 +164,11 @@ def _rate_errors(name: str, motor: SPMSM, speed: float, torque: float, f_s: floa
         """Relative errors of K and U against the target's optimum; None if refused."""
         options = LearningOptions(target=target, method=method, input_delay=1)  # type: ignore[arg-type]
         truth = continuous if target == "continuous" else digital
-        try:
-            with np.errstate(all="ignore"):  # the outcome is recorded, not its warnings
-                result = learn_controller(logs.applied, known, options)
-        except SelftuneError as error:
-            refusals.append(f"{method} ({target}): {refusal_cause(error)}")
+        tried = attempt(logs.applied, known, options)
+        if isinstance(tried, Refused):
+            refusals.append(f"{method} ({target}): {tried.cause}")
             return None, None
-        return relative(result.K, truth.K), relative(result.U, truth.U)
+        return tried.errors((truth.K, truth.U))
 
     continuous_adp = errors("continuous", "adp")
     digital_adp = errors("digital", "adp")

@@ -1,4 +1,5 @@
-"""The experiment of the noise, honesty and calibration studies (issue 11), and their truth.
+"""The experiment of the noise, honesty and calibration studies (issue 11), their truth, and
+the one learning run of every seeded study (:func:`attempt`).
 
 A motor held at a speed by a load machine, on the library's realistic drive
 (:func:`~selftune.sim.run_drive_batch`), under a gentle initial controller ``K0`` (1.25% of
@@ -21,13 +22,21 @@ computed here and only to score the learners.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..learn import LearningProblem, Trajectory
+from ..errors import SelftuneError
+from ..learn import (
+    LearnedController,
+    LearningOptions,
+    LearningProblem,
+    Trajectory,
+    learn_controller,
+)
 from ..model import (
     SPMSM,
     DigitalSolution,
@@ -37,6 +46,8 @@ from ..model import (
     solve_optimal_regulation,
 )
 from ..sim import DriveRecord, DriveSettings, held, run_drive_batch, uniform
+from ._causes import refusal_cause
+from ._common import relative
 from ._motors import Choice, MotorRanges, Span, draw_motor
 
 __all__ = [
@@ -45,7 +56,11 @@ __all__ = [
     "EXPLORATION_FRACTION",
     "MOTOR_RANGES_TEXT",
     "REFERENCE",
+    "Attempt",
     "Experiment",
+    "Learned",
+    "Refused",
+    "attempt",
     "random_experiment",
     "truncated",
 ]
@@ -201,3 +216,89 @@ def truncated(log: Trajectory, samples: int) -> Trajectory:
     return Trajectory(
         t=log.t[: samples + 1], x=log.x[: samples + 1], u=log.u[:samples], w=w, angle=angle
     )
+
+
+@dataclass(frozen=True)
+class Learned:
+    """A learning run that returned a controller.
+
+    Attributes
+    ----------
+    controller : LearnedController
+    seconds : float
+        Wall time of :func:`~selftune.learn.learn_controller`, s.
+    """
+
+    controller: LearnedController
+    seconds: float
+
+    def errors(self, truth: tuple[Array, Array]) -> tuple[float, float]:
+        """``||K - K*|| / ||K*||`` and ``||U - U*|| / ||U*||`` against the truth ``(K*, U*)``.
+
+        Parameters
+        ----------
+        truth : (ndarray, ndarray)
+            K* and U* of the target learned for.
+        """
+        learned = self.controller
+        return relative(learned.K, truth[0]), relative(learned.U, truth[1])
+
+
+@dataclass(frozen=True)
+class Refused:
+    """A learning run that refused (or whose log was refused as read).
+
+    Attributes
+    ----------
+    error : SelftuneError
+    seconds : float
+        Wall time of the run until it refused, s.
+    """
+
+    error: SelftuneError
+    seconds: float
+
+    @property
+    def cause(self) -> str:
+        """The cause the message names (:func:`~._causes.refusal_cause`)."""
+        return refusal_cause(self.error)
+
+    @property
+    def message(self) -> str:
+        """The exception's class and message."""
+        return f"{type(self.error).__name__}: {self.error}"
+
+
+#: What became of a learning run.
+Attempt = Learned | Refused
+
+
+def attempt(
+    log: Trajectory | Callable[[], Trajectory], problem: LearningProblem, options: LearningOptions
+) -> Attempt:
+    """One seeded trial's learning run: the learned controller or the refusal, timed.
+
+    Parameters
+    ----------
+    log : Trajectory or callable
+        The log, or what makes it as read (a refusal there is the run's refusal).
+    problem : LearningProblem
+        What the learner knows.
+    options : LearningOptions
+        How it learns.
+
+    Returns
+    -------
+    Learned or Refused
+        The outcome is recorded; the learner's floating-point warnings are not shown.
+    """
+    started = time.perf_counter()
+    try:
+        if callable(log):
+            log = log()
+            started = time.perf_counter()
+        with np.errstate(all="ignore"):
+            learned = learn_controller(log, problem, options)
+    except SelftuneError as error:
+        return Refused(error, time.perf_counter() - started)
+    return Learned(learned, time.perf_counter() - started)

@@ -36,16 +36,17 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..core import Array
-from ..errors import SelftuneError
-from ..learn import DiscreteModel, LearningOptions, Trajectory, closed_loop_radius, learn_controller
+from ..learn import DiscreteModel, LearningOptions, Trajectory, closed_loop_radius
 from ..model import SPMSM
 from ..sim import DriveSettings
-from ._causes import CAUSE_TITLES, UNNAMED, refusal_cause
-from ._common import progress_bar, relative, table
+from ._causes import CAUSE_TITLES, UNNAMED
+from ._common import table, with_progress
 from ._experiment import (
     DC_VOLTAGE,
     MOTOR_RANGES_TEXT,
     Experiment,
+    Refused,
+    attempt,
     random_experiment,
 )
 from ._motors import Choice, Span
@@ -400,16 +401,13 @@ def _outcome(case: HonestyCase) -> HonestyOutcome:
     experiment = case.experiment
     record = experiment.records(_settings(case), case.data_seconds, [case.seed])[0]
     peak = float(np.max(np.linalg.norm(record.true_currents, axis=1)))
-    try:  # the log as read (its time column is checked there), then learned
-        log = _as_logged(case, record.trajectory)
-        with np.errstate(all="ignore"):  # the outcome is recorded, not its warnings
-            learned = learn_controller(log, experiment.known(), _options(case))
-    except SelftuneError as error:
-        text = f"{type(error).__name__}: {error}"
-        cause = refusal_cause(error)
-        return HonestyOutcome(case, "refused", cause, text, *(None,) * 5, peak)
+    # the log as read (its time column is checked there), then learned
+    tried = attempt(lambda: _as_logged(case, record.trajectory), experiment.known(), _options(case))
+    if isinstance(tried, Refused):
+        return HonestyOutcome(case, "refused", tried.cause, tried.message, *(None,) * 5, peak)
+    learned = tried.controller
     truth = experiment.digital_optimum(case.input_delay_samples, "stationary")
-    K_error, U_error = relative(learned.K, truth.K), relative(learned.U, truth.U)
+    K_error, U_error = tried.errors((truth.K, truth.U))
     quality = learned.quality
     model = DiscreteModel(truth.Ad, truth.Bd, truth.Ed, experiment.h, np.zeros(2), 0.0, 1.0, 0)
     radius = closed_loop_radius(model, learned.law, case.input_delay_samples)
@@ -462,11 +460,7 @@ def measure_honesty(logs_per_hazard: int, short: bool = False, progress: bool = 
     """
     started = time.perf_counter()
     cases = honesty_cases(logs_per_hazard, short)
-    outcomes = []
-    with progress_bar(len(cases), "honesty", progress) as bar:
-        for case in cases:
-            outcomes.append(_outcome(case))
-            bar.update(1)
+    outcomes = with_progress(cases, _outcome, "honesty", progress)
     tallies = [
         _tally(key, expected, [o for o in outcomes if o.case.hazard_text == key])
         for key, _, expected in HAZARDS

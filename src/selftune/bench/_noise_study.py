@@ -34,12 +34,12 @@ import numpy as np
 from tqdm import tqdm
 
 from ..core import Array
-from ..errors import ExcitationError, SelftuneError
-from ..learn import TOO_LITTLE_DATA, LearningOptions, Trajectory, learn_controller
+from ..errors import ExcitationError
+from ..learn import TOO_LITTLE_DATA, LearningOptions, Trajectory
 from ..sim import DriveSettings
-from ._causes import UNNAMED, refusal_cause
-from ._common import progress_bar, relative
-from ._experiment import REFERENCE, Experiment, truncated
+from ._causes import UNNAMED
+from ._common import progress_bar
+from ._experiment import REFERENCE, Experiment, Refused, attempt, truncated
 
 __all__ = [
     "NOISE_METHODS",
@@ -249,23 +249,18 @@ class _Run:
 def _run(
     log: Trajectory, experiment: Experiment, options: LearningOptions, truth: tuple[Array, Array]
 ) -> _Run:
-    started = time.perf_counter()
-    try:  # the learner's outcome is recorded, its floating-point warnings are not shown
-        with np.errstate(all="ignore"):
-            learned = learn_controller(log, experiment.known(), options)
-    except SelftuneError as error:
-        elapsed = time.perf_counter() - started
+    tried = attempt(log, experiment.known(), options)
+    if isinstance(tried, Refused):
+        error = tried.error
         match = _NEEDED.search(str(error))
         too_little = isinstance(error, ExcitationError) and TOO_LITTLE_DATA in str(error)
         needed = float(match.group(1)) if match is not None and too_little else None
-        message = f"{type(error).__name__}: {error}"
-        return _Run(math.inf, math.inf, elapsed, refusal_cause(error), False, needed, message)
-    elapsed = time.perf_counter() - started
-    K_error, U_error = relative(learned.K, truth[0]), relative(learned.U, truth[1])
-    quality = learned.quality
+        return _Run(math.inf, math.inf, tried.seconds, tried.cause, False, needed, tried.message)
+    K_error, U_error = tried.errors(truth)
+    quality = tried.controller.quality
     within = (K_error <= SE_MULTIPLE * quality.K_relative_se
               and U_error <= SE_MULTIPLE * quality.U_relative_se)  # fmt: skip
-    return _Run(K_error, U_error, elapsed, "", within, None)
+    return _Run(K_error, U_error, tried.seconds, "", within, None)
 
 
 def _percentile(values: list[float], level: float) -> float | None:

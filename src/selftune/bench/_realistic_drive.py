@@ -90,7 +90,6 @@ from ..learn import (
     Trajectory,
     fit_output_error,
     gather_evidence,
-    learn_controller,
 )
 from ..model import SPMSM, DigitalSolution, solve_digital_regulation
 from ..report import HOT_RESISTANCE, drive_text, feedback_excess_cost, steady_torque_error
@@ -108,6 +107,7 @@ from ._drive_designs import (
     matched_pi,
     spectral_radius,
 )
+from ._experiment import Refused, attempt
 from ._realistic_results import (
     REALISTIC_CONTROLLERS,
     DriveControllerOutcome,
@@ -302,11 +302,11 @@ class _Study:
             selftune = _failed(error, settings.episode_length)
         batch = recorder.logs[0]
         options = self.options(settings)
-        try:
-            identified, seconds = _timed(lambda: learn_controller(batch, self.problem, options).law)
-            identify = _Candidate(identified, self.w, batch.duration, seconds)
-        except SelftuneError as error:
-            identify = _failed(error, batch.duration)
+        tried = attempt(batch, self.problem, options)
+        if isinstance(tried, Refused):
+            identify = _failed(tried.error, batch.duration)
+        else:
+            identify = _Candidate(tried.controller.law, self.w, batch.duration, tried.seconds)
         industrial, fitted = self._industrial(batch, options, selftune, settings)
         flux, phi_error, step = self._algorithm3(settings)
         candidates = {
