@@ -27,9 +27,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..learn import LearnedController
-from ..sim import DriveSettings
 from ._common import table, with_progress
-from ._experiment import MOTOR_RANGES_TEXT, Experiment, Refused, attempt, random_experiment
+from ._experiment import (
+    MOTOR_RANGES_TEXT,
+    Experiment,
+    Refused,
+    attempt,
+    delayed_drive,
+    random_experiment,
+)
 from ._motors import Span
 from ._noise_study import NOISE_METHODS
 from ._targets import TargetOutcome
@@ -185,10 +191,8 @@ def _trials(index: int, rng: np.random.Generator) -> list[CalibrationTrial]:
     experiment = random_experiment(rng)
     noise, seconds = Span(2e-3, 5e-2, log=True).draw(rng), Span(0.2, 0.5).draw(rng)
     text = _text(index, experiment, noise, seconds)
-    settings = replace(DriveSettings.ideal(), input_delay=1, current_noise=noise)
-    log = experiment.logs(settings, seconds, [DRIVE_SEED_BASE + index])[0]
-    digital, continuous = experiment.digital_optimum(1, "rotor"), experiment.continuous_optimum()
-    truths = {"digital": (digital.K, digital.U), "continuous": (continuous.K, continuous.U)}
+    log = experiment.logs(delayed_drive(noise), seconds, [DRIVE_SEED_BASE + index])[0]
+    truths = experiment.truths()
     trials = []
     for key, _, options in NOISE_METHODS:
         if options.structure == "spmsm":

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -61,6 +61,7 @@ __all__ = [
     "Learned",
     "Refused",
     "attempt",
+    "delayed_drive",
     "random_experiment",
     "truncated",
 ]
@@ -135,6 +136,13 @@ class Experiment:
             self.problem(), STATE_WEIGHT * np.eye(2), INPUT_WEIGHT * np.eye(2)
         )
 
+    def truths(self) -> dict[str, tuple[Array, Array]]:
+        """``(K*, U*)`` of each target on the drive of :func:`delayed_drive`: ``"digital"``
+        (:meth:`digital_optimum` with one sample of delay, dq hold) and ``"continuous"``
+        (:meth:`continuous_optimum`)."""
+        digital, continuous = self.digital_optimum(1, "rotor"), self.continuous_optimum()
+        return {"digital": (digital.K, digital.U), "continuous": (continuous.K, continuous.U)}
+
     def records(
         self, settings: DriveSettings, seconds: float, seeds: Sequence[int]
     ) -> list[DriveRecord]:
@@ -169,6 +177,18 @@ class Experiment:
     ) -> list[Trajectory]:
         """What the drive logs, one per seed (:meth:`records`)."""
         return [record.trajectory for record in self.records(settings, seconds, seeds)]
+
+
+def delayed_drive(noise: float) -> DriveSettings:
+    """The library's drive with a one-sample computation delay, the dq zero-order hold and
+    white noise on the measured phase currents (the noise and calibration studies').
+
+    Parameters
+    ----------
+    noise : float
+        Noise on each measured phase current, A rms.
+    """
+    return replace(DriveSettings.ideal(), input_delay=1, current_noise=noise)
 
 
 #: The reference experiment of issue 11 at 10 kHz.

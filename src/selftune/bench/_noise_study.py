@@ -36,10 +36,9 @@ from tqdm import tqdm
 from ..core import Array
 from ..errors import ExcitationError
 from ..learn import TOO_LITTLE_DATA, LearningOptions, Trajectory
-from ..sim import DriveSettings
 from ._causes import UNNAMED
 from ._common import progress_bar
-from ._experiment import REFERENCE, Experiment, Refused, attempt, truncated
+from ._experiment import REFERENCE, Experiment, Refused, attempt, delayed_drive, truncated
 
 __all__ = [
     "NOISE_METHODS",
@@ -327,10 +326,9 @@ def _group(
 ) -> tuple[list[NoiseCell], list[ConsistencyRatio]]:
     """Every method and length at one rate and noise level."""
     experiment = replace(REFERENCE, h=1.0 / f_s)
-    settings = replace(DriveSettings.ideal(), input_delay=1, current_noise=noise)
+    settings = delayed_drive(noise)
     logs = experiment.logs(settings, config.lengths_seconds[-1], config.seeds)
-    digital, continuous = experiment.digital_optimum(1, "rotor"), experiment.continuous_optimum()
-    truths = {"digital": (digital.K, digital.U), "continuous": (continuous.K, continuous.U)}
+    truths = experiment.truths()
     runs: dict[tuple[str, float], list[_Run]] = {}
     for seconds in config.lengths_seconds:
         for log in logs:
