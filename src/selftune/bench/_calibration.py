@@ -26,12 +26,17 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..errors import SelftuneError
-from ..learn import LearnedController, learn_controller
-from ..sim import DriveSettings
-from ._causes import refusal_cause
-from ._common import progress_bar, table
-from ._experiment import MOTOR_RANGES_TEXT, Experiment, log_uniform, random_experiment
+from ..learn import LearnedController
+from ._common import table, with_progress
+from ._experiment import (
+    MOTOR_RANGES_TEXT,
+    Experiment,
+    Refused,
+    attempt,
+    delayed_drive,
+    random_experiment,
+)
+from ._motors import Span
 from ._noise_study import NOISE_METHODS
 from ._targets import TargetOutcome
 
@@ -168,7 +173,7 @@ def _judged(
     learned: LearnedController,
     truth: tuple[np.ndarray, np.ndarray],
 ) -> CalibrationTrial:
-    quality = learned.quality
+    quality = learned.verdict
     K_gap, U_gap = np.abs(learned.K - truth[0]), np.abs(learned.U - truth[1])
     return CalibrationTrial(
         trial_count=index, method_text=key, experiment_text=text, cause_text="",
@@ -184,25 +189,19 @@ def _judged(
 def _trials(index: int, rng: np.random.Generator) -> list[CalibrationTrial]:
     """Every method on trial ``index``'s log."""
     experiment = random_experiment(rng)
-    noise, seconds = log_uniform(rng, 2e-3, 5e-2), float(rng.uniform(0.2, 0.5))
+    noise, seconds = Span(2e-3, 5e-2, log=True).draw(rng), Span(0.2, 0.5).draw(rng)
     text = _text(index, experiment, noise, seconds)
-    settings = replace(DriveSettings.ideal(), input_delay=1, current_noise=noise)
-    log = experiment.logs(settings, seconds, [DRIVE_SEED_BASE + index])[0]
-    digital, continuous = experiment.digital_optimum(1, "rotor"), experiment.continuous_optimum()
-    truths = {"digital": (digital.K, digital.U), "continuous": (continuous.K, continuous.U)}
+    log = experiment.logs(delayed_drive(noise), seconds, [DRIVE_SEED_BASE + index])[0]
+    truths = experiment.truths()
     trials = []
     for key, _, options in NOISE_METHODS:
         if options.structure == "spmsm":
             options = replace(options, electrical_speed=experiment.electrical_speed)
-        try:
-            with np.errstate(all="ignore"):  # the outcome is recorded, not its warnings
-                learned = learn_controller(log, experiment.known(), options)
-        except SelftuneError as error:
-            trials.append(
-                CalibrationTrial(index, key, text, refusal_cause(error), None, None, 0, 0, 0, 0)
-            )
+        tried = attempt(log, experiment.known(), options)
+        if isinstance(tried, Refused):
+            trials.append(CalibrationTrial(index, key, text, tried.cause, None, None, 0, 0, 0, 0))
             continue
-        trials.append(_judged(index, key, text, learned, truths[options.target]))
+        trials.append(_judged(index, key, text, tried.controller, truths[options.target]))
     return trials
 
 
@@ -251,11 +250,8 @@ def measure_calibration(trials_count: int, progress: bool = False) -> Calibratio
     """
     started = time.perf_counter()
     rng = np.random.default_rng(TRIALS_SEED)
-    trials: list[CalibrationTrial] = []
-    with progress_bar(trials_count, "calibration", progress) as bar:
-        for index in range(trials_count):
-            trials += _trials(index, rng)
-            bar.update(1)
+    each = with_progress(range(trials_count), lambda i: _trials(i, rng), "calibration", progress)
+    trials = [trial for group in each for trial in group]
     methods = [
         _method(key, [t for t in trials if t.method_text == key]) for key, _, _ in NOISE_METHODS
     ]

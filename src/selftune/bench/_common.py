@@ -8,7 +8,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from tqdm import tqdm
@@ -153,6 +153,34 @@ def progress_bar(total: int, description: str, enabled: bool) -> tqdm[Any]:
         leave=False,
         disable=None if enabled else True,
     )
+
+
+Item = TypeVar("Item")
+Result = TypeVar("Result")
+
+
+def with_progress(
+    items: Sequence[Item], function: Callable[[Item], Result], description: str, enabled: bool
+) -> list[Result]:
+    """``function(item)`` for every item, in order, each advancing a :func:`progress_bar`.
+
+    Parameters
+    ----------
+    items : sequence
+        The trials (seeds, cases, ...).
+    function : callable
+        One trial's run.
+    description : str
+        The bar's title.
+    enabled : bool
+        Show the bar (only when stderr is a terminal).
+    """
+    results = []
+    with progress_bar(len(items), description, enabled) as bar:
+        for item in items:
+            results.append(function(item))
+            bar.update(1)
+    return results
 
 
 def relative(value: Array, reference: Array) -> float:

@@ -24,6 +24,7 @@ from ._common import (
     relative,
     sci,
     table,
+    with_progress,
 )
 
 
@@ -175,20 +176,21 @@ def measure_data_efficiency(config: BenchConfig, progress: bool = False) -> Data
     motor = SPMSM.paper()
     settings = TuningSettings.paper()
     optimum = model_optimum(motor, settings)
-    traces: list[list[tuple[float, float, float]]] = []
-    with progress_bar(len(config.seeds), "data efficiency: on-policy", progress) as bar:
-        for seed in config.seeds:
-            traces.append(_onpolicy_trace(motor, dataclasses.replace(settings, seed=seed), optimum))
-            bar.update(1)
+    traces = with_progress(
+        config.seeds,
+        lambda seed: _onpolicy_trace(motor, dataclasses.replace(settings, seed=seed), optimum),
+        "data efficiency: on-policy",
+        progress,
+    )
     first_met, onpolicy_seconds = _first_met(traces)
     grid, onpolicy_rows = _onpolicy_rows(traces, settings, optimum)
     offpolicy_rows = _offpolicy_rows(config, motor, settings, optimum, progress)
     shortest = _shortest_batch(config.offpolicy_samples, offpolicy_rows)
-    offpolicy_seconds = math.inf if shortest is None else shortest * settings.sampling
+    offpolicy_seconds = math.inf if shortest is None else shortest * settings.h
     ratio = onpolicy_seconds / offpolicy_seconds
     return DataEfficiency(
         target_relative_error=TARGET_RELATIVE_ERROR,
-        sampling_seconds=settings.sampling,
+        sampling_seconds=settings.h,
         seeds=config.seeds,
         onpolicy_episode_seconds=settings.episode_length,
         onpolicy_intervals_per_episode=-(-settings.samples_per_episode // settings.interval),
@@ -197,7 +199,7 @@ def measure_data_efficiency(config: BenchConfig, progress: bool = False) -> Data
         onpolicy_curve=_error_curve(grid, onpolicy_rows),
         offpolicy_interval_samples=1,
         offpolicy_curve=_error_curve(
-            [samples * settings.sampling for samples in config.offpolicy_samples],
+            [samples * settings.h for samples in config.offpolicy_samples],
             offpolicy_rows,
         ),
         offpolicy_samples=shortest,
@@ -263,7 +265,7 @@ def _offpolicy_rows(
             for seed in config.seeds:
                 batch_settings = dataclasses.replace(
                     settings,
-                    episode_length=samples * settings.sampling,
+                    episode_length=samples * settings.h,
                     interval=1,
                     seed=seed,
                 )

@@ -1,7 +1,7 @@
 """What the realistic-drive study (:mod:`._realistic_drive`) builds its comparison from.
 
 - :func:`drive_cases`: the motors, drawn reproducibly from plausible ranges
-  (:data:`MOTOR_RANGES`, generator seed :data:`MOTOR_SEED`), each as on its nameplate and
+  (:func:`motor_ranges`, generator seed :data:`MOTOR_SEED`), each as on its nameplate and
   as built (within :data:`TOLERANCES` of the nameplate);
 - :class:`RecordingDrive`: a :class:`~selftune.tuning.Drive` that keeps every log it hands
   a session, so that every controller is learned from the very same batch, and times the
@@ -25,15 +25,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..learn import Trajectory
+from ..learn import LoggedInput, Trajectory
 from ..loop import SampledLoop
 from ..model import SPMSM
 from ..sim import ExogenousSignal, Exploration, RealisticDrive
 from ..tuning import known_flux_form
+from ._motors import Choice, MotorRanges, RandomMotor, Span, draw_motor
 
 __all__ = [
     "HOLD",
-    "MOTOR_RANGES",
     "MOTOR_SEED",
     "TOLERANCES",
     "VOLTAGE_MARGIN",
@@ -42,31 +42,50 @@ __all__ = [
     "current_bandwidth",
     "drive_cases",
     "matched_pi",
+    "motor_ranges",
     "pi_law",
 ]
 
 #: Seed of the generator the motors are drawn with.
 MOTOR_SEED = 2026
-#: Ranges the nameplates are drawn from (log-uniform for the inductance and the time
-#: constant, uniform otherwise): L_s (H); L_s / R_s (s); the back-EMF ``w_e phi_pm`` at the
-#: operating speed (V); the q current at T* (A); the electrical speed of the first motor and
-#: of the others (rad/s). Pole pairs are drawn from :data:`POLE_PAIRS`.
-MOTOR_RANGES = {
-    "L_s_henry": (1.5e-3, 12e-3),
-    "time_constant_seconds": (3e-3, 15e-3),
-    "back_emf_volts": (40.0, 120.0),
-    "current_amperes": (3.0, 12.0),
-    "fast_electrical_speed_rad_per_second": (1000.0, 1500.0),
-    "electrical_speed_rad_per_second": (200.0, 900.0),
-}
-#: The pole pairs drawn from.
-POLE_PAIRS = (2, 3, 4, 5)
-#: The motor as built is within this relative tolerance of its nameplate (uniform).
-TOLERANCES = {"R_s": 0.10, "L_s": 0.10, "phi_pm": 0.05}
+#: The motor as built is within these relative tolerances of its nameplate (uniform): R_s,
+#: L_s, phi_pm.
+TOLERANCES = (0.10, 0.10, 0.05)
 #: A draw is kept only if the steady voltage at T*, with R_s at twice its nameplate (the
 #: tolerance, 40 K and +40% together are 1.1 x 1.156 x 1.4 = 1.78), stays below this
 #: fraction of the linear range V_dc / sqrt 3 (room for the exploration and the steps).
 VOLTAGE_MARGIN = 0.6
+
+
+def motor_ranges(fast: bool, dc_voltage: float) -> MotorRanges:
+    """The ranges the nameplates are drawn from, in the order drawn: 2-5 pole pairs; L_s
+    1.5-12 mH and L_s / R_s 3-15 ms (log-uniform); the electrical speed (1,000-1,500 rad/s
+    when ``fast``, 200-900 otherwise), the back-EMF ``w_e phi_pm`` 40-120 V and the q
+    current at T* 3-12 A (uniform); then the motor as built (:data:`TOLERANCES`), redrawn
+    until its voltage fits :data:`VOLTAGE_MARGIN` of the linear range of ``dc_voltage``.
+
+    Parameters
+    ----------
+    fast : bool
+        The first motor's speed range.
+    dc_voltage : float
+        DC-bus voltage of the drive, V.
+    """
+    speed = Span(1000.0, 1500.0) if fast else Span(200.0, 900.0)
+    return MotorRanges(
+        draws=(
+            ("pole_pairs", Choice((2, 3, 4, 5))),
+            ("L_s_henry", Span(1.5e-3, 12e-3, log=True)),
+            ("time_constant_seconds", Span(3e-3, 15e-3, log=True)),
+            ("electrical_speed_rad_per_second", speed),
+            ("back_emf_volts", Span(40.0, 120.0)),
+            ("current_amperes", Span(3.0, 12.0)),
+        ),
+        tolerances=TOLERANCES,
+        voltage_limit_volts=VOLTAGE_MARGIN * dc_voltage / np.sqrt(3.0),
+    )  # fmt: skip
+
+
 #: What the inverter holds over a sample (a PWM inverter: the stationary-frame vector).
 HOLD = "stationary"
 
@@ -96,46 +115,19 @@ class DriveCase:
     torque: float
 
 
-def _log_uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
-    return float(np.exp(rng.uniform(np.log(bounds[0]), np.log(bounds[1]))))
-
-
-def _uniform(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
-    return float(rng.uniform(bounds[0], bounds[1]))
-
-
-def _draw(rng: np.random.Generator, fast: bool, dc_voltage: float, index: int) -> DriveCase:
-    """One motor, redrawn until its voltage fits :data:`VOLTAGE_MARGIN`."""
-    ranges = MOTOR_RANGES
-    speed_key = "electrical_speed_rad_per_second"
-    if fast:
-        speed_key = "fast_" + speed_key
-    while True:
-        p = int(rng.choice(POLE_PAIRS))
-        L_s = _log_uniform(rng, ranges["L_s_henry"])
-        R_s = L_s / _log_uniform(rng, ranges["time_constant_seconds"])
-        w_e = _uniform(rng, ranges[speed_key])
-        phi_pm = _uniform(rng, ranges["back_emf_volts"]) / w_e
-        current = _uniform(rng, ranges["current_amperes"])
-        factors = {name: 1.0 + rng.uniform(-tol, tol) for name, tol in TOLERANCES.items()}
-        voltage = float(np.hypot(w_e * phi_pm + 2.0 * R_s * current, w_e * L_s * current))
-        if voltage <= VOLTAGE_MARGIN * dc_voltage / np.sqrt(3.0):
-            break
-    nameplate = SPMSM(R_s=R_s, L_s=L_s, phi_pm=phi_pm, p=p)
-    as_built = SPMSM(
-        R_s=R_s * factors["R_s"], L_s=L_s * factors["L_s"], phi_pm=phi_pm * factors["phi_pm"], p=p
-    )
+def _case(drawn: RandomMotor, index: int) -> DriveCase:
+    nameplate = drawn.nameplate
     name = (
-        f"M{index + 1}: p = {p}, {R_s:.3g} ohm, {L_s * 1e3:.3g} mH, {phi_pm * 1e3:.3g} mWb, "
-        f"{w_e:.0f} rad/s el."
+        f"M{index + 1}: p = {nameplate.p}, {nameplate.R_s:.3g} ohm, {nameplate.L_s * 1e3:.3g} mH, "
+        f"{nameplate.phi_pm * 1e3:.3g} mWb, {drawn.electrical_speed:.0f} rad/s el."
     )
-    return DriveCase(name, nameplate, as_built, w_e / p, 1.5 * p * phi_pm * current)
+    return DriveCase(name, nameplate, drawn.as_built, drawn.speed, drawn.torque)
 
 
 def drive_cases(count: int, dc_voltage: float) -> tuple[DriveCase, ...]:
     """The study's motors: the first at 1,000-1,500 rad/s electrical, the others slower.
 
-    Drawn by ``numpy.random.default_rng(MOTOR_SEED)`` from :data:`MOTOR_RANGES`, so the
+    Drawn by ``numpy.random.default_rng(MOTOR_SEED)`` from :func:`motor_ranges`, so the
     same ``count`` always gives the same motors (and a smaller count a prefix of them).
 
     Parameters
@@ -150,7 +142,10 @@ def drive_cases(count: int, dc_voltage: float) -> tuple[DriveCase, ...]:
     tuple of DriveCase
     """
     rng = np.random.default_rng(MOTOR_SEED)
-    return tuple(_draw(rng, index == 0, dc_voltage, index) for index in range(count))
+    return tuple(
+        _case(draw_motor(rng, motor_ranges(index == 0, dc_voltage)), index)
+        for index in range(count)
+    )
 
 
 class RecordingDrive:
@@ -181,24 +176,14 @@ class RecordingDrive:
         return self.drive.pole_pairs
 
     @property
-    def sampling(self) -> float:
-        """Sampling period, s."""
-        return self.drive.sampling
+    def loop(self) -> SampledLoop:
+        """The drive's loop (its sampling period, delay and hold)."""
+        return self.drive.loop
 
     @property
-    def input_delay(self) -> int:
-        """d, the computation delay, samples."""
-        return self.drive.input_delay
-
-    @property
-    def logged_input(self) -> str:
+    def logged_input(self) -> LoggedInput:
         """What row k of the log's voltages holds."""
         return self.drive.logged_input
-
-    @property
-    def voltage_hold(self) -> str:
-        """What the inverter holds over a sample."""
-        return self.drive.voltage_hold
 
     def _kept(self, started: float, log: Trajectory) -> Trajectory:
         self.drive_seconds += time.perf_counter() - started

@@ -21,14 +21,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import Array, ControlLaw, discretize, lqr
-from ..errors import SelftuneError, UnsolvableError
-from ..learn import LearningOptions, LearningProblem, learn_controller
+from ..errors import UnsolvableError
+from ..learn import LearningOptions, LearningProblem
 from ..loop import SampledLoop
 from ..model import SPMSM, solve_digital_regulation, solve_optimal_regulation
 from ..sim import simulate_loop
-from ._causes import refusal_cause
-from ._common import progress_bar, relative, sci, table
-from ._experiment import DC_VOLTAGE
+from ._common import progress_bar, sci, table
+from ._experiment import DC_VOLTAGE, Refused, attempt
 from ._targets import TargetOutcome
 
 __all__ = [
@@ -156,7 +155,7 @@ def _rate_errors(name: str, motor: SPMSM, speed: float, torque: float, f_s: floa
     logs = simulate_loop(
         (problem.A, problem.B, problem.D), law, w, h=h, num_samples=count, delay=1, exploration=rho
     )
-    known = LearningProblem(Q, R, K0, C=np.eye(2), F=problem.F)
+    known = (LearningProblem(Q, R, C=np.eye(2), F=problem.F), K0)
     continuous = solve_optimal_regulation(problem, Q, R)
     digital = solve_digital_regulation(problem, Q, R, h, input_delay=1)
 
@@ -166,13 +165,11 @@ def _rate_errors(name: str, motor: SPMSM, speed: float, torque: float, f_s: floa
         """Relative errors of K and U against the target's optimum; None if refused."""
         options = LearningOptions(target=target, method=method, input_delay=1)  # type: ignore[arg-type]
         truth = continuous if target == "continuous" else digital
-        try:
-            with np.errstate(all="ignore"):  # the outcome is recorded, not its warnings
-                result = learn_controller(logs.applied, known, options)
-        except SelftuneError as error:
-            refusals.append(f"{method} ({target}): {refusal_cause(error)}")
+        tried = attempt(logs.applied, known, options)
+        if isinstance(tried, Refused):
+            refusals.append(f"{method} ({target}): {tried.cause}")
             return None, None
-        return relative(result.K, truth.K), relative(result.U, truth.U)
+        return tried.errors((truth.K, truth.U))
 
     continuous_adp = errors("continuous", "adp")
     digital_adp = errors("digital", "adp")

@@ -1,4 +1,5 @@
-"""The experiment of the noise, honesty and calibration studies (issue 11), and their truth.
+"""The experiment of the noise, honesty and calibration studies (issue 11), their truth, and
+the one learning run of every seeded study (:func:`attempt`).
 
 A motor held at a speed by a load machine, on the library's realistic drive
 (:func:`~selftune.sim.run_drive_batch`), under a gentle initial controller ``K0`` (1.25% of
@@ -21,13 +22,21 @@ computed here and only to score the learners.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..learn import LearningProblem, Trajectory
+from ..errors import SelftuneError
+from ..learn import (
+    LearnedController,
+    LearningOptions,
+    LearningProblem,
+    Trajectory,
+    learn_controller,
+)
 from ..model import (
     SPMSM,
     DigitalSolution,
@@ -37,14 +46,22 @@ from ..model import (
     solve_optimal_regulation,
 )
 from ..sim import DriveRecord, DriveSettings, held, run_drive_batch, uniform
+from ._causes import refusal_cause
+from ._common import relative
+from ._motors import Choice, MotorRanges, Span, draw_motor
 
 __all__ = [
     "DC_VOLTAGE",
+    "EXPERIMENT_RANGES",
     "EXPLORATION_FRACTION",
     "MOTOR_RANGES_TEXT",
     "REFERENCE",
+    "Attempt",
     "Experiment",
-    "log_uniform",
+    "Learned",
+    "Refused",
+    "attempt",
+    "delayed_drive",
     "random_experiment",
     "truncated",
 ]
@@ -96,12 +113,10 @@ class Experiment:
         """The true known-flux regulation problem."""
         return self.motor.regulation_problem(self.speed)
 
-    def known(self) -> LearningProblem:
-        """What the learner knows: cost, K0, C and F (no A, B or D)."""
-        return LearningProblem(
-            STATE_WEIGHT * np.eye(2), INPUT_WEIGHT * np.eye(2), self.K0, C=np.eye(2),
-            F=self.problem().F,
-        )  # fmt: skip
+    def known(self) -> tuple[LearningProblem, Array]:
+        """What the learner knows: cost, C and F (no A, B or D), and the K0 of the log."""
+        weights = (STATE_WEIGHT * np.eye(2), INPUT_WEIGHT * np.eye(2))
+        return LearningProblem(*weights, C=np.eye(2), F=self.problem().F), self.K0
 
     def digital_optimum(self, delay: int, hold: str) -> DigitalSolution:
         """The optimum of the digital cost on the true sampled loop with a delay of d
@@ -118,6 +133,13 @@ class Experiment:
         return solve_optimal_regulation(
             self.problem(), STATE_WEIGHT * np.eye(2), INPUT_WEIGHT * np.eye(2)
         )
+
+    def truths(self) -> dict[str, tuple[Array, Array]]:
+        """``(K*, U*)`` of each target on the drive of :func:`delayed_drive`: ``"digital"``
+        (:meth:`digital_optimum` with one sample of delay, dq hold) and ``"continuous"``
+        (:meth:`continuous_optimum`)."""
+        digital, continuous = self.digital_optimum(1, "rotor"), self.continuous_optimum()
+        return {"digital": (digital.K, digital.U), "continuous": (continuous.K, continuous.U)}
 
     def records(
         self, settings: DriveSettings, seconds: float, seeds: Sequence[int]
@@ -155,10 +177,35 @@ class Experiment:
         return [record.trajectory for record in self.records(settings, seconds, seeds)]
 
 
+def delayed_drive(noise: float) -> DriveSettings:
+    """The library's drive with a one-sample computation delay, the dq zero-order hold and
+    white noise on the measured phase currents (the noise and calibration studies').
+
+    Parameters
+    ----------
+    noise : float
+        Noise on each measured phase current, A rms.
+    """
+    return replace(DriveSettings.ideal(), input_delay=1, current_noise=noise)
+
+
 #: The reference experiment of issue 11 at 10 kHz.
 REFERENCE = Experiment(SPMSM(R_s=0.6, L_s=8e-3, phi_pm=0.35, p=3), speed=50.0, torque=5.0, h=1e-4)
 
 
+#: The ranges of :func:`random_experiment`, in the order drawn.
+EXPERIMENT_RANGES = MotorRanges(
+    draws=(
+        ("R_s_ohm", Span(0.05, 2.0, log=True)),
+        ("L_s_henry", Span(5e-4, 3e-2, log=True)),
+        ("phi_pm_weber", Span(0.02, 0.5, log=True)),
+        ("pole_pairs", Choice((2, 3, 4, 5, 6, 7, 8))),
+        ("current_amperes", Span(2.0, 15.0, log=True)),
+        ("electrical_speed_rad_per_second", Span(100.0, 2000.0, log=True)),
+        ("sampling_frequency_hz", Choice((1e4, 2e4))),
+    ),
+    speed_cap_volts=150.0,
+)
 #: The ranges of :func:`random_experiment`, in words.
 MOTOR_RANGES_TEXT = (
     "R_s 0.05-2 ohm, L_s 0.5-30 mH, phi_pm 0.02-0.5 Wb (log-uniform), p 2-8, i_q* 2-15 A, "
@@ -167,26 +214,17 @@ MOTOR_RANGES_TEXT = (
 )
 
 
-def log_uniform(rng: np.random.Generator, low: float, high: float) -> float:
-    """A number drawn log-uniformly from ``[low, high]``."""
-    return float(np.exp(rng.uniform(np.log(low), np.log(high))))
-
-
 def random_experiment(rng: np.random.Generator) -> Experiment:
-    """A plausible motor, operating point and sampling rate (:data:`MOTOR_RANGES_TEXT`).
+    """A plausible motor, operating point and sampling rate (:data:`EXPERIMENT_RANGES`).
 
     Parameters
     ----------
     rng : numpy.random.Generator
         The generator (the studies seed their own: their motors are not the tests').
     """
-    R_s, L_s = log_uniform(rng, 0.05, 2.0), log_uniform(rng, 5e-4, 3e-2)
-    phi_pm, p = log_uniform(rng, 0.02, 0.5), int(rng.integers(2, 9))
-    current = log_uniform(rng, 2.0, 15.0)
-    w_e = min(log_uniform(rng, 100.0, 2000.0), 150.0 / phi_pm, 150.0 / (L_s * current))
-    f_s = float(rng.choice([1e4, 2e4]))
-    motor = SPMSM(R_s=R_s, L_s=L_s, phi_pm=phi_pm, p=p)
-    return Experiment(motor, speed=w_e / p, torque=1.5 * p * phi_pm * current, h=1.0 / f_s)
+    drawn = draw_motor(rng, EXPERIMENT_RANGES)
+    assert drawn.sampling_frequency is not None
+    return Experiment(drawn.nameplate, drawn.speed, drawn.torque, h=1.0 / drawn.sampling_frequency)
 
 
 def truncated(log: Trajectory, samples: int) -> Trajectory:
@@ -196,3 +234,91 @@ def truncated(log: Trajectory, samples: int) -> Trajectory:
     return Trajectory(
         t=log.t[: samples + 1], x=log.x[: samples + 1], u=log.u[:samples], w=w, angle=angle
     )
+
+
+@dataclass(frozen=True)
+class Learned:
+    """A learning run that returned a controller.
+
+    Attributes
+    ----------
+    controller : LearnedController
+    seconds : float
+        Wall time of :func:`~selftune.learn.learn_controller`, s.
+    """
+
+    controller: LearnedController
+    seconds: float
+
+    def errors(self, truth: tuple[Array, Array]) -> tuple[float, float]:
+        """``||K - K*|| / ||K*||`` and ``||U - U*|| / ||U*||`` against the truth ``(K*, U*)``.
+
+        Parameters
+        ----------
+        truth : (ndarray, ndarray)
+            K* and U* of the target learned for.
+        """
+        learned = self.controller
+        return relative(learned.K, truth[0]), relative(learned.U, truth[1])
+
+
+@dataclass(frozen=True)
+class Refused:
+    """A learning run that refused (or whose log was refused as read).
+
+    Attributes
+    ----------
+    error : SelftuneError
+    seconds : float
+        Wall time of the run until it refused, s.
+    """
+
+    error: SelftuneError
+    seconds: float
+
+    @property
+    def cause(self) -> str:
+        """The cause the message names (:func:`~._causes.refusal_cause`)."""
+        return refusal_cause(self.error)
+
+    @property
+    def message(self) -> str:
+        """The exception's class and message."""
+        return f"{type(self.error).__name__}: {self.error}"
+
+
+#: What became of a learning run.
+Attempt = Learned | Refused
+
+
+def attempt(
+    log: Trajectory | Callable[[], Trajectory],
+    known: tuple[LearningProblem, Array],
+    options: LearningOptions,
+) -> Attempt:
+    """One seeded trial's learning run: the learned controller or the refusal, timed.
+
+    Parameters
+    ----------
+    log : Trajectory or callable
+        The log, or what makes it as read (a refusal there is the run's refusal).
+    known : (LearningProblem, ndarray)
+        What the learner knows: the problem, and the K0 the log was taken under.
+    options : LearningOptions
+        How it learns.
+
+    Returns
+    -------
+    Learned or Refused
+        The outcome is recorded; the learner's floating-point warnings are not shown.
+    """
+    started = time.perf_counter()
+    try:
+        if callable(log):
+            log = log()
+            started = time.perf_counter()
+        with np.errstate(all="ignore"):
+            learned = learn_controller(log, *known, options)
+    except SelftuneError as error:
+        return Refused(error, time.perf_counter() - started)
+    return Learned(learned, time.perf_counter() - started)

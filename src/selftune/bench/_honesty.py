@@ -36,19 +36,20 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..core import Array
-from ..errors import SelftuneError
-from ..learn import DiscreteModel, LearningOptions, Trajectory, closed_loop_radius, learn_controller
+from ..learn import DiscreteModel, LearningOptions, Trajectory, closed_loop_radius
 from ..model import SPMSM
 from ..sim import DriveSettings
-from ._causes import CAUSE_TITLES, UNNAMED, refusal_cause
-from ._common import progress_bar, relative, table
+from ._causes import CAUSE_TITLES, UNNAMED
+from ._common import table, with_progress
 from ._experiment import (
     DC_VOLTAGE,
     MOTOR_RANGES_TEXT,
     Experiment,
-    log_uniform,
+    Refused,
+    attempt,
     random_experiment,
 )
+from ._motors import Choice, Span
 from ._targets import TargetOutcome
 
 __all__ = [
@@ -309,10 +310,10 @@ def honesty_cases(logs_per_hazard: int, short: bool = False) -> list[HonestyCase
         hazard = HAZARDS[index % len(HAZARDS)][0]
         experiment = random_experiment(rng)
         motor = experiment.motor
-        noise = log_uniform(rng, 1e-3, 5e-2)
-        seconds = rng.uniform(0.05, 0.1) if short else rng.uniform(0.1, 0.4)
+        noise = Span(1e-3, 5e-2, log=True).draw(rng)
+        seconds = (Span(0.05, 0.1) if short else Span(0.1, 0.4)).draw(rng)
         if hazard == "short":
-            seconds = rng.uniform(0.005, 0.05)
+            seconds = Span(0.005, 0.05).draw(rng)
         current = float(motor.current_reference(experiment.torque)[1])
         offset, bits, full_scale, volts = _sizes(hazard, rng, current)
         cases.append(
@@ -322,7 +323,7 @@ def honesty_cases(logs_per_hazard: int, short: bool = False) -> list[HonestyCase
                 pole_pairs_count=motor.p, speed_rad_per_second=experiment.speed,
                 torque_newton_meters=experiment.torque, sampling_frequency_hz=1.0 / experiment.h,
                 input_delay_samples=2 if hazard == "shift 2" else 1,
-                data_seconds=float(seconds), current_noise_amperes=noise,
+                data_seconds=seconds, current_noise_amperes=noise,
                 method_text=("adp", "identify")[(index // len(HAZARDS)) % 2],
                 clock_offset_seconds=offset, adc_bits_count=bits, adc_range_amperes=full_scale,
                 dead_time_volts=volts,
@@ -336,14 +337,14 @@ def _sizes(
 ) -> tuple[float, int, float, float]:
     """The hazard's size, drawn: clock offset (s), ADC bits and range (A), dead time (V)."""
     if hazard == "clock offset":
-        sign = float(rng.choice([-1.0, 1.0]))
-        return sign * log_uniform(rng, 1e-3, 1e6), 0, 0.0, 0.0
+        sign = Choice((-1.0, 1.0)).draw(rng)
+        return sign * Span(1e-3, 1e6, log=True).draw(rng), 0, 0.0, 0.0
     if hazard == "ADC":
-        lsb = log_uniform(rng, 0.01, 0.05)
-        bits = 12 if 2**9 * lsb < 3.0 * current else int(rng.choice([10, 12]))
+        lsb = Span(0.01, 0.05, log=True).draw(rng)
+        bits = 12 if 2**9 * lsb < 3.0 * current else int(Choice((10, 12)).draw(rng))
         return 0.0, bits, lsb * 2 ** (bits - 1), 0.0
     if hazard.startswith("dead time"):
-        return 0.0, 0, 0.0, float(rng.uniform(0.5, 3.0))
+        return 0.0, 0, 0.0, Span(0.5, 3.0).draw(rng)
     return 0.0, 0, 0.0, 0.0
 
 
@@ -400,17 +401,14 @@ def _outcome(case: HonestyCase) -> HonestyOutcome:
     experiment = case.experiment
     record = experiment.records(_settings(case), case.data_seconds, [case.seed])[0]
     peak = float(np.max(np.linalg.norm(record.true_currents, axis=1)))
-    try:  # the log as read (its time column is checked there), then learned
-        log = _as_logged(case, record.trajectory)
-        with np.errstate(all="ignore"):  # the outcome is recorded, not its warnings
-            learned = learn_controller(log, experiment.known(), _options(case))
-    except SelftuneError as error:
-        text = f"{type(error).__name__}: {error}"
-        cause = refusal_cause(error)
-        return HonestyOutcome(case, "refused", cause, text, *(None,) * 5, peak)
+    # the log as read (its time column is checked there), then learned
+    tried = attempt(lambda: _as_logged(case, record.trajectory), experiment.known(), _options(case))
+    if isinstance(tried, Refused):
+        return HonestyOutcome(case, "refused", tried.cause, tried.message, *(None,) * 5, peak)
+    learned = tried.controller
     truth = experiment.digital_optimum(case.input_delay_samples, "stationary")
-    K_error, U_error = relative(learned.K, truth.K), relative(learned.U, truth.U)
-    quality = learned.quality
+    K_error, U_error = tried.errors((truth.K, truth.U))
+    quality = learned.verdict
     model = DiscreteModel(truth.Ad, truth.Bd, truth.Ed, experiment.h, np.zeros(2), 0.0, 1.0, 0)
     radius = closed_loop_radius(model, learned.law, case.input_delay_samples)
     if radius >= 1.0:
@@ -462,11 +460,7 @@ def measure_honesty(logs_per_hazard: int, short: bool = False, progress: bool = 
     """
     started = time.perf_counter()
     cases = honesty_cases(logs_per_hazard, short)
-    outcomes = []
-    with progress_bar(len(cases), "honesty", progress) as bar:
-        for case in cases:
-            outcomes.append(_outcome(case))
-            bar.update(1)
+    outcomes = with_progress(cases, _outcome, "honesty", progress)
     tallies = [
         _tally(key, expected, [o for o in outcomes if o.case.hazard_text == key])
         for key, _, expected in HAZARDS

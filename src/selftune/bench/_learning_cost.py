@@ -14,7 +14,7 @@ from ..core import (
     Array,
     ControlLaw,
 )
-from ..learn import learn_output_regulation
+from ..learn import LearnedController, LearningOptions, LearningProblem, learn_regulator
 from ..model import SPMSM
 from ..sim import SimulatedDrive, held, uniform
 from ..tuning import TuningSettings, known_flux_form, reference_perturbation
@@ -110,7 +110,7 @@ def _offpolicy_batch(
     """The off-policy batch (as :func:`selftune.torque.offpolicy` makes it) and ``C, E, F``."""
     C, E, F, w = known_flux_form(motor.p, settings.speed, settings.torque, motor.phi_pm)
     X = -F  # C = I
-    drive = SimulatedDrive(motor=motor, speed=settings.speed, sampling=settings.sampling)
+    drive = SimulatedDrive(motor=motor, speed=settings.speed, h=settings.h)
 
     def perturbed(t: Array) -> Array:
         return w + reference_perturbation(t, settings.perturbation)
@@ -145,21 +145,17 @@ def measure_learning_cost(config: BenchConfig, progress: bool = False) -> Learni
     datasets = []
     methods: tuple[Literal["customized", "general"], ...] = ("customized", "general")
     with progress_bar(len(config.learning_datasets) * 2, "learning cost", progress) as bar:
-        for sampling, samples in config.learning_datasets:
-            settings = TuningSettings.paper(sampling=sampling)
+        for h, samples in config.learning_datasets:
+            settings = TuningSettings.paper(h=h)
             batch, C, E, F = _offpolicy_batch(motor, settings, samples, seed=config.seeds[0])
             learners = {
                 method: functools.partial(
-                    learn_output_regulation,
+                    learn_regulator,
                     batch,
-                    C,
-                    E,
-                    F,
-                    settings.Q,
-                    settings.R,
+                    LearningProblem(settings.Q, settings.R, C=C, E=E, F=F),
                     settings.K0,
-                    interval=settings.interval,
-                    method=method,
+                    LearningOptions(interval=settings.interval),
+                    formulation=method,
                 )
                 for method in methods
             }
@@ -180,7 +176,7 @@ def measure_learning_cost(config: BenchConfig, progress: bool = False) -> Learni
                     regression_condition_ratio=learned.history[-1].regression.condition,
                     wall_seconds=float(statistics.median(times[method])),
                     repeats_count=config.learning_repeats,
-                    theta_relative_error=relative(learned.theta, optimum.theta),
+                    theta_relative_error=relative(_theta(learned), optimum.theta),
                     K_relative_error=relative(learned.K, optimum.K),
                     U_relative_error=relative(learned.U, optimum.U),
                 )
@@ -188,9 +184,9 @@ def measure_learning_cost(config: BenchConfig, progress: bool = False) -> Learni
             datasets.append(
                 LearningDataset(
                     samples=samples,
-                    sampling_seconds=sampling,
+                    sampling_seconds=h,
                     interval_samples=settings.interval,
-                    data_seconds=samples * sampling,
+                    data_seconds=samples * h,
                     customized=runs["customized"],
                     general=runs["general"],
                 )
@@ -245,3 +241,9 @@ def markdown_learning(cost: LearningCost) -> list[str]:
         rows,
     )
     return lines
+
+
+def _theta(learned: LearnedController) -> Array:
+    """Theta of a regulator learned by policy iteration (it always has one)."""
+    assert learned.theta is not None
+    return learned.theta

@@ -62,7 +62,7 @@ class Loop:
         return cls(
             motor=motor,
             speed=settings.speed,
-            h=settings.sampling,
+            h=settings.h,
             A=np.asarray(problem.A),
             B=np.asarray(problem.B),
             D=np.asarray(problem.D),

@@ -33,12 +33,11 @@ import numpy as np
 from tqdm import tqdm
 
 from ..core import Array
-from ..errors import SelftuneError, TooLittleData
-from ..learn import LearningOptions, Trajectory, learn_controller
-from ..sim import DriveSettings
-from ._causes import UNNAMED, refusal_cause
-from ._common import progress_bar, relative
-from ._experiment import REFERENCE, Experiment, truncated
+from ..errors import TooLittleData
+from ..learn import LearningOptions, Trajectory
+from ._causes import UNNAMED
+from ._common import progress_bar
+from ._experiment import REFERENCE, Experiment, Refused, attempt, delayed_drive, truncated
 
 __all__ = [
     "NOISE_METHODS",
@@ -246,21 +245,16 @@ class _Run:
 def _run(
     log: Trajectory, experiment: Experiment, options: LearningOptions, truth: tuple[Array, Array]
 ) -> _Run:
-    started = time.perf_counter()
-    try:  # the learner's outcome is recorded, its floating-point warnings are not shown
-        with np.errstate(all="ignore"):
-            learned = learn_controller(log, experiment.known(), options)
-    except SelftuneError as error:
-        elapsed = time.perf_counter() - started
+    tried = attempt(log, experiment.known(), options)
+    if isinstance(tried, Refused):
+        error = tried.error
         needed = error.needed_seconds if isinstance(error, TooLittleData) else None
-        message = f"{type(error).__name__}: {error}"
-        return _Run(math.inf, math.inf, elapsed, refusal_cause(error), False, needed, message)
-    elapsed = time.perf_counter() - started
-    K_error, U_error = relative(learned.K, truth[0]), relative(learned.U, truth[1])
-    quality = learned.quality
+        return _Run(math.inf, math.inf, tried.seconds, tried.cause, False, needed, tried.message)
+    K_error, U_error = tried.errors(truth)
+    quality = tried.controller.verdict
     within = (K_error <= SE_MULTIPLE * quality.K_relative_se
               and U_error <= SE_MULTIPLE * quality.U_relative_se)  # fmt: skip
-    return _Run(K_error, U_error, elapsed, "", within, None)
+    return _Run(K_error, U_error, tried.seconds, "", within, None)
 
 
 def _percentile(values: list[float], level: float) -> float | None:
@@ -327,10 +321,9 @@ def _group(
 ) -> tuple[list[NoiseCell], list[ConsistencyRatio]]:
     """Every method and length at one rate and noise level."""
     experiment = replace(REFERENCE, h=1.0 / f_s)
-    settings = replace(DriveSettings.ideal(), input_delay=1, current_noise=noise)
+    settings = delayed_drive(noise)
     logs = experiment.logs(settings, config.lengths_seconds[-1], config.seeds)
-    digital, continuous = experiment.digital_optimum(1, "rotor"), experiment.continuous_optimum()
-    truths = {"digital": (digital.K, digital.U), "continuous": (continuous.K, continuous.U)}
+    truths = experiment.truths()
     runs: dict[tuple[str, float], list[_Run]] = {}
     for seconds in config.lengths_seconds:
         for log in logs:

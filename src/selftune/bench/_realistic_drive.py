@@ -6,7 +6,7 @@ carrier PWM, 2 V dead time, 10 mA noise, 12-bit ADC over +-50 A, 540 V bus), the
 :data:`TEMPERATURE_RISE` = 40 K above its nameplate temperature (R_s +15.6%, phi_pm -4%).
 
 **The motors** (:func:`~._drive_designs.drive_cases`): drawn by a seeded generator from
-plausible ranges (:data:`~._drive_designs.MOTOR_RANGES`: L_s 1.5-12 mH, L_s/R_s 3-15 ms,
+plausible ranges (:func:`~._drive_designs.motor_ranges`: L_s 1.5-12 mH, L_s/R_s 3-15 ms,
 back-EMF 40-120 V, i_q* 3-12 A, 2-5 pole pairs), the first at 1,000-1,500 rad/s
 electrical, none of them a motor of the tests. Each is built within
 :data:`~._drive_designs.TOLERANCES` of its nameplate (R_s and L_s +-10%, phi_pm +-5%,
@@ -90,7 +90,6 @@ from ..learn import (
     Trajectory,
     fit_output_error,
     gather_evidence,
-    learn_controller,
 )
 from ..loop import SampledLoop
 from ..model import SPMSM, DigitalSolution, solve_digital_regulation
@@ -107,6 +106,7 @@ from ._drive_designs import (
     drive_cases,
     matched_pi,
 )
+from ._experiment import Refused, attempt
 from ._realistic_results import (
     REALISTIC_CONTROLLERS,
     DriveControllerOutcome,
@@ -172,7 +172,7 @@ def _failed(error: SelftuneError, data_seconds: float = 0.0) -> _Candidate:
 
 def _optimum(model: SPMSM, settings: TuningSettings, Q_i: Array | None) -> DigitalSolution:
     """The digital servo optimum of ``model`` on the drive's loop (delay, hold, Q_i)."""
-    speed, h = settings.speed, settings.sampling
+    speed, h = settings.speed, settings.h
     return solve_digital_regulation(
         model.regulation_problem(speed), settings.Q, settings.R, h, input_delay=1,
         integral_weight=Q_i, plant=model.sampled_plant(speed, h, HOLD),
@@ -180,7 +180,7 @@ def _optimum(model: SPMSM, settings: TuningSettings, Q_i: Array | None) -> Digit
 
 
 def _plant(model: SPMSM, settings: TuningSettings) -> tuple[Array, Array]:
-    Ad, Bd, _ = model.sampled_plant(settings.speed, settings.sampling, HOLD)
+    Ad, Bd, _ = model.sampled_plant(settings.speed, settings.h, HOLD)
     return Ad, Bd
 
 
@@ -200,15 +200,16 @@ class _Study:
         self.config = MotorConfig(
             motor=case.nameplate, speed=case.speed, torque=case.torque, Q=q * np.eye(2),
             R=np.eye(2), learning={"integral_action": True}, source=case.name_text,
-            drive=drive, drive_sampling=h,
+            drive=drive, drive_h=h,
         )  # fmt: skip
         settings = tuning_settings(self.config)
         true = self.simulated().true_motor
         self.known_flux = true.phi_pm
         C, _, F, self.w = known_flux_form(case.nameplate.p, case.speed, case.torque, true.phi_pm)
         self.problem = LearningProblem(
-            settings.Q, settings.R, settings.K0, C=C, F=F, integral_action=settings.integral_action
+            settings.Q, settings.R, C=C, F=F, integral_action=settings.integral_action
         )
+        self.K0 = settings.K0
         Q_i = self.problem.integral_weight
         started = time.perf_counter()
         self.truth = _Truth(true, _plant(true, settings), self.w, _optimum(true, settings, Q_i))
@@ -302,11 +303,11 @@ class _Study:
             selftune = _failed(error, settings.episode_length)
         batch = recorder.logs[0]
         options = self.options(settings)
-        try:
-            identified, seconds = _timed(lambda: learn_controller(batch, self.problem, options).law)
-            identify = _Candidate(identified, self.w, batch.duration, seconds)
-        except SelftuneError as error:
-            identify = _failed(error, batch.duration)
+        tried = attempt(batch, (self.problem, self.K0), options)
+        if isinstance(tried, Refused):
+            identify = _failed(tried.error, batch.duration)
+        else:
+            identify = _Candidate(tried.controller.law, self.w, batch.duration, tried.seconds)
         industrial, fitted = self._industrial(batch, options, selftune, settings)
         flux, phi_error, step = self._algorithm3(settings)
         candidates = {
@@ -437,9 +438,9 @@ def measure_realistic_drive(
         sampling_seconds=SAMPLING_SECONDS,
         bandwidth_target_rad_per_second=2.0 * math.pi / (SAMPLING_SECONDS * BANDWIDTH_DIVISOR),
         hot_resistance_factor=HOT_RESISTANCE,
-        tolerance_R_s_relative=TOLERANCES["R_s"],
-        tolerance_L_s_relative=TOLERANCES["L_s"],
-        tolerance_phi_pm_relative=TOLERANCES["phi_pm"],
+        tolerance_R_s_relative=TOLERANCES[0],
+        tolerance_L_s_relative=TOLERANCES[1],
+        tolerance_phi_pm_relative=TOLERANCES[2],
         seeds=seeds,
         motors=tuple(motors),
         wall_seconds=time.perf_counter() - started,

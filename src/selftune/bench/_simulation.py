@@ -19,6 +19,7 @@ from ..sim import constant, simulate, simulate_batch
 from ._common import MISMATCH, TARGET_SPEEDUP, BenchConfig, progress_bar, sci, table, timed
 from ._gem import GymElectricMotor, measure_gem
 from ._loop import Loop, SimulatorMeasurement, exact_states, exogenous_matrix, max_relative_error
+from ._motors import as_built
 
 
 @dataclass(frozen=True)
@@ -195,12 +196,8 @@ def _measure_solve_ivp(
 
 def _random_motors(count: int, seed: int) -> list[SPMSM]:
     """``count`` motors with R_s, L_s, phi_pm uniform within +-30% of the paper's."""
-    nominal = SPMSM.paper()
-    factors = np.random.default_rng(seed).uniform(1 - MISMATCH, 1 + MISMATCH, size=(count, 3))
-    return [
-        SPMSM(R_s=nominal.R_s * r, L_s=nominal.L_s * ell, phi_pm=nominal.phi_pm * phi, p=nominal.p)
-        for r, ell, phi in factors
-    ]
+    rng = np.random.default_rng(seed)
+    return [as_built(rng, SPMSM.paper(), (MISMATCH, MISMATCH, MISMATCH)) for _ in range(count)]
 
 
 def _measure_batch(loop: Loop, motors: int, samples: int, repeats: int) -> BatchMeasurement:

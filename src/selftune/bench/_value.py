@@ -24,9 +24,9 @@ from ._common import (
     MISMATCH,
     BenchConfig,
     model_optimum,
-    progress_bar,
     relative,
     table,
+    with_progress,
 )
 
 
@@ -309,12 +309,10 @@ def measure_self_tuning_value(config: BenchConfig, progress: bool = False) -> Se
     nominal = SPMSM.paper()
     settings = TuningSettings.paper()
     design = _Designs.of(nominal, settings)
-    cases = []
     signs = list(itertools.product((-1.0, 1.0), repeat=3))
-    with progress_bar(len(signs), "self-tuning value", progress) as bar:
-        for sign in signs:
-            cases.append(_mismatch_case(design, sign, settings))
-            bar.update(1)
+    cases = with_progress(
+        signs, lambda sign: _mismatch_case(design, sign, settings), "self-tuning value", progress
+    )
     return SelfTuningValue(
         horizon_seconds=COST_HORIZON_SECONDS,
         speed_rad_per_second=settings.speed,
