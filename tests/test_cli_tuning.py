@@ -95,7 +95,7 @@ def test_tune_reads_the_learning_table(tmp_path: Path) -> None:
     [
         ("[learning]\nsampling = -1.0\n", "[learning] sampling"),
         ("[learning]\nK0 = [[1.0, 0.0]]\n", "[learning] K0"),
-        ("[learning]\nsamplng = 1e-5\n", "did you mean sampling"),
+        ("[learning]\nsamplng = 1e-5\n", "did you mean h (formerly sampling)?"),
         ("[learning]\nepisode_length = 1e-5\n", "episode_length"),
     ],
 )

@@ -495,7 +495,7 @@ def test_bad_settings_name_the_field(fields: dict[str, object], name: str) -> No
 def test_bad_drive_arguments_name_the_argument() -> None:
     with pytest.raises(InputError, match=r"^dead_time:"):
         RealisticDrive(MOTOR, SPEED, 1e-6, DriveSettings(dead_time=1e-6, dc_voltage=540.0))
-    with pytest.raises(InputError, match=r"^sampling:"):
+    with pytest.raises(InputError, match=r"^h:"):
         RealisticDrive(MOTOR, SPEED, -1e-4)
     drive = RealisticDrive(MOTOR, SPEED, H)
     with pytest.raises(InputError, match=r"^laws:"):

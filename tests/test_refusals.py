@@ -228,7 +228,7 @@ def test_uneven_sampling_steps_are_sampling_jitter() -> None:
     log, _, known = reference_log(seconds=0.01)
     t = log.t.copy()
     t[5:] += 1e-6
-    error = refusal(SamplingJitter, learn_controller, Trajectory(t, log.x, log.u, log.w), known,
+    error = refusal(SamplingJitter, learn_controller, Trajectory(t, log.x, log.u, log.w), *known,
                     digital())  # fmt: skip
     assert isinstance(error, InputError)
     assert error.episode == 0 and error.spread > error.max_spread == SAMPLING_JITTER

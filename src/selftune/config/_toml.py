@@ -38,13 +38,21 @@ def one_line(text: str) -> str:
     return " ".join(text.split())
 
 
-def _suggestion(word: str, known: Iterable[str]) -> str:
-    close = difflib.get_close_matches(word, list(known), n=1, cutoff=0.6)
+def _suggestion(word: str, known: Iterable[str], renamed: Mapping[str, str] | None = None) -> str:
+    """``"; did you mean X?"`` for the known name (or the old name of a renamed one,
+    ``{old: new}``) closest to ``word``, or nothing."""
+    renamed = renamed or {}
+    names = [*known, *renamed]
+    close = difflib.get_close_matches(word, names, n=1, cutoff=0.6)
     if not close:
-        lowered = {name.lower().replace("_", ""): name for name in known}
+        lowered = {name.lower().replace("_", ""): name for name in names}
         match = lowered.get(word.lower().replace("_", ""))
         close = [match] if match else []
-    return f"; did you mean {close[0]}?" if close else ""
+    if not close:
+        return ""
+    if close[0] in renamed:
+        return f"; did you mean {renamed[close[0]]} (formerly {close[0]})?"
+    return f"; did you mean {close[0]}?"
 
 
 def _clip(text: str, limit: int = 40) -> str:
@@ -149,6 +157,7 @@ class ConfigTable:
     ) -> None:
         self.file = file
         self.name = name
+        self.renamed: Mapping[str, str] = MappingProxyType(dict(renamed or {}))
         content, written = dict(data), dict[str, str]()
         self.written: Mapping[str, str] = MappingProxyType(written)  # {new: old} as written
         for old, new in (renamed or {}).items():
@@ -196,7 +205,8 @@ class ConfigTable:
         for key in self.data:
             if key not in known:
                 listing = ", ".join(known) if known else "none"
-                raise self.error(key, f"unknown key (known: {listing}{_suggestion(key, known)})")
+                hint = _suggestion(key, known, self.renamed)
+                raise self.error(key, f"unknown key (known: {listing}{hint})")
 
     def _get(self, key: str, default: object) -> object:
         if key in self.data:
