@@ -1,4 +1,5 @@
-"""Shared test settings: one BLAS thread, and hypothesis profiles (CI runs the default one).
+"""Shared test settings: one BLAS thread, hypothesis profiles (CI runs the default one), and
+the quick bench, run once per session for every test that reads it.
 
 The tests solve many tiny matrices; BLAS threads only contend for the cores (the suite
 ran 1.5-3 times slower with them). The variables are set before numpy is first imported,
@@ -12,7 +13,13 @@ import os
 for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 
+from typing import TYPE_CHECKING  # noqa: E402
+
+import pytest  # noqa: E402
 from hypothesis import HealthCheck, settings  # noqa: E402
+
+if TYPE_CHECKING:
+    from selftune.bench import BenchReport
 
 settings.register_profile(
     "default",
@@ -24,3 +31,12 @@ settings.register_profile(
     "thorough", deadline=None, max_examples=1000, suppress_health_check=[HealthCheck.too_slow]
 )
 settings.load_profile(os.environ.get("SELFTUNE_HYPOTHESIS_PROFILE", "default"))
+
+
+@pytest.fixture(scope="session")
+def quick_bench() -> BenchReport:
+    """``selftune bench --quick``'s report (about a minute on 2 cores), made once per session:
+    tests/test_bench.py reads all of it, tests/test_bench_realistic.py its realistic drive."""
+    from selftune.bench import run_bench  # here: only the sessions that need it load it
+
+    return run_bench(quick=True, progress=False)

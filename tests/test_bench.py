@@ -17,8 +17,10 @@ from typing import Any
 import pytest
 
 from selftune import bench
-from selftune.bench import BenchReport, bench_command, run_bench
+from selftune.bench import BenchReport, bench_command
 from selftune.bench import _gem as bench_gem
+from selftune.bench import _report as bench_report
+from selftune.bench._common import progress_bar
 from selftune.bench._loop import Loop
 from selftune.cli import build_parser
 
@@ -64,8 +66,8 @@ TEXT_SUFFIXES = ("_text", "_version")
 
 
 @pytest.fixture(scope="module")
-def report() -> BenchReport:
-    return run_bench(quick=True, progress=False)
+def report(quick_bench: BenchReport) -> BenchReport:
+    return quick_bench
 
 
 @pytest.fixture(scope="module")
@@ -276,9 +278,26 @@ def test_arguments() -> None:
     assert given.quick is True and given.out == "results"
 
 
-def test_the_command_writes_both_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_the_command_writes_both_files(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    report: BenchReport,
+) -> None:
+    """The command around the session's quick bench (run once): what it asks run_bench
+    for, its progress bars (the bench's own, asked for, silent off a terminal), its files."""
+    asked: list[tuple[bool, bool]] = []
+
+    def session_bench(quick: bool, progress: bool) -> BenchReport:
+        asked.append((quick, progress))
+        with progress_bar(1, "bench", progress) as bar:
+            bar.update(1)
+        return report
+
+    monkeypatch.setattr(bench_report, "run_bench", session_bench)
     out = tmp_path / "new" / "dir"
     status = bench_command(str(out), quick=True)
+    assert asked == [(True, True)]
     assert status == 0
     assert sorted(path.name for path in out.iterdir()) == ["bench.json", "bench.md"]
     data = json.loads((out / "bench.json").read_text(encoding="utf-8"))
