@@ -1,5 +1,6 @@
 """Shared test settings: one BLAS thread, hypothesis profiles (CI runs the default one), and
-the quick bench, run once per session for every test that reads it.
+the long computations several test files read, made once per session (the quick bench, the
+reproduction).
 
 The tests solve many tiny matrices; BLAS threads only contend for the cores (the suite
 ran 1.5-3 times slower with them). The variables are set before numpy is first imported,
@@ -20,6 +21,7 @@ from hypothesis import HealthCheck, settings  # noqa: E402
 
 if TYPE_CHECKING:
     from selftune.bench import BenchReport
+    from selftune.report import Reproduction
 
 settings.register_profile(
     "default",
@@ -40,3 +42,12 @@ def quick_bench() -> BenchReport:
     from selftune.bench import run_bench  # here: only the sessions that need it load it
 
     return run_bench(quick=True, progress=False)
+
+
+@pytest.fixture(scope="session")
+def reproduction() -> Reproduction:
+    """``selftune reproduce``'s results with seed 0, made once per session: its figures are
+    checked in tests/test_figures.py, its output set in tests/test_hostile.py."""
+    from selftune.report import reproduce  # here: only the sessions that need it load it
+
+    return reproduce(0)
