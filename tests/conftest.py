@@ -35,6 +35,15 @@ settings.register_profile(
 settings.load_profile(os.environ.get("SELFTUNE_HYPOTHESIS_PROFILE", "default"))
 
 
+@pytest.hookimpl(tryfirst=True)  # before -m deselects
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """A test that reads the quick bench is slow: the bench takes over a minute and a half
+    of CPU (its cheap sections are also measured alone, for a plain ``pytest``)."""
+    for item in items:
+        if "quick_bench" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.slow)
+
+
 @pytest.fixture(scope="session")
 def quick_bench() -> BenchReport:
     """``selftune bench --quick``'s report (about a minute on 2 cores), made once per session:

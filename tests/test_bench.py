@@ -17,11 +17,13 @@ from typing import Any
 import pytest
 
 from selftune import bench
-from selftune.bench import BenchReport, bench_command
+from selftune.bench import BenchConfig, BenchReport, bench_command
 from selftune.bench import _gem as bench_gem
 from selftune.bench import _report as bench_report
 from selftune.bench._common import progress_bar
+from selftune.bench._learning_cost import LearningCost, measure_learning_cost
 from selftune.bench._loop import Loop
+from selftune.bench._simulation import Simulation, measure_simulation
 from selftune.cli import build_parser
 
 SECTIONS = (
@@ -68,6 +70,19 @@ TEXT_SUFFIXES = ("_text", "_version")
 @pytest.fixture(scope="module")
 def report(quick_bench: BenchReport) -> BenchReport:
     return quick_bench
+
+
+@pytest.fixture(scope="module")
+def learning_cost() -> LearningCost:
+    """The quick bench's learning-cost section alone (a fraction of a second of CPU), so
+    that a plain ``pytest`` measures with the bench too (the rest reads the whole bench)."""
+    return measure_learning_cost(BenchConfig.quick(), progress=False)
+
+
+@pytest.fixture(scope="module")
+def simulation() -> Simulation:
+    """The quick bench's simulation section alone (about two seconds of CPU)."""
+    return measure_simulation(BenchConfig.quick(), progress=False)
 
 
 @pytest.fixture(scope="module")
@@ -155,8 +170,8 @@ def test_offpolicy_needs_less_data_than_onpolicy(report: BenchReport) -> None:
     assert on.U_relative_error[-1] is not None and on.U_relative_error[-1] <= target
 
 
-def test_learning_cost_compares_the_methods_on_the_same_data(report: BenchReport) -> None:
-    datasets = report.learning_cost.datasets
+def test_learning_cost_compares_the_methods_on_the_same_data(learning_cost: LearningCost) -> None:
+    datasets = learning_cost.datasets
     assert len(datasets) >= 2
     for dataset in datasets:
         customized, general = dataset.customized, dataset.general
@@ -178,8 +193,7 @@ def test_learning_cost_compares_the_methods_on_the_same_data(report: BenchReport
         )
 
 
-def test_simulation_is_exact_and_the_speedup_is_the_ratio_of_times(report: BenchReport) -> None:
-    simulation = report.simulation
+def test_simulation_is_exact_and_the_speedup_is_the_ratio_of_times(simulation: Simulation) -> None:
     for measured in (simulation.selftune_simulate, simulation.selftune_step_loop):
         assert measured.max_relative_error <= bench.EXACT_RELATIVE_ERROR
         assert measured.us_per_step > 0
