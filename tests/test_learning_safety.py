@@ -88,6 +88,7 @@ def test_short_noisy_logs_learn_or_say_how_much_data_they_need() -> None:
         assert relative(learned.K, truth.K) <= 3 * learned.quality.K_relative_se
 
 
+@pytest.mark.slow  # 4 s logs; noisy learning itself runs in the quicker tests here
 @pytest.mark.parametrize("method", ["adp", "identify"])
 def test_errors_keep_falling_with_more_data(method: str) -> None:
     # consistency: no plateau (bias) under white noise in the loop

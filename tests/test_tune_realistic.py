@@ -66,6 +66,7 @@ def drive_settings(motor: SPMSM, speed: float, current: float, drive: DriveSetti
     return tuning_settings(config)
 
 
+@pytest.mark.slow  # 6 tunings; test_tune_with_a_drive_table_writes_the_law_a_drive_runs tunes one
 @settings(max_examples=6, **QUICK)  # type: ignore[arg-type]
 @given(
     motor=motors,
