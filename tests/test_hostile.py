@@ -19,7 +19,8 @@ each value refused with a one-line error naming the file and the key), with one 
 per key taken through the command line (its route: exit 2, that one line, nothing
 left); the valid values of the sweep run through the command line, their numbers checked.
 
-Run: ``python -m pytest tests/test_hostile.py -q -p no:cacheprovider``.
+Run: ``python -m pytest tests/test_hostile.py -q -p no:cacheprovider`` (add
+``-m "slow or not slow"`` for the subprocess cases and interrupts marked slow).
 """
 
 from __future__ import annotations
