@@ -348,6 +348,7 @@ motors = st.builds(
 )
 
 
+@pytest.mark.slow  # 6 motors; the paper motor's servo runs the same pipeline in a plain pytest
 @settings(max_examples=6)
 @given(motors, st.floats(0.05, 1.0), st.integers(0, 1000))
 def test_random_motors_through_learn_controller(
@@ -388,6 +389,7 @@ def test_random_motors_through_learn_controller(
     assert sampled_radius(problem, gain, h) < 1.0
 
 
+@pytest.mark.slow  # the smoothed and instrumental estimates also run in the paper servo test
 def test_noisy_logs_learned_within_the_stated_standard_error() -> None:
     """0.1 mA of current noise: the smoothed states give the servo within 3 of the standard
     errors the verdict states; the noisier instrumental-variable estimate is refused."""

@@ -103,6 +103,7 @@ def test_errors_keep_falling_with_more_data(method: str) -> None:
     assert errors[4.0] <= 0.6 * errors[0.25], errors  # 1/sqrt(16) = 0.25 expected
 
 
+@pytest.mark.slow  # 12 motors; single noisy logs are checked within their errors above
 def test_standard_errors_cover_the_truth() -> None:
     rng = np.random.default_rng(2024)
     inside, trials = 0, 0
