@@ -1,4 +1,4 @@
-"""Shared test settings: one BLAS thread, hypothesis profiles (CI runs the default one), and
+"""Shared test settings: one BLAS thread, hypothesis profiles (.ci/run loads "ci"), and
 the long computations several test files read, made once per session (the quick bench, the
 reproduction).
 
@@ -23,12 +23,16 @@ if TYPE_CHECKING:
     from selftune.bench import BenchReport
     from selftune.report import Reproduction
 
+# A plain pytest: 25 examples where a test does not ask for a number (hypothesis's own
+# default is 100); .ci/run loads "ci", which keeps hypothesis's 100.
 settings.register_profile(
     "default",
     deadline=None,
     derandomize=True,
+    max_examples=25,
     suppress_health_check=[HealthCheck.too_slow],
 )
+settings.register_profile("ci", settings.get_profile("default"), max_examples=100)
 settings.register_profile(
     "thorough", deadline=None, max_examples=1000, suppress_health_check=[HealthCheck.too_slow]
 )
