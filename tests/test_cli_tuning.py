@@ -74,7 +74,16 @@ def motor_file(tmp_path: Path, learning: str = "") -> Path:
     return path
 
 
-@pytest.mark.parametrize("algorithm", ["2", "3", "offpolicy"])
+# Algorithms 2 and 3 through the command line are slow: tests/test_torque.py runs them on
+# the paper's motor, and this route is the same for every algorithm.
+@pytest.mark.parametrize(
+    "algorithm",
+    [
+        pytest.param("2", marks=pytest.mark.slow),
+        pytest.param("3", marks=pytest.mark.slow),
+        "offpolicy",
+    ],
+)
 def test_tune_learns_the_optimum_of_the_motor_in_the_file(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], algorithm: str
 ) -> None:
