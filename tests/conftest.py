@@ -1,4 +1,6 @@
-"""Shared test settings: one BLAS thread, and hypothesis profiles (CI runs the default one).
+"""Shared test settings: one BLAS thread, hypothesis profiles (.ci/run loads "ci"), and
+the long computations several test files read, made once per session (the quick bench, the
+reproduction).
 
 The tests solve many tiny matrices; BLAS threads only contend for the cores (the suite
 ran 1.5-3 times slower with them). The variables are set before numpy is first imported,
@@ -12,15 +14,53 @@ import os
 for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 
+from typing import TYPE_CHECKING  # noqa: E402
+
+import pytest  # noqa: E402
 from hypothesis import HealthCheck, settings  # noqa: E402
 
+if TYPE_CHECKING:
+    from selftune.bench import BenchReport
+    from selftune.report import Reproduction
+
+# A plain pytest: 25 examples where a test does not ask for a number (hypothesis's own
+# default is 100); .ci/run loads "ci", which keeps hypothesis's 100.
 settings.register_profile(
     "default",
     deadline=None,
     derandomize=True,
+    max_examples=25,
     suppress_health_check=[HealthCheck.too_slow],
 )
+settings.register_profile("ci", settings.get_profile("default"), max_examples=100)
 settings.register_profile(
     "thorough", deadline=None, max_examples=1000, suppress_health_check=[HealthCheck.too_slow]
 )
 settings.load_profile(os.environ.get("SELFTUNE_HYPOTHESIS_PROFILE", "default"))
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m deselects
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """A test that reads the quick bench is slow: the bench takes over a minute and a half
+    of CPU (its cheap sections are also measured alone, for a plain ``pytest``)."""
+    for item in items:
+        if "quick_bench" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.slow)
+
+
+@pytest.fixture(scope="session")
+def quick_bench() -> BenchReport:
+    """``selftune bench --quick``'s report (about a minute on 2 cores), made once per session:
+    tests/test_bench.py reads all of it, tests/test_bench_realistic.py its realistic drive."""
+    from selftune.bench import run_bench  # here: only the sessions that need it load it
+
+    return run_bench(quick=True, progress=False)
+
+
+@pytest.fixture(scope="session")
+def reproduction() -> Reproduction:
+    """``selftune reproduce``'s results with seed 0, made once per session: its figures are
+    checked in tests/test_figures.py, its output set in tests/test_hostile.py."""
+    from selftune.report import reproduce  # here: only the sessions that need it load it
+
+    return reproduce(0)

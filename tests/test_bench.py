@@ -17,9 +17,13 @@ from typing import Any
 import pytest
 
 from selftune import bench
-from selftune.bench import BenchReport, bench_command, run_bench
+from selftune.bench import BenchConfig, BenchReport, bench_command
 from selftune.bench import _gem as bench_gem
+from selftune.bench import _report as bench_report
+from selftune.bench._common import progress_bar
+from selftune.bench._learning_cost import LearningCost, measure_learning_cost
 from selftune.bench._loop import Loop
+from selftune.bench._simulation import Simulation, measure_simulation
 from selftune.cli import build_parser
 
 SECTIONS = (
@@ -64,8 +68,21 @@ TEXT_SUFFIXES = ("_text", "_version")
 
 
 @pytest.fixture(scope="module")
-def report() -> BenchReport:
-    return run_bench(quick=True, progress=False)
+def report(quick_bench: BenchReport) -> BenchReport:
+    return quick_bench
+
+
+@pytest.fixture(scope="module")
+def learning_cost() -> LearningCost:
+    """The quick bench's learning-cost section alone (a fraction of a second of CPU), so
+    that a plain ``pytest`` measures with the bench too (the rest reads the whole bench)."""
+    return measure_learning_cost(BenchConfig.quick(), progress=False)
+
+
+@pytest.fixture(scope="module")
+def simulation() -> Simulation:
+    """The quick bench's simulation section alone (about two seconds of CPU)."""
+    return measure_simulation(BenchConfig.quick(), progress=False)
 
 
 @pytest.fixture(scope="module")
@@ -153,8 +170,8 @@ def test_offpolicy_needs_less_data_than_onpolicy(report: BenchReport) -> None:
     assert on.U_relative_error[-1] is not None and on.U_relative_error[-1] <= target
 
 
-def test_learning_cost_compares_the_methods_on_the_same_data(report: BenchReport) -> None:
-    datasets = report.learning_cost.datasets
+def test_learning_cost_compares_the_methods_on_the_same_data(learning_cost: LearningCost) -> None:
+    datasets = learning_cost.datasets
     assert len(datasets) >= 2
     for dataset in datasets:
         customized, general = dataset.customized, dataset.general
@@ -176,8 +193,7 @@ def test_learning_cost_compares_the_methods_on_the_same_data(report: BenchReport
         )
 
 
-def test_simulation_is_exact_and_the_speedup_is_the_ratio_of_times(report: BenchReport) -> None:
-    simulation = report.simulation
+def test_simulation_is_exact_and_the_speedup_is_the_ratio_of_times(simulation: Simulation) -> None:
     for measured in (simulation.selftune_simulate, simulation.selftune_step_loop):
         assert measured.max_relative_error <= bench.EXACT_RELATIVE_ERROR
         assert measured.us_per_step > 0
@@ -276,9 +292,26 @@ def test_arguments() -> None:
     assert given.quick is True and given.out == "results"
 
 
-def test_the_command_writes_both_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_the_command_writes_both_files(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    report: BenchReport,
+) -> None:
+    """The command around the session's quick bench (run once): what it asks run_bench
+    for, its progress bars (the bench's own, asked for, silent off a terminal), its files."""
+    asked: list[tuple[bool, bool]] = []
+
+    def session_bench(quick: bool, progress: bool) -> BenchReport:
+        asked.append((quick, progress))
+        with progress_bar(1, "bench", progress) as bar:
+            bar.update(1)
+        return report
+
+    monkeypatch.setattr(bench_report, "run_bench", session_bench)
     out = tmp_path / "new" / "dir"
     status = bench_command(str(out), quick=True)
+    assert asked == [(True, True)]
     assert status == 0
     assert sorted(path.name for path in out.iterdir()) == ["bench.json", "bench.md"]
     data = json.loads((out / "bench.json").read_text(encoding="utf-8"))

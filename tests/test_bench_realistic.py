@@ -17,6 +17,7 @@ import math
 import numpy as np
 import pytest
 
+from selftune.bench import BenchReport
 from selftune.bench._drive_designs import (
     DriveCase,
     current_bandwidth,
@@ -29,7 +30,6 @@ from selftune.bench._realistic_drive import (
     REALISTIC_CONTROLLERS,
     RealisticDriveComparison,
     markdown_realistic_drive,
-    measure_realistic_drive,
 )
 from selftune.bench._realistic_results import CONTROLLER_KNOWLEDGE, TORQUE_TARGET_PERCENT
 from selftune.core import finite_or_null, to_jsonable
@@ -48,8 +48,10 @@ INTEGRAL_KNOWN_FLUX = (
 
 
 @pytest.fixture(scope="module")
-def comparison() -> RealisticDriveComparison:
-    return measure_realistic_drive(quick=True)
+def comparison(quick_bench: BenchReport) -> RealisticDriveComparison:
+    """The quick bench's realistic drive (``measure_realistic_drive(quick=True)``), from the
+    session's one quick bench."""
+    return quick_bench.realistic_drive
 
 
 def test_the_quick_run_has_every_controller_on_a_fast_motor(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -10,15 +11,31 @@ import pytest
 
 from selftune import SPMSM, solve_optimal_regulation
 from selftune.cli import main
+from selftune.report import Reproduction
 
 PAPER_THETA = [1.8743, 1.8743, 0, 31.1868, 0, 0, 31.1868, 0, 27.1642, -31.1868, -9.9210]
 
 
 def test_reproduce_writes_every_figure_and_the_numbers(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    reproduction: Reproduction,
 ) -> None:
+    """The command writes the session's reproduction (``reproduce(0)``, what it computes
+    with the default seed): every figure drawn and saved, and the numbers."""
+    import selftune.report
+
+    seeds: list[int] = []
+
+    def session_reproduce(seed: int, step: Callable[[str], None]) -> Reproduction:
+        seeds.append(seed)
+        return reproduction
+
+    monkeypatch.setattr(selftune.report, "reproduce", session_reproduce)
     out = tmp_path / "results"
     assert main(["reproduce", "--out", str(out)]) == 0
+    assert seeds == [0]
     printed = capsys.readouterr().out
     for stem in ("fig1", "fig2", "fig3", "fig4", "fig5"):
         for suffix in (".png", ".svg"):
@@ -57,7 +74,16 @@ def motor_file(tmp_path: Path, learning: str = "") -> Path:
     return path
 
 
-@pytest.mark.parametrize("algorithm", ["2", "3", "offpolicy"])
+# Algorithms 2 and 3 through the command line are slow: tests/test_torque.py runs them on
+# the paper's motor, and this route is the same for every algorithm.
+@pytest.mark.parametrize(
+    "algorithm",
+    [
+        pytest.param("2", marks=pytest.mark.slow),
+        pytest.param("3", marks=pytest.mark.slow),
+        "offpolicy",
+    ],
+)
 def test_tune_learns_the_optimum_of_the_motor_in_the_file(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], algorithm: str
 ) -> None:

@@ -144,7 +144,14 @@ def test_the_paper_motor_servo_is_learned_to_the_second_order_quadrature() -> No
     K_star, P_star = servo_optimum(problem.A, problem.B, problem.C, weights)
     A_a, B_a = augmented(problem.A, problem.B, problem.C)
     K_control, _, _ = control.lqr(A_a, B_a, scipy.linalg.block_diag(Q, weights[2]), R)
-    assert relative(K_control, K_star) < 1e-10  # the two oracles agree
+    # the two oracles agree to their rounding: each solves the Riccati equation to a
+    # residual of eps at its own scale, which the closed loop's Lyapunov operator (the
+    # equation's derivative) turns into a relative error of eps times its condition number
+    closed = A_a - B_a @ K_star
+    identity = np.eye(closed.shape[0])
+    lyapunov = np.kron(identity, closed.T) + np.kron(closed.T, identity)
+    rounding = np.finfo(float).eps * np.linalg.cond(lyapunov)
+    assert relative(K_control, K_star) < 2.0 * rounding
     U_star = feedforward(problem)
     # second order: the same continuous experiment at 2h and h
     coarse, fine = learn_paper_servo(2e-5), learn_paper_servo(1e-5)
@@ -340,6 +347,7 @@ motors = st.builds(
 )
 
 
+@pytest.mark.slow  # 6 motors; the paper motor's servo runs the same pipeline in a plain pytest
 @settings(max_examples=6)
 @given(motors, st.floats(0.05, 1.0), st.integers(0, 1000))
 def test_random_motors_through_learn_controller(
@@ -380,6 +388,7 @@ def test_random_motors_through_learn_controller(
     assert sampled_radius(problem, gain, h) < 1.0
 
 
+@pytest.mark.slow  # the smoothed and instrumental estimates also run in the paper servo test
 def test_noisy_logs_learned_within_the_stated_standard_error() -> None:
     """0.1 mA of current noise: the smoothed states give the servo within 3 of the standard
     errors the verdict states; the noisier instrumental-variable estimate is refused."""

@@ -61,6 +61,7 @@ motors = st.builds(
 )
 
 
+@pytest.mark.slow  # 12 motors x 4 learnings; the quicker tests here run each method and log kind
 @settings(max_examples=12)
 @given(
     motors,

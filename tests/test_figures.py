@@ -16,7 +16,7 @@ import pytest
 from matplotlib.figure import Figure
 from matplotlib.transforms import Bbox
 
-from selftune.report import Reproduction, reproduce
+from selftune.report import Reproduction
 from selftune.report._figure_data import (
     ALGORITHM_KEYS,
     CONTROLLERS,
@@ -29,11 +29,6 @@ from selftune.report._figures import STYLES, figures, save_figure
 
 #: An axis label ends with its unit in parentheses.
 UNIT = re.compile(r"\((A|V|N m|ms|V\$\^2\$ s|[^()]*dimensionless)\)$")
-
-
-@pytest.fixture(scope="module")
-def reproduction() -> Reproduction:
-    return reproduce(0)
 
 
 @pytest.fixture(scope="module")

@@ -13,8 +13,14 @@ and CONFIG.toml, malformed CSV and NPZ files, clock offsets, special files (FIFO
 oversized files, bad output paths, argparse misuse, interrupts. Most run in-process
 through :func:`selftune.cli.main`; those that could hang or exhaust memory run in a
 subprocess with a timeout and a memory limit (``resource.setrlimit``), concurrently.
+The sweep of bad configuration values is table-driven at the file readers
+(:func:`~selftune.config.load_motor_config`, :func:`~selftune.config.load_learn_config`:
+each value refused with a one-line error naming the file and the key), with one value
+per key taken through the command line (its route: exit 2, that one line, nothing
+left); the valid values of the sweep run through the command line, their numbers checked.
 
-Run: ``python -m pytest tests/test_hostile.py -q -p no:cacheprovider``.
+Run: ``python -m pytest tests/test_hostile.py -q -p no:cacheprovider`` (add
+``-m "slow or not slow"`` for the subprocess cases and interrupts marked slow).
 """
 
 from __future__ import annotations
@@ -33,6 +39,7 @@ import zipfile
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from functools import partial
 from io import BytesIO
 from pathlib import Path
 from typing import Any
@@ -44,8 +51,10 @@ import selftune
 from selftune import commands
 from selftune.bench import _report as bench_report
 from selftune.cli import main
-from selftune.errors import InputError
+from selftune.config import load_learn_config, load_motor_config
+from selftune.errors import DataFileError, InputError
 from selftune.learn import Trajectory, save_trajectory, solve_regression
+from selftune.learn._io import trajectory_dimensions
 from selftune.learn._regression import Regression
 from selftune.sim import held, uniform
 
@@ -382,14 +391,44 @@ VALID = {
 }
 
 
+#: The keys of each file the sweep covers, and which of them hold matrices.
+MOTOR_KEYS = (*MOTOR_TABLES["motor"], "J", "speed", "torque", "Q", "R", *LEARNING_KEYS)
+MOTOR_MATRICES = ("Q", "R", "K0")
+CONFIG_KEYS = ("Q", "R", "K0", "C", "E", "F", "interval", "max_iterations", "tolerance")
+CONFIG_MATRICES = ("Q", "R", "K0", "C", "E", "F")
+
+
+def swept(key: str, matrices: tuple[str, ...]) -> list[tuple[int, str, bool]]:
+    """``(index, value, valid)`` of every malformed or extreme value of ``key``'s kind."""
+    values = MATRIX_VALUES if key in matrices else SCALAR_VALUES
+    return [(index, value, value in VALID.get(key, set())) for index, value in enumerate(values)]
+
+
+def refused(key: str, matrices: tuple[str, ...]) -> list[tuple[int, str]]:
+    """``(index, value)`` of the swept values ``key`` must refuse."""
+    return [(index, value) for index, value, valid in swept(key, matrices) if not valid]
+
+
+def config_key_named(key: str, value: str) -> str:
+    """What a refusal of ``key = value`` in CONFIG.toml names: a one-row C is a valid C,
+    then F (2x2) has the wrong shape."""
+    return (
+        "[regulation] F"
+        if key == "C" and value == "[[1.0, 0.0]]"
+        else f"[{_table_of(LEARN_TABLES, key)}] {key}"
+    )
+
+
 def motor_value_cases() -> Iterator[Case]:
-    """Every MOTOR.toml key with every malformed or extreme value, through ``solve``."""
-    keys = [*MOTOR_TABLES["motor"], "J", "speed", "torque", "Q", "R", *LEARNING_KEYS]
-    for key in keys:
-        matrix = key in ("Q", "R", "K0")
-        for index, value in enumerate(MATRIX_VALUES if matrix else SCALAR_VALUES):
-            valid = value in VALID.get(key, set())
-            table = _table_of(MOTOR_TABLES, key)
+    """MOTOR.toml through ``solve``: every valid value of the sweep (checked against the
+    closed forms), and one refused value per key (the route of its error to the command
+    line; :func:`test_the_motor_reader_refuses_every_bad_value` sweeps them all)."""
+    for key in MOTOR_KEYS:
+        table = _table_of(MOTOR_TABLES, key)
+        bad = refused(key, MOTOR_MATRICES)[0]
+        for index, value, valid in swept(key, MOTOR_MATRICES):
+            if not valid and (index, value) != bad:
+                continue
             speed = {"speed": float(value)} if valid and key == "speed" else {}
             torque = {"torque": float(value)} if valid and key == "torque" else {}
             yield Case(
@@ -404,14 +443,14 @@ def motor_value_cases() -> Iterator[Case]:
 
 
 def learn_value_cases() -> Iterator[Case]:
-    """Every CONFIG.toml key with every malformed or extreme value, through ``learn``."""
-    keys = ["Q", "R", "K0", "C", "E", "F", "interval", "max_iterations", "tolerance"]
-    for key in keys:
-        matrix = key in ("Q", "R", "K0", "C", "E", "F")
-        for index, value in enumerate(MATRIX_VALUES if matrix else SCALAR_VALUES):
-            valid = value in VALID.get(key, set())
-            # A one-row C is a valid C; then F (2x2) has the wrong shape.
-            named = "[regulation] F" if key == "C" and value == "[[1.0, 0.0]]" else key
+    """CONFIG.toml through ``learn``: every valid value of the sweep (learned right), and
+    one refused value per key (the route of its error to the command line;
+    :func:`test_the_learning_reader_refuses_every_bad_value` sweeps them all)."""
+    for key in CONFIG_KEYS:
+        bad = refused(key, CONFIG_MATRICES)[0]
+        for index, value, valid in swept(key, CONFIG_MATRICES):
+            if not valid and (index, value) != bad:
+                continue
             # A valid config the data may not fit (another K0 or E): learned right, or a
             # clean error naming the data.
             either = valid and key in ("K0", "E")
@@ -421,7 +460,9 @@ def learn_value_cases() -> Iterator[Case]:
                 both(DATA_FILE, writer("config.toml", toml(LEARN_TABLES, **{key: value}))),
                 ok=valid and not either,
                 either=either,
-                names=("{d}/data.csv",) if either else ("{d}/config.toml", named),
+                names=("{d}/data.csv",)
+                if either
+                else ("{d}/config.toml", config_key_named(key, value)),
                 outputs=("out.json",),
                 check=learned_optimum_for(**{key: value}) if valid else None,
             )
@@ -921,6 +962,9 @@ CASES = [
 ]
 IN_PROCESS = [case for case in CASES if not case.isolated]
 ISOLATED = [case for case in CASES if case.isolated]
+#: The isolated cases a plain ``pytest`` runs: one that would block (a FIFO) and one that
+#: would exhaust memory (a zip bomb); the others are slow (each starts a Python process).
+QUICK_ISOLATED = ("special-fifo-data-csv", "npz-bomb-lying-size")
 
 
 # -- running ------------------------------------------------------------------------------
@@ -1026,13 +1070,60 @@ def test_hostile_input_in_process(case: Case, tmp_path: Path) -> None:
     verify(case, tmp_path, before, run_in_process(expand(case, tmp_path)))
 
 
+# -- the value sweep at the readers: every bad value refused with one line naming its key ---
+
+
+def assert_refused(read: Callable[[], object], names: tuple[str, ...], value: str) -> None:
+    """``read()`` raises the one-line :class:`DataFileError` the command line prints,
+    naming each of ``names``."""
+    with pytest.raises(DataFileError) as raised:
+        read()
+    message = str(raised.value)
+    assert "\n" not in message and message, (value, message)
+    for part in names:
+        assert part in message, (value, part, message)
+
+
+@pytest.mark.parametrize("key", MOTOR_KEYS)
+def test_the_motor_reader_refuses_every_bad_value(key: str, tmp_path: Path) -> None:
+    """:func:`load_motor_config`, what ``solve`` and ``tune`` read MOTOR.toml with."""
+    table = _table_of(MOTOR_TABLES, key)
+    for index, value in refused(key, MOTOR_MATRICES):
+        directory = tmp_path / str(index)
+        directory.mkdir()
+        writer("motor.toml", toml(MOTOR_TABLES, **{key: value}))(directory)
+        path = directory / "motor.toml"
+        assert_refused(partial(load_motor_config, path), (str(path), f"[{table}] {key}"), value)
+
+
+@pytest.mark.parametrize("key", CONFIG_KEYS)
+def test_the_learning_reader_refuses_every_bad_value(key: str, tmp_path: Path) -> None:
+    """:func:`load_learn_config` with the data's dimensions, as ``learn`` reads CONFIG.toml."""
+    DATA_FILE(tmp_path)
+    dimensions = trajectory_dimensions(tmp_path / "data.csv")
+    for index, value in refused(key, CONFIG_MATRICES):
+        directory = tmp_path / str(index)
+        directory.mkdir()
+        writer("config.toml", toml(LEARN_TABLES, **{key: value}))(directory)
+        path = directory / "config.toml"
+        names = (str(path), config_key_named(key, value))
+        assert_refused(partial(load_learn_config, path, *dimensions), names, value)
+
+
 @pytest.fixture(scope="module")
 def isolated_results(
-    tmp_path_factory: pytest.TempPathFactory,
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
 ) -> dict[str, tuple[Path, dict[str, Any], tuple[int, str, str]]]:
-    """Every isolated case, run concurrently (each alone in its process)."""
+    """Every isolated case the session runs (``-m``, ``-k``), run concurrently (each alone
+    in its process)."""
+    selected = {
+        item.callspec.params["case"].name
+        for item in request.session.items
+        if isinstance(item, pytest.Function) and item.originalname == "test_hostile_input_isolated"
+    }
+    chosen = [case for case in ISOLATED if case.name in selected]
     prepared = {}
-    for case in ISOLATED:
+    for case in chosen:
         directory = tmp_path_factory.mktemp(case.name)
         case.files(directory)
         prepared[case.name] = (directory, snapshot(directory))
@@ -1041,12 +1132,20 @@ def isolated_results(
             case.name: pool.submit(
                 run_isolated, expand(case, prepared[case.name][0]), prepared[case.name][0]
             )
-            for case in ISOLATED
+            for case in chosen
         }
         return {name: (*prepared[name], future.result()) for name, future in futures.items()}
 
 
-@pytest.mark.parametrize("case", ISOLATED, ids=[case.name for case in ISOLATED])
+@pytest.mark.parametrize(
+    "case",
+    [
+        pytest.param(
+            case, id=case.name, marks=() if case.name in QUICK_ISOLATED else pytest.mark.slow
+        )
+        for case in ISOLATED
+    ],
+)
 def test_hostile_input_isolated(
     case: Case, isolated_results: dict[str, tuple[Path, dict[str, Any], tuple[int, str, str]]]
 ) -> None:
@@ -1054,8 +1153,18 @@ def test_hostile_input_isolated(
     verify(case, directory, before, result)
 
 
+#: The bad values the readers are swept with: ``(file, key, index, value)``.
+SWEEP = [
+    *(("motor", key, *bad) for key in MOTOR_KEYS for bad in refused(key, MOTOR_MATRICES)),
+    *(("config", key, *bad) for key in CONFIG_KEYS for bad in refused(key, CONFIG_MATRICES)),
+]
+
+
 def test_the_corpus_is_large() -> None:
-    assert len(CASES) >= 250
+    assert len(SWEEP) >= 350 and len(CASES) >= 250
+    # every swept key has its route through the command line
+    routes = {case.name.rsplit("-", 1)[0] for case in CASES if not (case.ok or case.either)}
+    assert {f"{file}-{key}" for file, key, *_ in SWEEP} <= routes
     assert len({case.name for case in CASES}) == len(CASES)
     assert sum(case.ok for case in CASES) >= 30  # valid inputs are checked for right answers
 
@@ -1069,6 +1178,7 @@ def _interrupted(process: subprocess.Popen[str]) -> None:
     assert (process.returncode, err) == (130, "selftune: interrupted\n"), err
 
 
+@pytest.mark.slow  # a whole reproduce in a subprocess; interrupted writes run in-process below
 @pytest.mark.parametrize("previous", [False, True], ids=["new", "over-an-earlier-set"])
 def test_ctrl_c_while_reproduce_writes_leaves_nothing(tmp_path: Path, previous: bool) -> None:
     """Interrupted while the figures are written (its temporary directory exists)."""
@@ -1164,13 +1274,6 @@ def test_ctrl_c_whose_keyboard_interrupt_was_lost_leaves_nothing(
 
 
 # -- output sets: written whole or not at all ---------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def reproduction() -> Any:
-    from selftune.report import reproduce
-
-    return reproduce(0)
 
 
 @pytest.fixture
@@ -1381,6 +1484,7 @@ if __name__ == "__main__":  # the corpus's composition: python tests/test_hostil
         ],
         "run in a subprocess (timeout, memory limit)": ISOLATED,
     }
-    print(f"{len(CASES)} generated cases")
+    print(f"{len(SWEEP)} bad configuration values, each refused by its file's reader")
+    print(f"{len(CASES)} generated command lines")
     for label, cases in kinds.items():
         print(f"  {len(cases):4d} {label}")

@@ -607,6 +607,7 @@ def mutate_text(text: str, data: st.DataObject) -> str:
     return "\n".join(lines)
 
 
+@pytest.mark.slow  # a fuzz of the CSV reader; its refusals have their own quick tests here
 @given(arrays=trajectory_arrays(elements=moderate), data=st.data())
 def test_mutated_csv_is_refused_or_read_as_written(
     workdir: Path, arrays: Arrays, data: st.DataObject

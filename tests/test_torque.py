@@ -89,6 +89,7 @@ motors = st.builds(
 )
 
 
+@pytest.mark.slow  # 40 tunings; test_paper_motor_targets and the tune CLI tests run each algorithm
 @settings(max_examples=40)
 @given(
     motor=motors,

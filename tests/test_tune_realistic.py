@@ -66,6 +66,7 @@ def drive_settings(motor: SPMSM, speed: float, current: float, drive: DriveSetti
     return tuning_settings(config)
 
 
+@pytest.mark.slow  # 6 tunings; test_tune_with_a_drive_table_writes_the_law_a_drive_runs tunes one
 @settings(max_examples=6, **QUICK)  # type: ignore[arg-type]
 @given(
     motor=motors,
@@ -97,6 +98,7 @@ def test_the_servo_controller_holds_the_torque_on_a_hardware_like_drive(
     assert evaluation.K_error <= 4 * result.quality.K_relative_se + 1e-6
 
 
+@pytest.mark.slow  # 4 tunings; test_learning_safety learns a dead time with the structure
 @settings(max_examples=4, **QUICK)  # type: ignore[arg-type]
 @given(motor=motors, electrical_speed=st.floats(100.0, 2000.0), rise=st.floats(0.0, 80.0))
 def test_algorithm_3_tells_the_flux_from_the_dead_time(
