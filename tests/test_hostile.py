@@ -160,7 +160,7 @@ def _table_of(tables: dict[str, dict[str, str]], key: str) -> str:
 
 
 LEARNING_KEYS = (
-    "sampling",
+    "h",
     "episode_length",
     "K0",
     "exploration",
@@ -557,7 +557,7 @@ def structure_cases() -> Iterator[Case]:
             ({"input_hold": "1000"}, "[learning] input_hold"),
             ({"input_hold": "1e6"}, "[learning] input_hold"),
             ({"interval": "600"}, "[learning] interval"),
-            ({"sampling": "1e-8"}, "[learning] episode_length"),
+            ({"h": "1e-8"}, "[learning] episode_length"),
             ({"episode_length": "100.0"}, "[learning] episode_length"),
             ({"episode_length": "1e-5"}, "[learning] episode_length"),
             ({"K0": "[[-100.0, 0.0], [0.0, -100.0]]"}, "K0 may not stabilize"),
