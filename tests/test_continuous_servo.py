@@ -6,7 +6,7 @@ the regulated error, ``[[A, 0], [C, 0]]``, solved by scipy's continuous Riccati 
 regulator equations. The discounted optimum of a rate gamma is the same Riccati equation
 with ``A_a - gamma/2 I``.
 
-Tolerances follow the quadrature of the data equation (:mod:`selftune.learn._moments`):
+Tolerances follow the quadrature of the data equation (:mod:`selftune.learn.learners._moments`):
 
 - where the state is linear inside each sample (A = 0) the quadrature is exact, the
   integral state's quadratic included, so the learned controller equals the optimum to
@@ -49,7 +49,7 @@ from selftune.learn import (
     interval_moments,
     learn_controller,
 )
-from selftune.learn._servo import FIRST_DISCOUNT
+from selftune.learn.learners._servo import FIRST_DISCOUNT
 from selftune.sim import constant, held, prbs, simulate, steps, uniform
 
 Q, R = 1e3 * np.eye(2), np.eye(2)

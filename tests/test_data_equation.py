@@ -15,7 +15,7 @@ from selftune.learn import (
     regression,
     solve_regression,
 )
-from selftune.learn._moments import _holds, _quadratic_stencils
+from selftune.learn.learners._moments import _holds, _quadratic_stencils
 from selftune.sim import exosystem, simulate, sum_of_sines, uniform
 
 
@@ -131,9 +131,7 @@ def test_holding_the_input_gives_fourth_order() -> None:
             seed=1,
             input_hold=2,
         )
-        learned = regulator(
-            data, C, E, F, np.eye(n), np.eye(n), K0, interval=2 * round(0.01 / h)
-        )
+        learned = regulator(data, C, E, F, np.eye(n), np.eye(n), K0, interval=2 * round(0.01 / h))
         errors.append(np.linalg.norm(learned.theta - optimum.theta) / np.linalg.norm(optimum.theta))
     order = np.polyfit(np.log(periods), np.log(errors), 1)[0]
     assert 3.6 < order < 4.6, f"order {order:.2f}, errors {errors}"

@@ -54,8 +54,8 @@ from selftune.cli import main
 from selftune.config import load_learn_config, load_motor_config
 from selftune.errors import DataFileError, InputError
 from selftune.learn import Trajectory, save_trajectory, solve_regression
-from selftune.learn._io import trajectory_dimensions
-from selftune.learn._regression import Regression
+from selftune.learn.data._io import trajectory_dimensions
+from selftune.learn.learners._regression import Regression
 from selftune.sim import held, uniform
 
 #: Memory and time allowed to a case run in a subprocess.

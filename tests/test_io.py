@@ -28,10 +28,10 @@ from hypothesis.extra import numpy as hnp
 from numpy.typing import ArrayLike
 
 import selftune.learn
-import selftune.learn._csv as selftune_csv
-import selftune.learn._data_file as selftune_data_file
-import selftune.learn._io as selftune_io
-import selftune.learn._npz as selftune_npz
+import selftune.learn.data._csv as selftune_csv
+import selftune.learn.data._data_file as selftune_data_file
+import selftune.learn.data._io as selftune_io
+import selftune.learn.data._npz as selftune_npz
 from selftune.errors import DataFileError, InputError
 from selftune.learn import (
     Trajectory,
@@ -42,7 +42,7 @@ from selftune.learn import (
     save_npz,
     save_trajectory,
 )
-from selftune.learn._io import trajectory_dimensions
+from selftune.learn.data._io import trajectory_dimensions
 
 #: (t, x, u, w, angle), w and angle optional.
 Arrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]

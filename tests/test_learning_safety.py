@@ -24,7 +24,7 @@ from selftune.learn import (
     gather_evidence,
     learn_controller,
 )
-from selftune.learn._evidence import TEST_LEVEL, structure_statistic
+from selftune.learn.evidence._evidence import TEST_LEVEL, structure_statistic
 from selftune.model import solve_digital_regulation, solve_optimal_regulation
 from selftune.sim import DriveSettings
 
@@ -231,9 +231,7 @@ def test_the_structure_statistic_is_chi_square_when_the_structure_holds() -> Non
 def test_the_structure_check_tolerates_the_dead_time_models_own_approximation(seed: int) -> None:
     # the dead-time model's error near zero current correlates the output errors (inflation
     # 4-7); the unstructured model absorbs more of it, which is no reason to refuse
-    log, problem, known = reference_log(
-        settings=DriveSettings.hardware_like(h=1e-4), seed=seed
-    )
+    log, problem, known = reference_log(settings=DriveSettings.hardware_like(h=1e-4), seed=seed)
     options = digital(method="identify", structure="spmsm", electrical_speed=150.0, dead_time=True)
     learned = learn_controller(log, *known, options)
     truth = solve_digital_regulation(problem, Q, R, 1e-4, input_delay=1)

@@ -48,7 +48,7 @@ from selftune.learn import (
     learn_controller,
     learn_lqr,
 )
-from selftune.learn._alignment import SAMPLING_JITTER
+from selftune.learn.evidence._alignment import SAMPLING_JITTER
 from selftune.sim import DriveSettings, prbs, simulate
 
 E = TypeVar("E", bound=SelftuneError)

@@ -17,7 +17,7 @@ Oracles, all built here from the motor's A, B, C with scipy, independently of se
 - the steady state of the sampled loop under a constant input disturbance, solved
   algebraically from the closed loop built here, and a simulated loop;
 - the learner's identify-then-design on the exact discrete model (a different code path:
-  :mod:`selftune.learn._identify`).
+  :mod:`selftune.learn.learners._identify`).
 """
 
 from __future__ import annotations

@@ -284,7 +284,7 @@ def learn_command(data_path: str, config_path: str, json_path: str | None) -> in
         Where to write the JSON (``-``: standard output, without the report).
     """
     from .learn import load_trajectory
-    from .learn._io import trajectory_dimensions
+    from .learn.data._io import trajectory_dimensions
 
     _check_json_target(json_path)
     config = load_learn_config(config_path, *trajectory_dimensions(data_path))

@@ -5,25 +5,34 @@ by :func:`load_trajectory`) and the known part of the problem (C, E, F, the cost
 and a stabilizing K0); they never see A, B or D. Nothing here imports
 :mod:`selftune.model` or :mod:`selftune.tuning`; an import contract checks that.
 
-The data flow: :class:`Trajectory` -> :func:`interval_moments` (the quadrature of the
-data equation, :mod:`._moments`) -> :func:`regression` and :func:`solve_regression`
-(the rows and their excitation check, :mod:`._regression`) -> :func:`policy_step` and
-:func:`policy_iteration` (:mod:`._policy_iteration`) -> :func:`learn_lqr` and
-:func:`learn_regulator` (:mod:`._continuous`), :func:`learn_servo` (integral action,
-:mod:`._servo`), the discrete-time learner :func:`learn_digital_adp` (:mod:`._digital`).
-Every learner takes the data, the :class:`LearningProblem`, K0 and the
-:class:`LearningOptions`, in that order, and returns a :class:`LearnedController`.
+The flow, one subpackage a stage::
 
-For a drive's log, :func:`learn_controller` runs them all behind one pipeline: the
-evidence of the log (alignment, output-error model, consistency, :mod:`._evidence`),
-the learner of the options' target and method, and the verdict (:class:`Quality`,
-:mod:`._quality`); :func:`assess` gives the same verdict to a controller learned
-elsewhere.
+    data/       Trajectory, CSV and NPZ files                          the logs
+    evidence/   exact discrete model, alignment, dead time,             what the logs say
+                output-error fit and noise, consistency tests
+    learners/   moments and regression of the data equation, one        the method
+                policy-iteration driver, continuous ADP (plain,
+                regulator, servo), discrete-time ADP, identify-then-design
+    verdict/    standard errors, stability margin over the plants       how good it is
+                the data allow, refusals
+    _pipeline   learn_controller and assess: the stages in order
+
+:class:`LearningProblem` (what is known: C, E, F, Q, R, integral action) and
+:class:`LearningOptions` (what to learn and how) are the inputs of every stage;
+:class:`LearnedController` is every learner's result. Every learner takes the data, the
+problem, K0 and the options, in that order. For a drive's log, :func:`learn_controller`
+runs the evidence, the learner of the options' target and method, and the verdict;
+:func:`assess` gives the same verdict to a controller learned elsewhere.
 """
 
 from __future__ import annotations
 
-from ._alignment import (
+from ._pipeline import aligned_trajectory, assess, learn_controller
+from ._problem import LearningOptions, LearningProblem, Method, Target
+from ._result import DiscountStage, Formulation, LearnedController
+from .data._io import load_csv, load_npz, load_trajectory, save_csv, save_npz, save_trajectory
+from .data._trajectory import Trajectory, as_trajectories
+from .evidence._alignment import (
     CANDIDATE_SHIFTS,
     Alignment,
     LoggedInput,
@@ -33,27 +42,30 @@ from ._alignment import (
     sampling_period,
     stated_shift,
 )
-from ._continuous import (
+from .evidence._dead_time import direction_signs, phase_signs
+from .evidence._discrete_model import DiscreteModel, Transitions, fit_discrete_model
+from .evidence._evidence import ConsistencyTest, Evidence, gather_evidence
+from .evidence._output_error import (
+    OutputErrorFit,
+    SpmsmStructure,
+    fit_output_error,
+    simulated_trajectories,
+)
+from .learners._continuous import (
     learn_lqr,
     learn_output_regulation,
     learn_regulator,
     solutions_of_output_equation,
 )
-from ._dead_time import direction_signs, phase_signs
-from ._digital import (
+from .learners._digital import (
     DigitalTransitions,
     digital_transitions,
     learn_digital_adp,
     steady_state_map,
 )
-from ._discrete_model import DiscreteModel, Transitions, fit_discrete_model
-from ._evidence import ConsistencyTest, Evidence, gather_evidence
-from ._identify import design_continuous, design_digital
-from ._io import load_csv, load_npz, load_trajectory, save_csv, save_npz, save_trajectory
-from ._learner import aligned_trajectory, assess, learn_controller
-from ._moments import IntervalMoments, WKind, interval_moments
-from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error, simulated_trajectories
-from ._policy_iteration import (
+from .learners._identify import design_continuous, design_digital
+from .learners._moments import IntervalMoments, WKind, interval_moments
+from .learners._policy_iteration import (
     MAX_TOLERANCE,
     IterationRecord,
     PolicyIterationFacts,
@@ -64,19 +76,16 @@ from ._policy_iteration import (
     policy_iteration,
     policy_step,
 )
-from ._problem import LearningOptions, LearningProblem, Method, Target
-from ._quality import TOO_LITTLE_DATA, Quality, closed_loop_radius
-from ._regression import (
+from .learners._regression import (
     BLOCK_ADVICE,
     Regression,
     RegressionSolution,
     regression,
     solve_regression,
 )
-from ._result import DiscountStage, Formulation, LearnedController
-from ._servo import learn_servo, servo_from_moments
-from ._trajectory import Trajectory, as_trajectories
-from ._verdict import dead_time_voltage
+from .learners._servo import learn_servo, servo_from_moments
+from .verdict._quality import TOO_LITTLE_DATA, Quality, closed_loop_radius
+from .verdict._verdict import dead_time_voltage
 
 __all__ = [
     "BLOCK_ADVICE",

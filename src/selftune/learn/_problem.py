@@ -26,8 +26,8 @@ from ..core import (
     positive_integer,
 )
 from ..errors import InputError, SelftuneDeprecationWarning
-from ._alignment import LoggedInput, stated_shift
-from ._policy_iteration import check_iteration_settings
+from .evidence._alignment import LoggedInput, stated_shift
+from .learners._policy_iteration import check_iteration_settings
 
 __all__ = ["LearningOptions", "LearningProblem", "Method", "Target"]
 
@@ -294,7 +294,7 @@ class LearningOptions:
         feedforward and the consistency test does not refuse the data. It needs the rotor
         angle: the logs' angle column, else ``electrical_speed``; without either, the
         current's direction stands in for it, less accurately
-        (:mod:`selftune.learn._dead_time`).
+        (:mod:`selftune.learn.evidence._dead_time`).
     noise : {"smoothed", "instruments", "none"}
         How the ADP learners meet measurement noise on the states (errors in variables):
         ``"smoothed"`` (default) builds their regressions from the output-error model's

@@ -6,12 +6,12 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
 from ..core import Array, ControlLaw, WithLaw, pack_theta
-from ._policy_iteration import IterationRecord, PolicyIterationFacts
-from ._regression import RegressionSolution
+from .learners._policy_iteration import IterationRecord, PolicyIterationFacts
+from .learners._regression import RegressionSolution
 
 if TYPE_CHECKING:
-    from ._alignment import Alignment
-    from ._quality import Quality
+    from .evidence._alignment import Alignment
+    from .verdict._quality import Quality
 
 __all__ = ["DiscountStage", "Formulation", "LearnedController"]
 
@@ -36,7 +36,7 @@ class DiscountStage:
     iterations : int
         Policy-iteration steps at this discount.
     rate : float
-        ``mu``, the smallest eigenvalue of ``P^-1 W`` (:mod:`selftune.learn._servo`), 1/s:
+        ``mu``, the smallest eigenvalue of ``P^-1 W`` (:mod:`selftune.learn.learners._servo`), 1/s:
         the discount may fall by less than this with ``K`` still stabilizing.
     """
 

@@ -247,9 +247,7 @@ def _check_settings(settings: object, h: float) -> DriveSettings:
     if not isinstance(settings, DriveSettings):
         raise InputError(f"settings: expected DriveSettings, got {type(settings).__name__}")
     if settings.dead_time >= 0.5 * h:
-        raise InputError(
-            f"dead_time: {settings.dead_time!r} s is not under half of h = {h!r} s"
-        )
+        raise InputError(f"dead_time: {settings.dead_time!r} s is not under half of h = {h!r} s")
     return settings
 
 

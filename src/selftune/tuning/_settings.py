@@ -43,7 +43,6 @@ __all__ = [
 Perturbation = Literal["paper", "torque", "steps"]
 
 
-
 @dataclass(frozen=True)
 class TuningSettings:
     """Settings of a self-tuning session: the paper's (Sec. V), but for ``input_hold``.

@@ -8,8 +8,8 @@ from typing import Literal
 
 import numpy as np
 
-from ..core import Array, discretize, rotating_hold
-from ..errors import InputError
+from ...core import Array, discretize, rotating_hold
+from ...errors import InputError
 from ._discrete_model import DiscreteModel
 
 __all__ = ["SpmsmStructure"]

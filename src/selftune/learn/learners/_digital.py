@@ -46,16 +46,16 @@ from functools import partial
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core import RANK_TOLERANCE, Array, unvec, unvecs, vecs_hat, vecs_hat_from_outer
-from ..errors import InputError, PolicyIterationFailure, TooShort
-from ..loop import LoopWeights, SampledLoop
-from ._alignment import applied_inputs
+from ...core import RANK_TOLERANCE, Array, unvec, unvecs, vecs_hat, vecs_hat_from_outer
+from ...errors import InputError, PolicyIterationFailure, TooShort
+from ...loop import LoopWeights, SampledLoop
+from .._problem import LearningOptions, LearningProblem
+from .._result import LearnedController
+from ..data._trajectory import Trajectory
+from ..evidence._alignment import applied_inputs
 from ._continuous import solutions_of_output_equation
 from ._policy_iteration import IterationRecord, PolicyStep, discounted_policy_iteration
-from ._problem import LearningOptions, LearningProblem
 from ._regression import Regression, RegressionSolution, solve_regression
-from ._result import LearnedController
-from ._trajectory import Trajectory
 
 __all__ = ["DigitalTransitions", "digital_transitions", "learn_digital_adp", "steady_state_map"]
 

@@ -1,5 +1,5 @@
 """The NPZ trajectory file: reader and writer (the format is specified in
-:mod:`selftune.learn._io`)."""
+:mod:`selftune.learn.data._io`)."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core import Array, atomic_path
-from ..core._atomic import open_zip, read_npy_data, read_npy_header
-from ..core._validation import LIMITS, check_time_resolution
-from ..errors import InputError
+from ...core import Array, atomic_path
+from ...core._atomic import open_zip, read_npy_data, read_npy_header
+from ...core._validation import LIMITS, check_time_resolution
+from ...errors import InputError
 from ._data_file import (
     PathLike,
     build,
@@ -165,7 +165,7 @@ def _as_float(path: Path, name: str, array: NDArray[np.generic]) -> Array:
 
 
 def load_npz(path: PathLike) -> Trajectory:
-    """Read a trajectory from an NPZ archive (see :mod:`selftune.learn._io` for the format).
+    """Read a trajectory from an NPZ archive (see :mod:`selftune.learn.data._io` for the format).
 
     Parameters
     ----------

@@ -9,11 +9,11 @@ where ``a_k`` is the input APPLIED during ``[t_k, t_(k+1))``. :func:`fit_discret
 fits ``[Ad, Bd, Ed]`` to the transitions of a log by least squares: exact on noise-free
 data at any sampling period, whatever the excitation as long as the regressors have full
 rank. It is the model behind the input-alignment check (:mod:`._alignment`), the quality
-verdict and identify-then-design (:mod:`._identify`); the ADP learners do not use it to
+verdict and identify-then-design (:mod:`..learners._identify`); the ADP learners do not use it to
 learn.
 
 Under white measurement noise on x the fit is biased (errors in variables: ``x_k`` is a
-regressor); :mod:`._identify` refines it by output error.
+regressor); :mod:`..learners._identify` refines it by output error.
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ..core import RANK_TOLERANCE, Array
-from ..errors import NotExciting, NumericalFailure, TooShort
+from ...core import RANK_TOLERANCE, Array
+from ...errors import NotExciting, NumericalFailure, TooShort
 
 __all__ = ["DiscreteModel", "Transitions", "fit_discrete_model"]
 

@@ -34,7 +34,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike
 
-from ..core import (
+from ...core import (
     RANK_TOLERANCE,
     Array,
     ControlLaw,
@@ -44,7 +44,10 @@ from ..core import (
     unvec,
     vec,
 )
-from ..errors import InputError, SelftuneDeprecationWarning, UnsolvableError
+from ...errors import InputError, SelftuneDeprecationWarning, UnsolvableError
+from .._problem import LearningOptions, LearningProblem
+from .._result import Formulation, LearnedController
+from ..data._trajectory import Trajectory, as_trajectories
 from ._moments import IntervalMoments, WKind, interval_moments
 from ._policy_iteration import (
     IterationRecord,
@@ -53,10 +56,7 @@ from ._policy_iteration import (
     moments_step,
     policy_iteration,
 )
-from ._problem import LearningOptions, LearningProblem
 from ._regression import RegressionSolution, regression, solve_regression
-from ._result import Formulation, LearnedController
-from ._trajectory import Trajectory, as_trajectories
 
 __all__ = [
     "learn_lqr",

@@ -73,9 +73,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core import Array, as_matrix, finite_float, positive_integer
-from ..errors import InputError
-from ._trajectory import Trajectory, as_trajectories
+from ...core import Array, as_matrix, finite_float, positive_integer
+from ...errors import InputError
+from ..data._trajectory import Trajectory, as_trajectories
 
 __all__ = ["IntervalMoments", "WKind", "interval_moments"]
 
@@ -103,7 +103,7 @@ class IntervalMoments:
         State, input and exogenous dimensions (n counts the r integrator states).
     instruments : IntervalMoments or None
         The same moments of noise-free states simulated from the same inputs (an
-        output-error model's, :mod:`._output_error`): the regressions built from them are
+        output-error model's, :mod:`..evidence._output_error`): the regressions built from them are
         instruments, uncorrelated with the measurement noise (:func:`solve_regression`).
     r : int
         Integrator states: the last r of the n states are ``z_e``, the integral of the

@@ -24,10 +24,10 @@ from typing import Literal
 
 import numpy as np
 
-from ..core import Array, positive_integer
-from ..errors import InputError, MisalignedLog, SamplingJitter, TooShort
+from ...core import Array, positive_integer
+from ...errors import InputError, MisalignedLog, SamplingJitter, TooShort
+from ..data._trajectory import Trajectory, as_trajectories
 from ._discrete_model import DiscreteModel, Transitions, fit_discrete_model
-from ._trajectory import Trajectory, as_trajectories
 
 __all__ = [
     "CANDIDATE_SHIFTS",

@@ -2,24 +2,24 @@
 
 :func:`learn_controller` runs the same pipeline for every target and method:
 
-1. **evidence** (:mod:`._evidence`): the alignment of the logged inputs, checked on every
+1. **evidence** (:mod:`.evidence._evidence`): the alignment of the logged inputs, checked on every
    call; the output-error model of the data with its noise estimate; the consistency
    test. Data that contradict the stated alignment or that no linear model explains are
    refused here, whatever the method.
 2. **learning**, by the options' target and method:
 
-   ============  ==========  ==========================================================
-   target        method      learner
-   ============  ==========  ==========================================================
-   continuous    adp         the paper's continuous-time ADP (:mod:`._continuous`)
-   digital       adp         discrete-time ADP with the computation delay (:mod:`._digital`)
-   continuous    identify    discrete model, matrix logarithm, continuous optimum
-   digital       identify    discrete model, optimum of the delayed sampled loop
-   ============  ==========  ==========================================================
+   ==========  ========  ==========================================================
+   target      method    learner (:mod:`.learners`)
+   ==========  ========  ==========================================================
+   continuous  adp       the paper's continuous-time ADP (``_continuous``, ``_servo``)
+   digital     adp       discrete-time ADP with the computation delay (``_digital``)
+   continuous  identify  discrete model, matrix logarithm, continuous optimum
+   digital     identify  discrete model, optimum of the delayed sampled loop
+   ==========  ========  ==========================================================
 
    The ADP learners meet measurement noise as ``options.noise`` says (by default they
    learn from the output-error model's noise-free simulation of the log).
-3. **verdict** (:mod:`._quality`): standard errors, noise, stability margin; the
+3. **verdict** (:mod:`.verdict._quality`): standard errors, noise, stability margin; the
    controller is returned only if the data support it.
 """
 
@@ -42,24 +42,24 @@ from ..errors import (
     TooLittleData,
     UnsolvableError,
 )
-from ._alignment import applied_inputs
-from ._continuous import lqr_from_moments, regulator_from_moments
-from ._digital import (
+from ._problem import LearningOptions, LearningProblem
+from ._result import LearnedController
+from .data._trajectory import Trajectory, as_trajectories
+from .evidence._alignment import applied_inputs
+from .evidence._evidence import Evidence, gather_evidence, reduced_problem
+from .evidence._output_error import simulated_trajectories
+from .learners._continuous import lqr_from_moments, regulator_from_moments
+from .learners._digital import (
     DigitalTransitions,
     digital_transitions,
     learn_digital_adp,
     steady_state_map,
 )
-from ._evidence import Evidence, gather_evidence, reduced_problem
-from ._moments import IntervalMoments, WKind, interval_moments
-from ._output_error import simulated_trajectories
-from ._policy_iteration import IterationRecord
-from ._problem import LearningOptions, LearningProblem
-from ._quality import check_precision, check_safety
-from ._result import LearnedController
-from ._servo import servo_from_moments
-from ._trajectory import Trajectory, as_trajectories
-from ._verdict import (
+from .learners._moments import IntervalMoments, WKind, interval_moments
+from .learners._policy_iteration import IterationRecord
+from .learners._servo import servo_from_moments
+from .verdict._quality import check_precision, check_safety
+from .verdict._verdict import (
     ROUNDING_FLOOR,
     SIGN_WIDTH_FACTOR,
     ModelErrors,

@@ -29,13 +29,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg
 
-from ..core import Array
-from ..core._propagate import plant_last, propagate_uniform
-from ..errors import InputError
+from ...core import Array
+from ...core._propagate import plant_last, propagate_uniform
+from ...errors import InputError
+from ..data._trajectory import Trajectory
 from ._alignment import applied_inputs
 from ._discrete_model import DiscreteModel
 from ._spmsm_structure import SpmsmStructure
-from ._trajectory import Trajectory
 
 __all__ = [
     "OutputErrorFit",

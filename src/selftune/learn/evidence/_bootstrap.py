@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..core import Array
+from ...core import Array
 from ._output_error import OutputErrorFit, _gauss_newton, _Log
 
 __all__ = ["BOOTSTRAP_DRAWS", "SHORT_LOG", "bootstrapped", "slowest_time_constant"]

@@ -39,13 +39,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.special
 
-from ..core import Array
-from ..errors import ConfigurationMismatch, ConsistencyError, InputError, ModelMissesEffect
+from ...core import Array
+from ...errors import ConfigurationMismatch, ConsistencyError, InputError, ModelMissesEffect
+from .._problem import LearningOptions, LearningProblem
+from ..data._trajectory import Trajectory
 from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
 from ._dead_time import DeadTimeModel, with_dead_time
 from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error
-from ._problem import LearningOptions, LearningProblem
-from ._trajectory import Trajectory
 
 __all__ = [
     "INFLATION_LIMIT",

@@ -1,7 +1,7 @@
 """Identify-then-design (certainty equivalence): the baseline every ADP result is held to.
 
 The exact discrete model ``x_(k+1) = Ad x_k + Bd a_k + Ed w_k`` fitted to the log
-(:mod:`._discrete_model`) is taken as the truth and the optimum of the target designed on
+(:mod:`..evidence._discrete_model`) is taken as the truth and the optimum of the target designed on
 it (Tu & Recht 2019; Mania, Tu & Recht 2019):
 
 - ``"digital"``: the optimum of ``sum_k h (xbar' Q xbar + ubar' R ubar [+ z' Q_i z])`` of
@@ -22,16 +22,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core import (
+from ...core import (
     Array,
     continuous_from_discrete,
     is_positive_definite,
     solve_regulator,
 )
-from ..loop import Cost, SampledLoop
-from ._discrete_model import DiscreteModel
-from ._problem import LearningProblem
-from ._result import LearnedController
+from ...loop import Cost, SampledLoop
+from .._problem import LearningProblem
+from .._result import LearnedController
+from ..evidence._discrete_model import DiscreteModel
 
 __all__ = ["design_continuous", "design_digital"]
 

@@ -10,7 +10,7 @@ A :class:`Trajectory` holds N samples (N + 1 sample times) of a plant
 - ``w`` (N + 1, q) or (N, q), optional: the exogenous signal;
 - ``angle`` (N + 1,), optional: the electrical rotor angle at each sample time, rad
   (a drive knows it; the learners use it to model an inverter's dead time from the phase
-  currents' signs, :mod:`selftune.learn._dead_time`).
+  currents' signs, :mod:`selftune.learn.evidence._dead_time`).
 
 What ``w`` means depends on the exosystem matrix E that the learner is given:
 
@@ -19,7 +19,7 @@ What ``w`` means depends on the exosystem matrix E that the learner is given:
 - ``E != 0``: ``w[k]`` is the exosystem state ``w' = E w`` sampled at ``t[k]``; all
   N + 1 rows are needed.
 
-File formats (CSV and NPZ) live in :mod:`selftune.learn._io`.
+File formats (CSV and NPZ) live in :mod:`selftune.learn.data._io`.
 """
 
 from __future__ import annotations
@@ -30,9 +30,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..core import Array, first_non_increasing, positive_integer
-from ..core._validation import check_time_resolution
-from ..errors import InputError
+from ...core import Array, first_non_increasing, positive_integer
+from ...core._validation import check_time_resolution
+from ...errors import InputError
 
 __all__ = ["Trajectory", "as_trajectories"]
 

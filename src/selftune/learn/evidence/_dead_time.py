@@ -32,10 +32,10 @@ from typing import Literal
 import numpy as np
 import scipy.special
 
-from ..core import Array
+from ...core import Array
+from ..data._trajectory import Trajectory
 from ._alignment import aligned_transitions
 from ._discrete_model import fit_discrete_model
-from ._trajectory import Trajectory
 
 __all__ = [
     "OFFSET_GRID",

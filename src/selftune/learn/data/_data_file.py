@@ -1,7 +1,7 @@
 """What the two trajectory file formats share: the error, the checks, the trajectory built.
 
-The formats themselves are specified in :mod:`selftune.learn._io`; the CSV reader and
-writer live in :mod:`selftune.learn._csv`, the NPZ ones in :mod:`selftune.learn._npz`.
+The formats themselves are specified in :mod:`selftune.learn.data._io`; the CSV reader and
+writer live in :mod:`selftune.learn.data._csv`, the NPZ ones in :mod:`selftune.learn.data._npz`.
 """
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core import Array
-from ..core._validation import DATA_VALUE_LIMIT, LIMITS
-from ..errors import DataFileError, InputError
+from ...core import Array
+from ...core._validation import DATA_VALUE_LIMIT, LIMITS
+from ...errors import DataFileError, InputError
 from ._trajectory import Trajectory
 
 __all__ = [

@@ -99,15 +99,18 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike
 
-from ..core import (
+from ...core import (
     Array,
     ControlLaw,
     finite_float,
     theta_sizes,
     unpack_theta,
 )
-from ..errors import ConvergenceError, InputError, TooShort
-from ._alignment import sampling_period
+from ...errors import ConvergenceError, InputError, TooShort
+from .._problem import LearningOptions, LearningProblem, padded_policy
+from .._result import DiscountStage, LearnedController
+from ..data._trajectory import Trajectory, as_trajectories
+from ..evidence._alignment import sampling_period
 from ._continuous import solutions_of_output_equation
 from ._moments import IntervalMoments, WKind, interval_moments
 from ._policy_iteration import (
@@ -120,9 +123,6 @@ from ._policy_iteration import (
     moments_step,
     policy_step,
 )
-from ._problem import LearningOptions, LearningProblem, padded_policy
-from ._result import DiscountStage, LearnedController
-from ._trajectory import Trajectory, as_trajectories
 
 __all__ = [
     "DISCOUNT_STEP",

@@ -1,5 +1,5 @@
 """The CSV trajectory file: reader and writer (the format is specified in
-:mod:`selftune.learn._io`)."""
+:mod:`selftune.learn.data._io`)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..core import Array, atomic_path, first_non_increasing
-from ..core._atomic import open_regular_file, read_regular_file
-from ..core._validation import LIMITS
+from ...core import Array, atomic_path, first_non_increasing
+from ...core._atomic import open_regular_file, read_regular_file
+from ...core._validation import LIMITS
 from ._data_file import (
     PathLike,
     build,
@@ -75,7 +75,7 @@ def _format_rows(rows: Array) -> str:
 
 
 def save_csv(trajectory: Trajectory, path: PathLike) -> None:
-    """Write a trajectory as CSV (see :mod:`selftune.learn._io` for the format), atomically.
+    """Write a trajectory as CSV (see :mod:`selftune.learn.data._io` for the format), atomically.
 
     Parameters
     ----------
@@ -217,7 +217,7 @@ def _decode(path: Path, raw: bytes, first_line: int) -> str:
 
 
 def load_csv(path: PathLike) -> Trajectory:
-    """Read a trajectory from a CSV file (see :mod:`selftune.learn._io` for the format).
+    """Read a trajectory from a CSV file (see :mod:`selftune.learn.data._io` for the format).
 
     Parameters
     ----------

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..core import (
+from ...core import (
     Array,
     minimize_weighted_norm,
     positive_finite,
@@ -29,7 +29,7 @@ from ..core import (
     unvec,
     vec,
 )
-from ..errors import ConvergenceError, InputError, PolicyIterationFailure
+from ...errors import ConvergenceError, InputError, PolicyIterationFailure
 from ._moments import IntervalMoments
 from ._regression import RegressionSolution, regression, solve_regression
 

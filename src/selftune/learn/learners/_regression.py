@@ -17,8 +17,8 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
-from ..core import RANK_TOLERANCE, Array, theta_sizes, vecs_hat_from_outer
-from ..errors import InputError, NotExciting, NumericalFailure, TooShort
+from ...core import RANK_TOLERANCE, Array, theta_sizes, vecs_hat_from_outer
+from ...errors import InputError, NotExciting, NumericalFailure, TooShort
 from ._moments import IntervalMoments
 
 __all__ = [

@@ -8,11 +8,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..core import Array, ControlLaw
-from ._discrete_model import DiscreteModel
-from ._evidence import INFLATION_LIMIT, Evidence
-from ._identify import design_continuous, design_digital
-from ._problem import LearningOptions, LearningProblem
+from ...core import Array, ControlLaw
+from .._problem import LearningOptions, LearningProblem
+from ..evidence._discrete_model import DiscreteModel
+from ..evidence._evidence import INFLATION_LIMIT, Evidence
+from ..learners._identify import design_continuous, design_digital
 from ._quality import PLAUSIBLE_MODELS, Quality, closed_loop_radius, standard_errors
 
 __all__ = [

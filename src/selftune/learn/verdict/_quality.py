@@ -28,12 +28,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import RANK_TOLERANCE, Array, ControlLaw
-from ..errors import NotStabilizing, PolicyIterationFailure, TooLittleData
-from ..loop import SampledLoop
-from ._discrete_model import DiscreteModel
-from ._evidence import INFLATION_LIMIT, Evidence
-from ._policy_iteration import IterationRecord
+from ...core import RANK_TOLERANCE, Array, ControlLaw
+from ...errors import NotStabilizing, PolicyIterationFailure, TooLittleData
+from ...loop import SampledLoop
+from ..evidence._discrete_model import DiscreteModel
+from ..evidence._evidence import INFLATION_LIMIT, Evidence
+from ..learners._policy_iteration import IterationRecord
 
 __all__ = [
     "SERVO_FEEDFORWARD_LIMIT",
