@@ -171,7 +171,7 @@ def solve_digital_regulation(
 
     ``(X, U)`` solve the regulator equations (as :func:`solve_optimal_regulation`: E = 0,
     so they are those of continuous time and ``(Ad - I) X + Bd U + Ed = 0``). ``K`` and
-    ``P`` are the DARE's of the delay-augmented plant (:func:`delay_augmented`), whose
+    ``P`` are the DARE's of the augmented plant (:class:`~selftune.loop.SampledLoop`), whose
     state, the order of K's columns, is ``z_k = [xbar_k; ubar_(k-d); ...; ubar_(k-1)]``.
 
     Costs, with ``ubar_k`` the deviation of the voltage computed at sample k and

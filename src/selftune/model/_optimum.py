@@ -10,7 +10,7 @@ the integral of the regulated error ``e = C x + F w``; since ``C X + F = 0``,
 
     [xbar; z]' = A_aug [xbar; z] + B_aug ubar,   A_aug = [[A, 0], [C, 0]],   B_aug = [B; 0]
 
-(:func:`~selftune.core.integrator_augmented`). The optimum of
+(the continuous loop of :class:`~selftune.loop.SampledLoop`, h = 0). The optimum of
 ``int (xbar'Q xbar + z'Q_i z + ubar'R ubar) dt`` is ``u = U w - K xbar - K_i z`` with
 ``[K, K_i]`` the LQR gain of ``(A_aug, B_aug, blockdiag(Q, Q_i), R)``; it exists when
 ``rank [[A, B], [C, 0]] = n + r`` (the plant has no zero at s = 0 and at least as many
