@@ -26,13 +26,12 @@ from numpy.typing import ArrayLike
 
 from ..errors import InputError, UnsolvableError
 from ._discretize import augmented
-from ._linalg import check_plant, format_eigenvalue, unique_eigenvalues
+from ._linalg import check_plant, format_eigenvalue, pbh_rank_loss, unique_eigenvalues
 from ._validation import (
     Array,
     as_matrix,
     check_positive_semidefinite,
     check_weights,
-    numerical_rank,
     positive_finite,
     positive_integer,
 )
@@ -64,39 +63,37 @@ def _check_cost(
     return A_, B_, Q_, R_, N_
 
 
-def _outside_unit_disc(A: Array) -> list[complex]:
-    """The eigenvalues of A (without repeats) with ``|lambda| >= 1`` (to rounding)."""
-    return [value for value in unique_eigenvalues(A) if abs(value) >= 1.0 - _UNIT_CIRCLE_MARGIN]
+def _outside_unit_disc(value: complex) -> bool:
+    """Whether ``|value| >= 1`` (to rounding)."""
+    return abs(value) >= 1.0 - _UNIT_CIRCLE_MARGIN
 
 
 def _check_stabilizable(A: Array, B: Array) -> None:
     """Raise unless every mode of A with ``|lambda| >= 1`` is controllable (PBH)."""
-    n = A.shape[0]
-    for value in _outside_unit_disc(A):
-        rank = numerical_rank(np.hstack([A - value * np.eye(n), B]))
-        if rank < n:
-            raise UnsolvableError(
-                f"(A, B) is not stabilizable in discrete time: the mode at eigenvalue"
-                f" {format_eigenvalue(value)} of A (|lambda| = {abs(value):.6g} >= 1) is not"
-                f" controllable (rank [A - lambda I, B] = {rank} < n = {n})"
-            )
+    loss = pbh_rank_loss(A, B, _outside_unit_disc, stack="columns")
+    if loss is not None:
+        value, rank = loss
+        raise UnsolvableError(
+            f"(A, B) is not stabilizable in discrete time: the mode at eigenvalue"
+            f" {format_eigenvalue(value)} of A (|lambda| = {abs(value):.6g} >= 1) is not"
+            f" controllable (rank [A - lambda I, B] = {rank} < n = {A.shape[0]})"
+        )
 
 
 def _check_detectable(A: Array, B: Array, Q: Array, R: Array, N: Array) -> None:
     """Raise unless every mode of ``A - B R^-1 N'`` with ``|lambda| >= 1`` is seen by
     ``Q - N R^-1 N'`` (PBH); with N = 0, the detectability of ``(A, Q)``."""
-    n = A.shape[0]
     cross = np.linalg.solve(R, N.T)
     A_free, Q_free = A - B @ cross, Q - N @ cross
     pair = "(A, Q)" if not np.any(N) else "(A - B R^-1 N', Q - N R^-1 N')"
-    for value in _outside_unit_disc(A_free):
-        rank = numerical_rank(np.vstack([A_free - value * np.eye(n), 0.5 * (Q_free + Q_free.T)]))
-        if rank < n:
-            raise UnsolvableError(
-                f"{pair} is not detectable in discrete time: the mode at eigenvalue"
-                f" {format_eigenvalue(value)} (|lambda| = {abs(value):.6g} >= 1) is not seen by"
-                f" the cost (rank [A - lambda I; Q] = {rank} < n = {n}); make Q larger"
-            )
+    loss = pbh_rank_loss(A_free, 0.5 * (Q_free + Q_free.T), _outside_unit_disc, stack="rows")
+    if loss is not None:
+        value, rank = loss
+        raise UnsolvableError(
+            f"{pair} is not detectable in discrete time: the mode at eigenvalue"
+            f" {format_eigenvalue(value)} (|lambda| = {abs(value):.6g} >= 1) is not seen by"
+            f" the cost (rank [A - lambda I; Q] = {rank} < n = {A.shape[0]}); make Q larger"
+        )
 
 
 def _gain(A: Array, B: Array, R: Array, N: Array, P: Array) -> Array:

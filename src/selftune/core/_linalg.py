@@ -10,6 +10,8 @@ of linear constraints. They are generic numerical tools: the model-based truth
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike
@@ -31,6 +33,7 @@ __all__ = [
     "format_eigenvalue",
     "lqr",
     "minimize_weighted_norm",
+    "pbh_rank_loss",
     "policy_value",
     "regulator_equations",
     "solve_regulator",
@@ -68,6 +71,45 @@ def unique_eigenvalues(M: Array) -> list[complex]:
     return values
 
 
+def _right_half_plane(value: complex) -> bool:
+    """Whether ``value`` has a non-negative real part (to rounding)."""
+    return value.real >= -1e-9 * max(1.0, abs(value))
+
+
+def pbh_rank_loss(
+    A: Array, M: Array, unstable: Callable[[complex], bool], *, stack: str
+) -> tuple[complex, int] | None:
+    """The first unstable mode of A at which the PBH matrix loses rank, or None.
+
+    The PBH matrix is ``[A - lambda I, M]`` (``stack="columns"``, controllability by M) or
+    ``[A - lambda I; M]`` (``stack="rows"``, observability through M).
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+        State matrix.
+    M : ndarray
+        Input matrix (n, m) or output weight (p, n).
+    unstable : callable
+        Whether an eigenvalue of A is in the region that must be controllable / seen.
+    stack : {"columns", "rows"}
+        How ``A - lambda I`` and M are put together.
+
+    Returns
+    -------
+    tuple of (complex, int) or None
+        The eigenvalue and the rank (< n) of the PBH matrix there; None if there is none.
+    """
+    n = A.shape[0]
+    join = np.hstack if stack == "columns" else np.vstack
+    for value in unique_eigenvalues(A):
+        if unstable(value):
+            rank = numerical_rank(join([A - value * np.eye(n), M]))
+            if rank < n:
+                return value, rank
+    return None
+
+
 def check_stabilizable(A: ArrayLike, B: ArrayLike) -> None:
     """Raise :class:`UnsolvableError` unless ``(A, B)`` is stabilizable (PBH test).
 
@@ -82,17 +124,13 @@ def check_stabilizable(A: ArrayLike, B: ArrayLike) -> None:
         Input matrix.
     """
     A = np.asarray(A, dtype=float)
-    B = np.asarray(B, dtype=float)
-    n = A.shape[0]
-    for value in unique_eigenvalues(A):
-        if value.real < -1e-9 * max(1.0, abs(value)):
-            continue
-        rank = numerical_rank(np.hstack([A - value * np.eye(n), B]))
-        if rank < n:
-            raise UnsolvableError(
-                f"(A, B) is not stabilizable: the mode at eigenvalue {format_eigenvalue(value)}"
-                f" of A is not controllable (rank [A - lambda I, B] = {rank} < n = {n})"
-            )
+    loss = pbh_rank_loss(A, np.asarray(B, dtype=float), _right_half_plane, stack="columns")
+    if loss is not None:
+        value, rank = loss
+        raise UnsolvableError(
+            f"(A, B) is not stabilizable: the mode at eigenvalue {format_eigenvalue(value)}"
+            f" of A is not controllable (rank [A - lambda I, B] = {rank} < n = {A.shape[0]})"
+        )
 
 
 def check_detectable(A: ArrayLike, Q: ArrayLike) -> None:
@@ -106,18 +144,14 @@ def check_detectable(A: ArrayLike, Q: ArrayLike) -> None:
         State weight, symmetric positive semidefinite.
     """
     A = np.asarray(A, dtype=float)
-    Q = np.asarray(Q, dtype=float)
-    n = A.shape[0]
-    for value in unique_eigenvalues(A):
-        if value.real < -1e-9 * max(1.0, abs(value)):
-            continue
-        rank = numerical_rank(np.vstack([A - value * np.eye(n), Q]))
-        if rank < n:
-            raise UnsolvableError(
-                f"(A, Q) is not detectable: the mode at eigenvalue {format_eigenvalue(value)}"
-                f" of A is not seen by the cost (rank [A - lambda I; Q] = {rank} < n = {n});"
-                " make Q larger"
-            )
+    loss = pbh_rank_loss(A, np.asarray(Q, dtype=float), _right_half_plane, stack="rows")
+    if loss is not None:
+        value, rank = loss
+        raise UnsolvableError(
+            f"(A, Q) is not detectable: the mode at eigenvalue {format_eigenvalue(value)}"
+            f" of A is not seen by the cost (rank [A - lambda I; Q] = {rank} < n ="
+            f" {A.shape[0]}); make Q larger"
+        )
 
 
 def check_plant(A: ArrayLike, B: ArrayLike) -> tuple[Array, Array]:

@@ -301,6 +301,16 @@ def numerical_rank(M: ArrayLike, tolerance: float = RANK_TOLERANCE) -> int:
     return int(np.sum(singular_values > tolerance * float(singular_values[0])))
 
 
+def _as_float(value: object, name: str, expected: str) -> float:
+    """``float(value)`` for a number (not a bool or a string), else an error naming it."""
+    if isinstance(value, bool | str | bytes):
+        raise InputError(f"{name}: must be {expected}, got {value!r}")
+    try:
+        return float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(f"{name}: must be {expected}, got {value!r}") from None
+
+
 def positive_finite(value: object, name: str) -> float:
     """A finite, strictly positive float (a number, not a bool or a string).
 
@@ -311,12 +321,7 @@ def positive_finite(value: object, name: str) -> float:
     name : str
         Name of the value in error messages.
     """
-    if isinstance(value, bool | str | bytes):
-        raise InputError(f"{name}: must be a positive number, got {value!r}")
-    try:
-        number = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError, OverflowError):
-        raise InputError(f"{name}: must be a positive number, got {value!r}") from None
+    number = _as_float(value, name, "a positive number")
     if not np.isfinite(number) or number <= 0.0:
         raise InputError(f"{name}: must be a positive finite number, got {value!r}")
     return number
@@ -332,12 +337,7 @@ def finite_float(value: object, name: str) -> float:
     name : str
         Name of the value in error messages.
     """
-    if isinstance(value, bool | str | bytes):
-        raise InputError(f"{name}: must be a number, got {value!r}")
-    try:
-        number = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError, OverflowError):
-        raise InputError(f"{name}: must be a number, got {value!r}") from None
+    number = _as_float(value, name, "a number")
     if not np.isfinite(number):
         raise InputError(f"{name}: must be finite, got {value!r}")
     return number

@@ -56,24 +56,24 @@ class Exploration(Protocol):
 
 
 @dataclass(frozen=True, init=False, eq=False)
-class UniformExploration:
-    """A new value uniform in ``[-amplitude, amplitude]`` every sample (the paper's).
+class _BoundedExploration:
+    """An exploration ``amplitude`` times a signal in ``[-1, 1]``: the one ``sample``.
 
-    Attributes
-    ----------
-    amplitude : ndarray, shape () or (m,)
-        Bound, in the input's unit (V for the motor); one per input or common.
+    Subclasses give their configuration name (for errors) and ``_unit``, the signal in
+    ``[-1, 1]``, shape (*batch, N, m).
     """
 
     amplitude: Array
+    _name = "exploration"
 
     def __init__(self, amplitude: ArrayLike) -> None:
-        object.__setattr__(self, "amplitude", check_amplitude(amplitude, "uniform: amplitude"))
+        name = f"{self._name}: amplitude"
+        object.__setattr__(self, "amplitude", check_amplitude(amplitude, name))
 
     def sample(
         self, t: ArrayLike, m: int, rng: np.random.Generator, batch: tuple[int, ...] = ()
     ) -> Array:
-        """Independent uniform values, shape (*batch, N, m).
+        """``rho`` for the N samples of the times ``t``: shape (*batch, N, m).
 
         Parameters
         ----------
@@ -86,13 +86,36 @@ class UniformExploration:
         batch : tuple of int, optional
             Leading batch shape, e.g. ``(P,)`` for P plants (default ``()``).
         """
-        amplitude = amplitude_for(self.amplitude, m, "uniform: amplitude")
-        count = np.asarray(t).shape[0] - 1
-        return rng.uniform(-1.0, 1.0, size=(*batch, count, m)) * amplitude
+        amplitude = amplitude_for(self.amplitude, m, f"{self._name}: amplitude")
+        times = np.asarray(t, dtype=float)[:-1]
+        return self._unit(times, m, rng, batch) * amplitude
+
+    def _unit(
+        self, times: Array, m: int, rng: np.random.Generator, batch: tuple[int, ...]
+    ) -> Array:
+        raise NotImplementedError
 
 
 @dataclass(frozen=True, init=False, eq=False)
-class BinaryExploration:
+class UniformExploration(_BoundedExploration):
+    """A new value uniform in ``[-amplitude, amplitude]`` every sample (the paper's).
+
+    Attributes
+    ----------
+    amplitude : ndarray, shape () or (m,)
+        Bound, in the input's unit (V for the motor); one per input or common.
+    """
+
+    _name = "uniform"
+
+    def _unit(
+        self, times: Array, m: int, rng: np.random.Generator, batch: tuple[int, ...]
+    ) -> Array:
+        return rng.uniform(-1.0, 1.0, size=(*batch, times.shape[0], m))
+
+
+@dataclass(frozen=True, init=False, eq=False)
+class BinaryExploration(_BoundedExploration):
     """Random binary signal ``+-amplitude`` that can switch only every ``hold_samples``.
 
     Each block of ``hold_samples`` samples (aligned with the first sample) takes an
@@ -107,41 +130,25 @@ class BinaryExploration:
         Minimum hold, samples.
     """
 
-    amplitude: Array
     hold_samples: int
+    _name = "prbs"
 
     def __init__(self, amplitude: ArrayLike, hold_samples: int = 1) -> None:
-        object.__setattr__(self, "amplitude", check_amplitude(amplitude, "prbs: amplitude"))
-        object.__setattr__(
-            self, "hold_samples", positive_integer(hold_samples, "prbs: hold_samples")
-        )
+        super().__init__(amplitude)
+        hold = positive_integer(hold_samples, "prbs: hold_samples")
+        object.__setattr__(self, "hold_samples", hold)
 
-    def sample(
-        self, t: ArrayLike, m: int, rng: np.random.Generator, batch: tuple[int, ...] = ()
+    def _unit(
+        self, times: Array, m: int, rng: np.random.Generator, batch: tuple[int, ...]
     ) -> Array:
-        """The binary sequence, shape (*batch, N, m).
-
-        Parameters
-        ----------
-        t : array_like, shape (N + 1,)
-            Sample times, s.
-        m : int
-            Number of inputs.
-        rng : numpy.random.Generator
-            Source of all randomness.
-        batch : tuple of int, optional
-            Leading batch shape, e.g. ``(P,)`` for P plants (default ``()``).
-        """
-        amplitude = amplitude_for(self.amplitude, m, "prbs: amplitude")
-        count = np.asarray(t).shape[0] - 1
+        count = times.shape[0]
         blocks = -(-count // self.hold_samples)
         signs = 2.0 * rng.integers(0, 2, size=(*batch, blocks, m)) - 1.0
-        levels = np.repeat(signs, self.hold_samples, axis=-2)[..., :count, :]
-        return levels * amplitude
+        return np.repeat(signs, self.hold_samples, axis=-2)[..., :count, :]
 
 
 @dataclass(frozen=True, init=False, eq=False)
-class SinusoidalExploration:
+class SinusoidalExploration(_BoundedExploration):
     """A sum of sinusoids with random phases, sampled at the sample instants and held.
 
     ``rho_i(t) = (amplitude_i / F) sum_f sin(2 pi f t + phase_(i, f))`` over the F
@@ -156,11 +163,11 @@ class SinusoidalExploration:
         Frequencies, Hz, positive.
     """
 
-    amplitude: Array
     frequencies: Array
+    _name = "sum_of_sines"
 
     def __init__(self, amplitude: ArrayLike, frequencies: ArrayLike) -> None:
-        object.__setattr__(self, "amplitude", check_amplitude(amplitude, "sum_of_sines: amplitude"))
+        super().__init__(amplitude)
         values = as_float_array(frequencies, "sum_of_sines: frequencies")
         if values.ndim == 0:
             values = values.reshape(1)
@@ -176,28 +183,13 @@ class SinusoidalExploration:
         values.setflags(write=False)
         object.__setattr__(self, "frequencies", values)
 
-    def sample(
-        self, t: ArrayLike, m: int, rng: np.random.Generator, batch: tuple[int, ...] = ()
+    def _unit(
+        self, times: Array, m: int, rng: np.random.Generator, batch: tuple[int, ...]
     ) -> Array:
-        """The sampled sum of sinusoids, shape (*batch, N, m).
-
-        Parameters
-        ----------
-        t : array_like, shape (N + 1,)
-            Sample times, s.
-        m : int
-            Number of inputs.
-        rng : numpy.random.Generator
-            Source of all randomness.
-        batch : tuple of int, optional
-            Leading batch shape, e.g. ``(P,)`` for P plants (default ``()``).
-        """
-        amplitude = amplitude_for(self.amplitude, m, "sum_of_sines: amplitude")
         count_f = self.frequencies.shape[0]
         phases = rng.uniform(0.0, 2.0 * np.pi, size=(*batch, 1, m, count_f))
-        times = np.asarray(t, dtype=float)[:-1]
         angles = 2.0 * np.pi * times[:, np.newaxis, np.newaxis] * self.frequencies + phases
-        return np.sin(angles).sum(axis=-1) * (amplitude / count_f)
+        return np.sin(angles).sum(axis=-1) / count_f
 
 
 def uniform(amplitude: ArrayLike) -> UniformExploration:

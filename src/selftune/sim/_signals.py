@@ -61,6 +61,15 @@ class ExogenousSignal(Protocol):
         ...
 
 
+class _Held:
+    """A signal held over each sample: ``E`` is None (``E = 0`` to a learner)."""
+
+    @property
+    def E(self) -> None:
+        """None: the signal is held (``E = 0``)."""
+        return None
+
+
 def check_signal_values(values: ArrayLike, count: int, name: str) -> Array:
     array = as_float_array(values, name)
     if array.ndim == 1:
@@ -74,7 +83,7 @@ def check_signal_values(values: ArrayLike, count: int, name: str) -> Array:
 
 
 @dataclass(frozen=True, init=False, eq=False)
-class ConstantSignal:
+class ConstantSignal(_Held):
     """A constant exogenous signal (held), ``w(t) = w``.
 
     Attributes
@@ -96,18 +105,10 @@ class ConstantSignal:
         value.setflags(write=False)
         object.__setattr__(self, "w", value)
 
-    @property
-    def E(self) -> None:
-        """None: the signal is held (``E = 0``)."""
-        return None
-
     def values(self, t: ArrayLike) -> Array:
         """``w`` repeated at each of the N + 1 sample times: (N + 1, q) or (P, N + 1, q).
 
-        Parameters
-        ----------
-        t : array_like, shape (N + 1,)
-            Sample times, s.
+        ``t``: the sample times (N + 1,), s, as in :meth:`ExogenousSignal.values`.
         """
         count = np.asarray(t).shape[0]
         shape = (*self.w.shape[:-1], count, self.w.shape[-1])
@@ -115,7 +116,7 @@ class ConstantSignal:
 
 
 @dataclass(frozen=True, init=False, eq=False)
-class StepSignal:
+class StepSignal(_Held):
     """A piecewise-constant exogenous signal (held) that steps at given times.
 
     ``w(t) = values[0]`` before ``times[0]`` and ``values[i + 1]`` from ``times[i]`` on.
@@ -165,18 +166,10 @@ class StepSignal:
         object.__setattr__(self, "times", step_times)
         object.__setattr__(self, "levels", levels)
 
-    @property
-    def E(self) -> None:
-        """None: the signal is held (``E = 0``)."""
-        return None
-
     def values(self, t: ArrayLike) -> Array:
         """``w(t[k])``, shape (N + 1, q) or (P, N + 1, q).
 
-        Parameters
-        ----------
-        t : array_like, shape (N + 1,)
-            Sample times, s.
+        ``t``: the sample times (N + 1,), s, as in :meth:`ExogenousSignal.values`.
         """
         times = np.asarray(t, dtype=float)
         scale = max(float(np.max(np.abs(times))), float(np.max(np.abs(self.times))))
@@ -186,7 +179,7 @@ class StepSignal:
 
 
 @dataclass(frozen=True, eq=False)
-class HeldSignal:
+class HeldSignal(_Held):
     """Any function of time, sampled at the sample instants and held over each sample.
 
     Attributes
@@ -205,18 +198,10 @@ class HeldSignal:
                 f"got {type(self.function).__name__}"
             )
 
-    @property
-    def E(self) -> None:
-        """None: the signal is held (``E = 0``)."""
-        return None
-
     def values(self, t: ArrayLike) -> Array:
         """``function(t)`` checked: shape (N + 1, q) or (P, N + 1, q).
 
-        Parameters
-        ----------
-        t : array_like, shape (N + 1,)
-            Sample times, s.
+        ``t``: the sample times (N + 1,), s, as in :meth:`ExogenousSignal.values`.
         """
         times = np.array(t, dtype=float)
         times.setflags(write=False)
@@ -258,10 +243,7 @@ class Exosystem:
     def values(self, t: ArrayLike) -> Array:
         """``w(t[k]) = expm(E (t[k] - t[0])) w0``, exact up to rounding: (N + 1, q) or batch.
 
-        Parameters
-        ----------
-        t : array_like, shape (N + 1,)
-            Sample times, s.
+        ``t``: the sample times (N + 1,), s, as in :meth:`ExogenousSignal.values`.
         """
         times = sample_times(t, "exosystem: t")
         period = uniform_period(times)
