@@ -236,13 +236,25 @@ class NotExciting(Refusal, ExcitationError):
         The rank needed (the number of unknowns).
     block : str or None
         The deficient block of the regression (None if the message names none).
+    columns : tuple of int
+        The regressors that move together (indices into the regression's columns; empty
+        if the message names none).
     """
 
-    def __init__(self, message: str, *, rank: int, rank_needed: int, block: str | None) -> None:
+    def __init__(
+        self,
+        message: str,
+        *,
+        rank: int,
+        rank_needed: int,
+        block: str | None,
+        columns: tuple[int, ...] = (),
+    ) -> None:
         super().__init__(message)
         self.rank = rank
         self.rank_needed = rank_needed
         self.block = block
+        self.columns = columns
 
 
 class TooShort(Refusal, ExcitationError):

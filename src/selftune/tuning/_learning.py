@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..core import Array, unpack_theta
+from ..core import Array, pack_theta, unpack_theta
 from ..errors import InputError
 from ..learn import (
     IterationRecord,
@@ -131,7 +131,11 @@ def from_learned(
 ) -> TuningResult:
     """A :class:`TuningResult` of a controller learned off-policy from ``seconds`` of data."""
     history = _history(learned.history, learned, settings, seconds)
-    theta = history[-1].theta if learned.target == "continuous" and history else None
+    theta = None
+    if learned.target == "continuous" and history:
+        # Theta of the problem stated: without the dead-time channels' rows of M
+        P, K, M = _unpacked(history[-1].theta, history[-1].K)
+        theta = pack_theta(P, K, M[: learned.law.U.shape[1]])
     assert learned.B is not None  # learn_controller estimates it
     return TuningResult(
         algorithm=algorithm,
@@ -167,8 +171,10 @@ def _history(
     U_applied = np.zeros_like(learned.law.U)
     for record in records:
         if learned.target == "continuous" and learned.law.K_i is None:
-            P, K_next, M = unpack_theta(record.theta, 2, 2, learned.law.U.shape[1])
-            U = feedforward(P, K_next, M, settings.R)
+            # Theta's exogenous block has a row per channel the learner saw: the reference's
+            # and, with the dead-time model, the currents' signs after them (U drops those)
+            P, K_next, M = _unpacked(record.theta, record.K)
+            U = feedforward(P, K_next, M, settings.R)[:, : learned.law.U.shape[1]]
         else:
             U = learned.law.U
         history.append(
@@ -185,3 +191,10 @@ def _history(
         previous_theta = record.theta
         K_applied, U_applied = record.K, U
     return tuple(history)
+
+
+def _unpacked(theta: Array, K: Array) -> tuple[Array, Array, Array]:
+    """``(P, K, M)`` of a Theta with as many exogenous channels as it holds: the
+    reference's and, with the dead-time model, the currents' signs after them."""
+    m, n = K.shape
+    return unpack_theta(theta, n, m, (theta.size - n * (n + 1) // 2 - m * n) // n)

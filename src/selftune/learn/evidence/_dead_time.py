@@ -108,8 +108,15 @@ def _appended(episode: Trajectory, signs: Array) -> Trajectory:
 
 
 def _residual(episode: Trajectory, signs: Array, shift: int) -> float:
-    model = fit_discrete_model(aligned_transitions(_appended(episode, signs), shift))
-    return float(np.sum(model.residual_rms**2))
+    """The least-squares one-step residual of the log with these signs: the mean square
+    per state, summed. Defined whatever the rank (a feedback episode under a constant
+    reference has constant w columns), so the offset is chosen on any log."""
+    transitions = aligned_transitions(_appended(episode, signs), shift)
+    Z, Y = transitions.regressors, transitions.x_next
+    scale = np.linalg.norm(Z, axis=0)
+    scale[scale == 0.0] = 1.0
+    coefficients = np.linalg.lstsq(Z / scale, Y, rcond=None)[0]
+    return float(np.sum(np.mean((Y - (Z / scale) @ coefficients) ** 2, axis=0)))
 
 
 def angle_offset(episode: Trajectory, electrical_speed: float, shift: int) -> float:

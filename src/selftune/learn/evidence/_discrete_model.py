@@ -26,7 +26,13 @@ import scipy.linalg
 from ...core import RANK_TOLERANCE, Array
 from ...errors import NotExciting, NumericalFailure, TooShort
 
-__all__ = ["DiscreteModel", "Transitions", "fit_discrete_model"]
+__all__ = [
+    "DiscreteModel",
+    "Transitions",
+    "fit_discrete_model",
+    "regressor_names",
+    "tied_columns",
+]
 
 
 @dataclass(frozen=True)
@@ -137,6 +143,34 @@ class DiscreteModel:
         )
 
 
+def regressor_names(n: int, m: int, q: int) -> tuple[str, ...]:
+    """The names of the regressors ``[x_k, a_k, w_k]``: ``x1..xn, u1..um, w1..wq``.
+
+    Parameters
+    ----------
+    n, m, q : int
+        Numbers of states, inputs and exogenous channels.
+    """
+    return (
+        *(f"x{i + 1}" for i in range(n)),
+        *(f"u{i + 1}" for i in range(m)),
+        *(f"w{i + 1}" for i in range(q)),
+    )
+
+
+def tied_columns(null_rows: Array) -> tuple[int, ...]:
+    """The columns a regression's null space involves: those whose weight in some null
+    direction is at least a tenth of that direction's largest (column-scaled regressors).
+
+    Parameters
+    ----------
+    null_rows : ndarray, shape (k, size)
+        Orthonormal directions of the (numerical) null space, one per row.
+    """
+    weights = np.abs(null_rows) / np.max(np.abs(null_rows), axis=1, keepdims=True)
+    return tuple(int(i) for i in np.flatnonzero(np.max(weights, axis=0) >= 0.1))
+
+
 def fit_discrete_model(transitions: Transitions) -> DiscreteModel:
     """Least-squares fit of ``[Ad, Bd, Ed]`` to transitions.
 
@@ -176,21 +210,24 @@ def fit_discrete_model(transitions: Transitions) -> DiscreteModel:
     scale = np.linalg.norm(Z, axis=0)
     scale[scale == 0.0] = 1.0
     Q_, R_ = scipy.linalg.qr(Z / scale, mode="economic", check_finite=False)
-    singular = np.linalg.svd(R_, compute_uv=False)
+    _, singular, Vh = np.linalg.svd(R_)
     rank = int(np.sum(singular > RANK_TOLERANCE * singular[0])) if singular[0] > 0 else 0
+    n, m = transitions.x.shape[1], transitions.a.shape[1]
     if rank < size:
-        n, m = transitions.x.shape[1], transitions.a.shape[1]
+        columns = tied_columns(Vh[rank:])
+        names = regressor_names(n, m, size - n - m)
         raise NotExciting(
             f"the transitions have rank {rank} of {size} (n = {n} states, m = {m} inputs, "
-            f"q = {size - n - m} exogenous channels): some state, input or exogenous "
-            "channel is not excited independently of the others; add exploration on every "
-            "input and perturb the reference",
+            f"q = {size - n - m} exogenous channels): "
+            f"{', '.join(names[i] for i in columns)} do not vary independently of each "
+            "other (a combination of them is the same in every sample); add exploration on "
+            "every input and perturb the reference",
             rank=rank,
             rank_needed=size,
             block=None,
+            columns=columns,
         )
     theta = scipy.linalg.solve_triangular(R_, Q_.T @ Y, check_finite=False) / scale[:, None]
-    n, m = transitions.x.shape[1], transitions.a.shape[1]
     residual = Y - Z @ theta
     inverse_R = scipy.linalg.solve_triangular(R_, np.eye(size), check_finite=False) / scale[:, None]
     spread = np.atleast_2d(np.cov(residual.T)) if count > size else np.zeros((n, n))

@@ -40,11 +40,18 @@ import numpy as np
 import scipy.special
 
 from ...core import Array
-from ...errors import ConfigurationMismatch, ConsistencyError, InputError, ModelMissesEffect
+from ...errors import (
+    ConfigurationMismatch,
+    ConsistencyError,
+    InputError,
+    ModelMissesEffect,
+    NotExciting,
+)
 from .._problem import LearningOptions, LearningProblem
 from ..data._trajectory import Trajectory
 from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
 from ._dead_time import DeadTimeModel, with_dead_time
+from ._discrete_model import regressor_names
 from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error
 
 __all__ = [
@@ -255,7 +262,10 @@ def gather_evidence(
         ConsistencyError).
     """
     fitted, dead_time_model = _fitted(episodes, options, sign_width)
-    alignment = check_alignment(fitted, options.logged_input, options.input_delay)
+    try:
+        alignment = check_alignment(fitted, options.logged_input, options.input_delay)
+    except NotExciting as error:
+        raise _untied_dead_time(error, episodes[0], options) from None
     structure = None
     if options.structure == "spmsm":
         assert options.electrical_speed is not None
@@ -304,6 +314,27 @@ def gather_evidence(
         )
     extra = problem.n if options.dead_time else 0
     return Evidence(fitted, alignment, fit, test, extra, precision, dead_time_model)
+
+
+def _untied_dead_time(
+    error: NotExciting, episode: Trajectory, options: LearningOptions
+) -> NotExciting:
+    """A lack of rank the dead-time channels are part of, told as what it is: the currents
+    keep their signs, so the dead-time voltage is a constant the data cannot tell from the
+    reference (the error as it is otherwise)."""
+    n, m, q = episode.n, episode.m, episode.q
+    channels = [column for column in error.columns if column >= n + m + q]
+    if not options.dead_time or not channels:
+        return error
+    names = regressor_names(n, m, q) + tuple(f"sign(x{i + 1})" for i in range(n))
+    tied = ", ".join(names[column] for column in error.columns)
+    return error.retold(
+        f"dead_time = true, but the currents' signs do not change against the rest of the "
+        f"data ({tied} do not vary independently; rank {error.rank} of "
+        f"{error.rank_needed}): the dead-time voltage is then a constant offset the data "
+        "cannot tell apart; log a reference that reverses the current (perturbation = "
+        "'steps'), or set dead_time = false"
+    )
 
 
 def _listed(causes: tuple[str, ...]) -> str:

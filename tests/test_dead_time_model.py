@@ -1,0 +1,59 @@
+"""The dead-time model on every target and every algorithm: no crash, no wrong cause."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from selftune import SPMSM, solve_optimal_regulation
+from selftune.cli import main
+from selftune.errors import NotExciting
+from selftune.learn.evidence._discrete_model import Transitions, fit_discrete_model
+
+MOTOR = """[motor]
+R_s = 0.8
+L_s = 0.02
+phi_pm = 0.15
+p = 3
+J = 0.01
+[operating_point]
+speed = 80.0
+torque = 1.0
+[learning]
+dead_time = true
+"""
+
+
+@pytest.mark.parametrize("algorithm", ["offpolicy", "2", "3"])
+def test_the_dead_time_model_on_the_continuous_target_learns_the_optimum(
+    tmp_path: Path, algorithm: str
+) -> None:
+    # It used to end in a traceback (off-policy: Theta with the dead-time channels'
+    # rows unpacked as the reference's) or in "rank 7 of 8" (on-policy: an episode under
+    # a constant reference cannot fit the angle offset by a full-rank model).
+    path = tmp_path / "motor.toml"
+    path.write_text(MOTOR)
+    out = tmp_path / "tune.json"
+    assert main(["tune", "--motor", str(path), "--algorithm", algorithm, "--json", str(out)]) == 0
+    result = json.loads(out.read_text())
+    motor = SPMSM(R_s=0.8, L_s=0.02, phi_pm=0.15, p=3)
+    optimum = solve_optimal_regulation(motor.regulation_problem(80.0), 1e3 * np.eye(2), np.eye(2))
+    learned_K = np.array(result["control_law"]["K"])
+    assert np.linalg.norm(learned_K - optimum.K) < 1e-5 * np.linalg.norm(optimum.K)
+    assert result["theta_relative_error"] < 1e-5  # Theta of the stated problem
+
+
+def test_a_lack_of_rank_names_the_regressors_that_move_together() -> None:
+    rng = np.random.default_rng(1)
+    count = 200
+    x = rng.normal(size=(count + 1, 2))
+    a = rng.normal(size=(count, 2))
+    w = np.column_stack([np.full(count, 3.0), np.full(count, -1.5), rng.normal(size=count)])
+    transitions = Transitions(x=x[:-1], x_next=x[1:], a=a, w=w, h=1e-4)
+    with pytest.raises(NotExciting) as caught:
+        fit_discrete_model(transitions)
+    assert caught.value.columns == (4, 5)  # w1 and w2: both constant
+    assert "w1, w2 do not vary independently" in str(caught.value)
