@@ -35,7 +35,6 @@ import scipy.special
 from ...core import Array
 from ..data._trajectory import Trajectory
 from ._alignment import aligned_transitions
-from ._discrete_model import fit_discrete_model
 
 __all__ = [
     "OFFSET_GRID",
