@@ -138,6 +138,17 @@ def _add_json_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", metavar="FILE", help=_JSON_HELP)
 
 
+def _add_out_option(parser: argparse.ArgumentParser, default: str, what: str) -> None:
+    """``--out DIR``: where a command writes ``what``, replacing an earlier output whole."""
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        default=default,
+        help=f"directory for {what}: new, empty, or an earlier output of this command,"
+        " replaced as a whole (default: %(default)s)",
+    )
+
+
 def _add_seed_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=_seed, default=0, help="exploration seed (default: 0)")
 
@@ -224,13 +235,7 @@ def _add_reproduce(subparsers: _Subparsers) -> None:
             " Theta, and write fig1..fig5 (PNG and SVG) and results.json."
         ),
     )
-    parser.add_argument(
-        "--out",
-        metavar="DIR",
-        default="selftune-results",
-        help="directory for the figures and results.json: new, empty, or an earlier"
-        " output of this command, replaced as a whole (default: %(default)s)",
-    )
+    _add_out_option(parser, "selftune-results", "the figures and results.json")
     _add_seed_option(parser)
 
 
@@ -301,13 +306,7 @@ def _add_bench(subparsers: _Subparsers) -> None:
         action="store_true",
         help="CI-sized run: smaller sweeps and repeats (well under a minute)",
     )
-    parser.add_argument(
-        "--out",
-        metavar="DIR",
-        default="selftune-bench",
-        help="directory for bench.md and bench.json: new, empty, or an earlier output of"
-        " this command, replaced as a whole (default: %(default)s)",
-    )
+    _add_out_option(parser, "selftune-bench", "bench.md and bench.json")
 
 
 def _run_bench(args: argparse.Namespace) -> int:
