@@ -138,12 +138,43 @@ def _add_json_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", metavar="FILE", help=_JSON_HELP)
 
 
+def _add_out_option(parser: argparse.ArgumentParser, default: str, what: str) -> None:
+    """``--out DIR``: where a command writes ``what``, replacing an earlier output whole."""
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        default=default,
+        help=f"directory for {what}: new, empty, or an earlier output of this command,"
+        " replaced as a whole (default: %(default)s)",
+    )
+
+
+def _add_seed_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seed", type=_seed, default=0, help="exploration seed (default: 0)")
+
+
+def _add_command(
+    subparsers: _Subparsers,
+    name: str,
+    handler: Callable[[argparse.Namespace], int],
+    *,
+    help: str,
+    description: str,
+) -> argparse.ArgumentParser:
+    """The subcommand ``name``, run by ``handler`` with the parsed arguments."""
+    parser = subparsers.add_parser(name, help=help, description=description)
+    parser.set_defaults(handler=handler)
+    return parser
+
+
 # -- the commands ---------------------------------------------------------------------
 
 
 def _add_solve(subparsers: _Subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = _add_command(
+        subparsers,
         "solve",
+        _run_solve,
         help="the model-based optimal torque controller (K*, P*, X*, U*, Theta*)",
         description=(
             "Solve the optimal output regulation problem of the PMSM in torque-control"
@@ -155,7 +186,6 @@ def _add_solve(subparsers: _Subparsers) -> None:
     )
     _add_motor_options(parser)
     _add_json_option(parser)
-    parser.set_defaults(handler=_run_solve)
 
 
 def _run_solve(args: argparse.Namespace) -> int:
@@ -165,8 +195,10 @@ def _run_solve(args: argparse.Namespace) -> int:
 
 
 def _add_learn(subparsers: _Subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = _add_command(
+        subparsers,
         "learn",
+        _run_learn,
         help="learn the optimal controller from logged data (no model needed)",
         description=(
             "Learn the optimal feedback K*, the value P* and (with a [regulation] table)"
@@ -183,7 +215,6 @@ def _add_learn(subparsers: _Subparsers) -> None:
         help="cost weights, initial policy, optional [regulation] and [learning] tables",
     )
     _add_json_option(parser)
-    parser.set_defaults(handler=_run_learn)
 
 
 def _run_learn(args: argparse.Namespace) -> int:
@@ -193,8 +224,10 @@ def _run_learn(args: argparse.Namespace) -> int:
 
 
 def _add_reproduce(subparsers: _Subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = _add_command(
+        subparsers,
         "reproduce",
+        _run_reproduce,
         help="regenerate the paper's Section V: table, results.json and Figs. 1-5",
         description=(
             "Run Algorithms 1, 2, 3 and the off-policy variant with the paper's settings on"
@@ -202,15 +235,8 @@ def _add_reproduce(subparsers: _Subparsers) -> None:
             " Theta, and write fig1..fig5 (PNG and SVG) and results.json."
         ),
     )
-    parser.add_argument(
-        "--out",
-        metavar="DIR",
-        default="selftune-results",
-        help="directory for the figures and results.json: new, empty, or an earlier"
-        " output of this command, replaced as a whole (default: %(default)s)",
-    )
-    parser.add_argument("--seed", type=_seed, default=0, help="exploration seed (default: 0)")
-    parser.set_defaults(handler=_run_reproduce)
+    _add_out_option(parser, "selftune-results", "the figures and results.json")
+    _add_seed_option(parser)
 
 
 def _run_reproduce(args: argparse.Namespace) -> int:
@@ -220,8 +246,10 @@ def _run_reproduce(args: argparse.Namespace) -> int:
 
 
 def _add_tune(subparsers: _Subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = _add_command(
+        subparsers,
         "tune",
+        _run_tune,
         help="run a self-tuning session on the motor in a file and compare with the optimum",
         description=(
             "Self-tune the torque controller of the (simulated) motor in MOTOR.toml with one"
@@ -249,9 +277,8 @@ def _add_tune(subparsers: _Subparsers) -> None:
             " target; continuous, or digital with a [drive] table)"
         ),
     )
-    parser.add_argument("--seed", type=_seed, default=0, help="exploration seed (default: 0)")
+    _add_seed_option(parser)
     _add_json_option(parser)
-    parser.set_defaults(handler=_run_tune)
 
 
 def _run_tune(args: argparse.Namespace) -> int:
@@ -264,8 +291,10 @@ def _run_tune(args: argparse.Namespace) -> int:
 
 
 def _add_bench(subparsers: _Subparsers) -> None:
-    parser = subparsers.add_parser(
+    parser = _add_command(
+        subparsers,
         "bench",
+        _run_bench,
         help="benchmarks: data efficiency, cost of learning, simulation speed, self-tuning value",
         description=(
             "Run every comparison in one process and write bench.md (tables) and"
@@ -277,14 +306,7 @@ def _add_bench(subparsers: _Subparsers) -> None:
         action="store_true",
         help="CI-sized run: smaller sweeps and repeats (well under a minute)",
     )
-    parser.add_argument(
-        "--out",
-        metavar="DIR",
-        default="selftune-bench",
-        help="directory for bench.md and bench.json: new, empty, or an earlier output of"
-        " this command, replaced as a whole (default: %(default)s)",
-    )
-    parser.set_defaults(handler=_run_bench)
+    _add_out_option(parser, "selftune-bench", "bench.md and bench.json")
 
 
 def _run_bench(args: argparse.Namespace) -> int:

@@ -213,6 +213,13 @@ def model_optimum(motor: SPMSM, settings: TuningSettings) -> ModelBasedSolution:
     )
 
 
+def paper_setting() -> tuple[SPMSM, TuningSettings, ModelBasedSolution]:
+    """The paper's motor, its settings, and their model-based optimum."""
+    motor = SPMSM.paper()
+    settings = TuningSettings.paper()
+    return motor, settings, model_optimum(motor, settings)
+
+
 def table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     lines.extend("| " + " | ".join(row) + " |" for row in rows)

@@ -18,8 +18,8 @@ from ._common import (
     BenchConfig,
     finite_or_none,
     median,
-    model_optimum,
     ms,
+    paper_setting,
     progress_bar,
     relative,
     sci,
@@ -173,9 +173,7 @@ def measure_data_efficiency(config: BenchConfig, progress: bool = False) -> Data
     DataEfficiency
     """
     started = time.perf_counter()
-    motor = SPMSM.paper()
-    settings = TuningSettings.paper()
-    optimum = model_optimum(motor, settings)
+    motor, settings, optimum = paper_setting()
     traces = with_progress(
         config.seeds,
         lambda seed: _onpolicy_trace(motor, dataclasses.replace(settings, seed=seed), optimum),

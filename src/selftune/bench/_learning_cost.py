@@ -18,7 +18,7 @@ from ..learn import LearnedController, LearningOptions, LearningProblem, learn_r
 from ..model import SPMSM
 from ..sim import SimulatedDrive, held, uniform
 from ..tuning import TuningSettings, known_flux_form, reference_perturbation
-from ._common import BenchConfig, model_optimum, progress_bar, relative, sci, table, timed
+from ._common import BenchConfig, paper_setting, progress_bar, relative, sci, table, timed
 
 
 @dataclass(frozen=True)
@@ -139,9 +139,7 @@ def measure_learning_cost(config: BenchConfig, progress: bool = False) -> Learni
     LearningCost
     """
     started = time.perf_counter()
-    motor = SPMSM.paper()
-    settings = TuningSettings.paper()
-    optimum = model_optimum(motor, settings)
+    motor, settings, optimum = paper_setting()
     datasets = []
     methods: tuple[Literal["customized", "general"], ...] = ("customized", "general")
     with progress_bar(len(config.learning_datasets) * 2, "learning cost", progress) as bar:

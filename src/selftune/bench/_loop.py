@@ -12,8 +12,7 @@ from ..core import (
     Array,
 )
 from ..model import SPMSM, ModelBasedSolution
-from ..tuning import TuningSettings
-from ._common import model_optimum
+from ._common import paper_setting
 
 
 @dataclass(frozen=True)
@@ -55,10 +54,8 @@ class Loop:
 
     @classmethod
     def paper(cls) -> Loop:
-        motor = SPMSM.paper()
-        settings = TuningSettings.paper()
+        motor, settings, optimum = paper_setting()
         problem = motor.regulation_problem(settings.speed)
-        optimum = model_optimum(motor, settings)
         return cls(
             motor=motor,
             speed=settings.speed,

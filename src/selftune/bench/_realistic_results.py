@@ -256,21 +256,32 @@ def _worst_text(worst: float | None, missing: int, total: int, form: str) -> str
     return text + (f" ({missing} of {total} runs refused or unstable)" if missing else "")
 
 
+def _within_from(
+    values: list[float | None],
+    target: tuple[float, float],
+    seconds: float,
+    total: int,
+    form: str,
+) -> tuple[str, bool | None]:
+    """The value text and verdict of a target ``(limit %, most seconds of data)``: every
+    run's value within the limit, from at most that much data."""
+    worst, missing = _worst(values)
+    met = _met(worst, missing, target[0])
+    return (
+        _worst_text(worst, missing, total, form) + f" from {seconds:g} s",
+        None if met is None else met and seconds <= target[1],
+    )
+
+
 def _targets(comparison: RealisticDriveComparison) -> tuple[TargetOutcome, ...]:
     tuned = comparison.outcomes("selftune")
     total = len(tuned)
     cold, cold_missing = _worst([o.torque_error_percent for o in tuned])
     hot, hot_missing = _worst([o.hot_torque_error_percent for o in tuned])
     floor, _ = _worst([o.torque_error_percent for o in comparison.outcomes("optimum")])
-    excess, excess_missing = _worst([o.excess_cost_percent for o in tuned])
-    data = max(o.data_seconds for o in tuned)
     runs = comparison.runs()
-    flux, flux_missing = _worst([_percent(run.phi_pm_relative_error) for run in runs])
-    step = max((run.flux_step_seconds or 0.0) for run in runs)
     torque_met = _met(max(cold or 0.0, hot or 0.0), max(cold_missing, hot_missing),
                       TORQUE_TARGET_PERCENT)  # fmt: skip
-    excess_met = _met(excess, excess_missing, EXCESS_TARGET[0])
-    flux_met = _met(flux, flux_missing, FLUX_TARGET[0])
     return (
         TargetOutcome(
             "torque error, integral action",
@@ -288,8 +299,13 @@ def _targets(comparison: RealisticDriveComparison) -> tuple[TargetOutcome, ...]:
             "excess cost",
             f"excess cost <= {EXCESS_TARGET[0]:g}% over the optimum of the same digital loop "
             f"from <= {EXCESS_TARGET[1]:g} s of data (selftune)",
-            _worst_text(excess, excess_missing, total, ".3g") + f" from {data:g} s",
-            None if excess_met is None else excess_met and data <= EXCESS_TARGET[1],
+            *_within_from(
+                [o.excess_cost_percent for o in tuned],
+                EXCESS_TARGET,
+                max(o.data_seconds for o in tuned),
+                total,
+                ".3g",
+            ),
             "the batch's output-error model is consistent under noise and carries the "
             "dead time, so the learned feedback is the true loop's optimum to its noise",
         ),
@@ -297,8 +313,13 @@ def _targets(comparison: RealisticDriveComparison) -> tuple[TargetOutcome, ...]:
             "flux",
             f"phi_pm error within +-{FLUX_TARGET[0]:g}% from a flux step of <= "
             f"{FLUX_TARGET[1]:g} s (Algorithm 3)",
-            _worst_text(flux, flux_missing, total, ".3f") + f" from {step:g} s",
-            None if flux_met is None else flux_met and step <= FLUX_TARGET[1],
+            *_within_from(
+                [_percent(run.phi_pm_relative_error) for run in runs],
+                FLUX_TARGET,
+                max((run.flux_step_seconds or 0.0) for run in runs),
+                total,
+                ".3f",
+            ),
             "the torque reference steps through +-T*: the dead-time voltage follows the "
             "current's sign, the back-EMF does not",
         ),

@@ -206,38 +206,56 @@ class BenchReport:
         return _markdown(self)
 
 
+def _ratio_target(
+    name: str,
+    ratio: float | None,
+    target: float,
+    what: str,
+    missing: tuple[str, str],
+    why: str,
+) -> TargetOutcome:
+    """A target ``ratio >= target`` (``what`` it is, e.g. "faster per step than ...");
+    ``missing`` is the value's text when the ratio is None and the format when it is not."""
+    absent, form = missing
+    return TargetOutcome(
+        name_text=name,
+        target_text=f">= {target:g}x {what}",
+        value_text=absent if ratio is None else f"{ratio:{form}}x",
+        met=None if ratio is None else ratio >= target,
+        why_text=why,
+    )
+
+
 def _data_target(data: DataEfficiency) -> TargetOutcome:
     ratio = data.data_ratio_vs_paper
-    return TargetOutcome(
-        name_text="data_ratio_vs_paper",
-        target_text=f">= {TARGET_DATA_RATIO:g}x less data than the paper's Algorithm 2",
-        value_text="not reached" if ratio is None else f"{ratio:.1f}x",
-        met=None if ratio is None else ratio >= TARGET_DATA_RATIO,
-        why_text=(
-            "on-policy spends a new 5 ms episode on every iteration (feedback episodes "
-            "until Theta_1 settles, then feedforward episodes); off-policy reuses one "
-            "short batch for every iteration"
-            if ratio is not None
-            else "a method did not reach the target error in the sweep"
-        ),
+    return _ratio_target(
+        "data_ratio_vs_paper",
+        ratio,
+        TARGET_DATA_RATIO,
+        "less data than the paper's Algorithm 2",
+        ("not reached", ".1f"),
+        "on-policy spends a new 5 ms episode on every iteration (feedback episodes "
+        "until Theta_1 settles, then feedforward episodes); off-policy reuses one "
+        "short batch for every iteration"
+        if ratio is not None
+        else "a method did not reach the target error in the sweep",
     )
 
 
 def _speed_target(simulation: Simulation) -> TargetOutcome:
     speedup = simulation.speedup_vs_gem
     gem = simulation.gym_electric_motor
-    return TargetOutcome(
-        name_text="speedup_vs_gem",
-        target_text=f">= {TARGET_SPEEDUP:g}x faster per step than gym-electric-motor",
-        value_text="not measured" if speedup is None else f"{speedup:.0f}x",
-        met=None if speedup is None else speedup >= TARGET_SPEEDUP,
-        why_text=(
-            gem.reason_text or ""
-            if speedup is None
-            else "one vectorized call for the whole closed loop against a Python "
-            "env.step and an ODE solve per sample; an interactive Python loop on "
-            f"discretize is {simulation.step_loop_speedup_vs_gem or 0:.0f}x"
-        ),
+    return _ratio_target(
+        "speedup_vs_gem",
+        speedup,
+        TARGET_SPEEDUP,
+        "faster per step than gym-electric-motor",
+        ("not measured", ".0f"),
+        gem.reason_text or ""
+        if speedup is None
+        else "one vectorized call for the whole closed loop against a Python "
+        "env.step and an ODE solve per sample; an interactive Python loop on "
+        f"discretize is {simulation.step_loop_speedup_vs_gem or 0:.0f}x",
     )
 
 

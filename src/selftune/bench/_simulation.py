@@ -5,6 +5,7 @@ from __future__ import annotations
 import statistics
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy
@@ -102,31 +103,39 @@ class Simulation:
     wall_seconds: float
 
 
+def _under_optimum(loop: Loop, rho: Array, samples: int) -> dict[str, Any]:
+    """The arguments of :func:`~selftune.sim.simulate` (and of its batch form) that run the
+    loop under the optimal controller plus ``rho`` for ``samples`` steps from rest."""
+    return {
+        "exogenous": constant(loop.w),
+        "K": loop.K,
+        "X": loop.optimum.X,
+        "U": loop.optimum.U,
+        "exploration": rho,
+        "h": loop.h,
+        "num_samples": samples,
+    }
+
+
+def _measurement(
+    loop: Loop, rho: Array, samples: int, seconds: float, states: Array
+) -> SimulatorMeasurement:
+    """``samples`` steps in ``seconds`` of wall time, and ``states`` against the exact ones."""
+    return SimulatorMeasurement(
+        us_per_step=seconds / samples * 1e6,
+        timed_samples=samples,
+        max_relative_error=max_relative_error(states, exact_states(loop, loop.motor, rho)),
+        compared_samples=samples,
+    )
+
+
 def _measure_simulate(loop: Loop, samples: int, repeats: int) -> SimulatorMeasurement:
     rho = loop.exploration(samples)
 
     def run() -> Array:
-        return simulate(
-            loop.A,
-            loop.B,
-            D=loop.D,
-            exogenous=constant(loop.w),
-            K=loop.K,
-            X=loop.optimum.X,
-            U=loop.optimum.U,
-            exploration=rho,
-            h=loop.h,
-            num_samples=samples,
-        ).x
+        return simulate(loop.A, loop.B, D=loop.D, **_under_optimum(loop, rho, samples)).x
 
-    seconds = timed(run, repeats)
-    error = max_relative_error(run(), exact_states(loop, loop.motor, rho))
-    return SimulatorMeasurement(
-        us_per_step=seconds / samples * 1e6,
-        timed_samples=samples,
-        max_relative_error=error,
-        compared_samples=samples,
-    )
+    return _measurement(loop, rho, samples, timed(run, repeats), run())
 
 
 def _measure_step_loop(loop: Loop, samples: int, repeats: int) -> SimulatorMeasurement:
@@ -147,14 +156,7 @@ def _measure_step_loop(loop: Loop, samples: int, repeats: int) -> SimulatorMeasu
             states[k + 1] = x
         return states
 
-    seconds = timed(run, repeats)
-    error = max_relative_error(run(), exact_states(loop, loop.motor, rho))
-    return SimulatorMeasurement(
-        us_per_step=seconds / samples * 1e6,
-        timed_samples=samples,
-        max_relative_error=error,
-        compared_samples=samples,
-    )
+    return _measurement(loop, rho, samples, timed(run, repeats), run())
 
 
 def _measure_solve_ivp(
@@ -185,13 +187,7 @@ def _measure_solve_ivp(
         )
         x = solution.y[:, -1]
         states[k + 1] = x
-    seconds = time.perf_counter() - start
-    return SimulatorMeasurement(
-        us_per_step=seconds / samples * 1e6,
-        timed_samples=samples,
-        max_relative_error=max_relative_error(states, exact_states(loop, loop.motor, rho)),
-        compared_samples=samples,
-    )
+    return _measurement(loop, rho, samples, time.perf_counter() - start, states)
 
 
 def _random_motors(count: int, seed: int) -> list[SPMSM]:
@@ -211,18 +207,7 @@ def _measure_batch(loop: Loop, motors: int, samples: int, repeats: int) -> Batch
         D = np.stack([exogenous_matrix(m, loop.speed) for m in batch_motors])
 
         def run(A: Array = A, B: Array = B, D: Array = D) -> Array:
-            result = simulate_batch(
-                A,
-                B,
-                D=D,
-                exogenous=constant(loop.w),
-                K=loop.K,
-                X=loop.optimum.X,
-                U=loop.optimum.U,
-                exploration=rho,
-                h=loop.h,
-                num_samples=samples,
-            )
+            result = simulate_batch(A, B, D=D, **_under_optimum(loop, rho, samples))
             return np.asarray(result.x[0])
 
         cold.append(timed(run, 1))
