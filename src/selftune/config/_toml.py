@@ -120,10 +120,8 @@ def read_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
 class ConfigTable:
     """One table of a configuration file, with typed getters whose errors name the key.
 
-    Every getter reads ``key``, a key of this table, and raises :class:`DataFileError`
-    with a one-line message ``"<file>: [<table>] <key>: <what is wrong>"``. Its
-    ``default`` is returned (a matrix copied) if the key is absent; where ``default`` is
-    optional, leaving it out makes the key required.
+    Every getter raises :class:`DataFileError` with a one-line message
+    ``"<file>: [<table>] <key>: <what is wrong>"``.
 
     Parameters
     ----------
@@ -218,7 +216,15 @@ class ConfigTable:
         return default
 
     def number(self, key: str, default: float | None = None) -> float:
-        """A finite number; required unless ``default`` is given."""
+        """A finite number; required unless ``default`` is given.
+
+        Parameters
+        ----------
+        key : str
+            The key in this table.
+        default : float, optional
+            Returned if the key is absent; without it the key is required.
+        """
         value = self._get(key, default)
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.error(key, f"must be a number, got {_type_name(value)}")
@@ -236,6 +242,10 @@ class ConfigTable:
 
         Parameters
         ----------
+        key : str
+            The key in this table.
+        default : float, optional
+            Returned if the key is absent; without it the key is required.
         limits : str, optional
             The entry of the ranges (default: ``key``).
         """
@@ -246,7 +256,15 @@ class ConfigTable:
             raise self.error(key, str(exc).removeprefix(f"{key}: ")) from None
 
     def positive(self, key: str, default: float | None = None) -> float:
-        """A finite, strictly positive number; required unless ``default`` is given."""
+        """A finite, strictly positive number; required unless ``default`` is given.
+
+        Parameters
+        ----------
+        key : str
+            The key in this table.
+        default : float, optional
+            Returned if the key is absent; without it the key is required.
+        """
         number = self.number(key, default)
         if number <= 0.0:
             raise self.error(key, f"must be positive, got {_short(self.data.get(key, default))}")
@@ -259,6 +277,10 @@ class ConfigTable:
 
         Parameters
         ----------
+        key : str
+            The key in this table.
+        default : int, optional
+            Returned if the key is absent; without it the key is required.
         maximum : int, optional
             The largest value allowed (default: none).
         """
@@ -270,7 +292,15 @@ class ConfigTable:
         return int(number)
 
     def flag(self, key: str, default: bool) -> bool:
-        """``true`` or ``false``; ``default`` if the key is absent."""
+        """``true`` or ``false``; ``default`` if the key is absent.
+
+        Parameters
+        ----------
+        key : str
+            The key in this table.
+        default : bool
+            Returned if the key is absent.
+        """
         value = self.data.get(key, default)
         if not isinstance(value, bool):
             raise self.error(key, f"must be true or false, got {_type_name(value)}")
@@ -281,8 +311,12 @@ class ConfigTable:
 
         Parameters
         ----------
+        key : str
+            The key in this table.
         allowed : tuple of str
             The accepted values.
+        default : str
+            Returned if the key is absent.
         """
         value = self.data.get(key, default)
         if not isinstance(value, str) or value not in allowed:
@@ -301,8 +335,12 @@ class ConfigTable:
 
         Parameters
         ----------
+        key : str
+            The key in this table.
         shape : (rows, columns)
             The expected shape; None for a free dimension.
+        default : ndarray, optional
+            Returned (copied) if the key is absent; without it the key is required.
         """
         if key not in self.data and default is not None:
             return np.array(default, dtype=float)
@@ -341,6 +379,8 @@ class ConfigTable:
 
         Parameters
         ----------
+        key : str
+            The key in this table.
         size : int
             Number of rows and columns.
         default : ndarray, shape (size, size), optional

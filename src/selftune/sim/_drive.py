@@ -117,11 +117,26 @@ class SimulatedDrive:
     ) -> Trajectory:
         """One episode of the known-flux form, ``x' = A x + B u + D w``.
 
-        The arguments are those of :meth:`selftune.tuning.Drive.run`. When the controller
-        assumes a flux ``assumed_flux`` other than the true one, the back-EMF the motor
-        produces is ``D w`` with the true flux, i.e. ``D diag(phi/assumed, 1) w``; this is
-        exact only while ``w_1`` is constant, so the first channel must not be perturbed
-        then.
+        ``reference`` is the controller's ``w = [p speed phi, T*]`` (held). When the
+        controller assumes a flux ``assumed_flux`` other than the true one, the back-EMF
+        the motor produces is ``D w`` with the true flux, i.e. ``D diag(phi/assumed, 1) w``;
+        this is exact only while ``w_1`` is constant, so the first channel must not be
+        perturbed then.
+
+        Parameters
+        ----------
+        law : ControlLaw
+            The controller (n = m = 2, q = 2), with its past inputs and integrator.
+        reference : ExogenousSignal
+            The controller's ``w = [p speed phi, T*]`` (held).
+        num_samples : int
+            Length of the episode, samples.
+        exploration : Exploration or None
+            Exploration ``rho`` added to the input; None for none.
+        seed : int
+            Seed of the exploration.
+        assumed_flux : float, optional
+            Flux linkage the controller's ``w`` assumes, Wb (default: the true one).
         """
         problem = self.motor.regulation_problem(self.speed)
         D = problem.D
@@ -147,7 +162,16 @@ class SimulatedDrive:
     ) -> Trajectory:
         """One no-load episode (eq. 15): ``w = [p speed]``, ``T* = 0``, ``u = -K x + rho``.
 
-        The arguments are those of :meth:`selftune.tuning.Drive.run_no_load`.
+        Parameters
+        ----------
+        law : ControlLaw
+            The controller (its feedforward on ``w = [p speed]``, usually 0).
+        num_samples : int
+            Length of the episode, samples.
+        exploration : Exploration or None
+            Exploration ``rho`` added to the input; None for none.
+        seed : int
+            Seed of the exploration.
         """
         problem = self.motor.no_load_problem(self.speed)
         reference = constant(self.motor.no_load_exogenous(self.speed))

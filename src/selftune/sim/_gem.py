@@ -301,10 +301,22 @@ class GemDrive:
     ) -> Trajectory:
         """One known-flux episode from rest: what the drive logs.
 
-        The arguments are those of :meth:`selftune.tuning.Drive.run`; ``seed`` seeds
-        ``numpy.random.default_rng``, which draws the exploration. ``assumed_flux`` is
-        accepted and ignored, Wb: GEM's back-EMF is always the motor's own; the
-        controller's assumption is already in ``reference``.
+        Parameters
+        ----------
+        law : ControlLaw
+            The controller (n = m = 2; q of the reference), with its past inputs and
+            integrator as :class:`~selftune.core.ControlLaw` defines them.
+        reference : ExogenousSignal
+            ``w = [p speed phi, T*]`` as the controller sees it (held over each sample).
+        num_samples : int
+            N, samples.
+        exploration : Exploration or None
+            ``rho``, V, added to each command; None for none.
+        seed : int
+            Seed of ``numpy.random.default_rng``, which draws the exploration.
+        assumed_flux : float, optional
+            Accepted and ignored, Wb: GEM's back-EMF is always the motor's own; the
+            controller's assumption is already in ``reference``.
 
         Returns
         -------
@@ -335,7 +347,16 @@ class GemDrive:
     ) -> Trajectory:
         """One no-load episode from rest: ``T* = 0``, ``w = [p speed]`` (q = 1).
 
-        The arguments are those of :meth:`selftune.tuning.Drive.run_no_load`.
+        Parameters
+        ----------
+        law : ControlLaw
+            The controller, with q = 1.
+        num_samples : int
+            N, samples.
+        exploration : Exploration or None
+            ``rho``, V, added to each command; None for none.
+        seed : int
+            Seed of ``numpy.random.default_rng``, which draws the exploration.
 
         Returns
         -------

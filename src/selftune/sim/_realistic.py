@@ -203,10 +203,21 @@ class RealisticDrive:
     ) -> Trajectory:
         """One known-flux episode from rest: what the drive logs.
 
-        The arguments are those of :meth:`selftune.tuning.Drive.run`; ``seed`` seeds the
-        one generator of the exploration and the noise. ``assumed_flux`` is accepted and
-        ignored: the motor's back-EMF is always its own (true, heated) flux; the
-        controller's assumption is already in ``reference``.
+        Parameters
+        ----------
+        law : ControlLaw
+            The controller (n = m = 2, q = 2).
+        reference : ExogenousSignal
+            ``w = [p speed phi, T*]`` as the controller sees it (held).
+        num_samples : int
+            N, samples.
+        exploration : Exploration or None
+            ``rho``, V, added to each command; None for none.
+        seed : int
+            Seed of the one generator of the exploration and the noise.
+        assumed_flux : float, optional
+            Accepted and ignored: the motor's back-EMF is always its own (true, heated)
+            flux; the controller's assumption is already in ``reference``.
         """
         return self.record(
             law, reference, num_samples=num_samples, exploration=exploration, seed=seed
@@ -217,7 +228,16 @@ class RealisticDrive:
     ) -> Trajectory:
         """One no-load episode (PAPER_NOTES eq. 15): ``T* = 0``, ``w = [p speed]``, q = 1.
 
-        The arguments are those of :meth:`selftune.tuning.Drive.run_no_load`.
+        Parameters
+        ----------
+        law : ControlLaw
+            The controller, with q = 1.
+        num_samples : int
+            N, samples.
+        exploration : Exploration or None
+            ``rho``, V, added to each command; None for none.
+        seed : int
+            Seed of the one generator of the exploration and the noise.
         """
         reference = constant([self.motor.p * self.speed])
         return self.run(law, reference, num_samples=num_samples, exploration=exploration, seed=seed)

@@ -108,7 +108,10 @@ class ConstantSignal(_Held):
     def values(self, t: ArrayLike) -> Array:
         """``w`` repeated at each of the N + 1 sample times: (N + 1, q) or (P, N + 1, q).
 
-        ``t``: the sample times (N + 1,), s, as in :meth:`ExogenousSignal.values`.
+        Parameters
+        ----------
+        t : array_like, shape (N + 1,)
+            Sample times, s.
         """
         count = np.asarray(t).shape[0]
         shape = (*self.w.shape[:-1], count, self.w.shape[-1])
@@ -169,7 +172,10 @@ class StepSignal(_Held):
     def values(self, t: ArrayLike) -> Array:
         """``w(t[k])``, shape (N + 1, q) or (P, N + 1, q).
 
-        ``t``: the sample times (N + 1,), s, as in :meth:`ExogenousSignal.values`.
+        Parameters
+        ----------
+        t : array_like, shape (N + 1,)
+            Sample times, s.
         """
         times = np.asarray(t, dtype=float)
         scale = max(float(np.max(np.abs(times))), float(np.max(np.abs(self.times))))
@@ -201,7 +207,10 @@ class HeldSignal(_Held):
     def values(self, t: ArrayLike) -> Array:
         """``function(t)`` checked: shape (N + 1, q) or (P, N + 1, q).
 
-        ``t``: the sample times (N + 1,), s, as in :meth:`ExogenousSignal.values`.
+        Parameters
+        ----------
+        t : array_like, shape (N + 1,)
+            Sample times, s.
         """
         times = np.array(t, dtype=float)
         times.setflags(write=False)
@@ -243,7 +252,10 @@ class Exosystem:
     def values(self, t: ArrayLike) -> Array:
         """``w(t[k]) = expm(E (t[k] - t[0])) w0``, exact up to rounding: (N + 1, q) or batch.
 
-        ``t``: the sample times (N + 1,), s, as in :meth:`ExogenousSignal.values`.
+        Parameters
+        ----------
+        t : array_like, shape (N + 1,)
+            Sample times, s.
         """
         times = sample_times(t, "exosystem: t")
         period = uniform_period(times)
