@@ -138,6 +138,10 @@ def one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
         (lambda text: text.replace("interval = 10", "interval = 0"), "interval: must be positive"),
         (lambda text: text.replace("F = [[", "F = [[1.0, "), "[regulation] F"),
         (lambda text: text.split("[policy]")[0], "[policy]: missing table"),
+        (  # the digital optimum depends on the delay: never assumed silently
+            lambda text: text + 'target = "digital"\n',
+            "[learning] input_delay: missing: target = \"digital\"",
+        ),
     ],
 )
 def test_bad_config_is_one_line_naming_the_key(

@@ -191,6 +191,13 @@ def _options(learning: ConfigTable, iteration: tuple[int, int, float]) -> Mappin
         "voltage_hold": learning.choice("voltage_hold", ("stationary", "rotor"), "stationary"),
         "max_relative_error": learning.positive("max_relative_error", 0.05),
     }
+    if values["target"] == "digital" and "input_delay" not in learning:
+        raise learning.error(
+            "input_delay",
+            'missing: target = "digital" is the optimum of the loop with the drive\'s '
+            "computation delay; state it in samples (usually 1: each voltage is applied one "
+            "sample after it is computed; 0 if applied at once)",
+        )
     if "input_delay" in learning:
         delay = learning.number("input_delay")
         if not (delay.is_integer() and 0 <= delay <= 2):
