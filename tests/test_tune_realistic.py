@@ -181,3 +181,25 @@ def test_tune_with_a_drive_table_writes_the_law_a_drive_runs(tmp_path: Path) -> 
     assert abs(result["steady_torque_error"]) <= 1e-3
     assert abs(result["steady_torque_error_hot"]) <= 1e-3
     assert result["quality"]["voltage_error"] == pytest.approx(2.0, rel=0.15)
+
+
+@pytest.mark.parametrize(
+    ("line", "expected"),
+    [
+        ("switching_frequency = 1e12", "[drive] switching_frequency: must be between"),
+        ("dc_voltage = 1e9", "[drive] dc_voltage: must be between"),
+    ],
+)
+def test_a_drive_value_out_of_range_is_named_by_its_own_key(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], line: str, expected: str
+) -> None:
+    # They used to be reported as the keys whose defaults they set ([learning] h,
+    # [learning] exploration), which the file never wrote.
+    path = tmp_path / "motor.toml"
+    path.write_text(
+        "[motor]\nR_s = 0.9\nL_s = 3e-3\nphi_pm = 0.08\np = 4\n"
+        "[operating_point]\nspeed = 100.0\ntorque = 1.0\n[drive]\n" + line + "\n"
+    )
+    assert main(["tune", "--motor", str(path)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert expected in error and "[learning]" not in error and len(error.splitlines()) == 1

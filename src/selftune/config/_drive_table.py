@@ -75,7 +75,7 @@ def drive_settings(table: ConfigTable) -> tuple[DriveSettings, float | None]:
         "pwm": table.choice("pwm", ("average", "carrier"), "average"),
         "dead_time": _non_negative(table, "dead_time"),
         "dead_time_compensation": table.flag("dead_time_compensation", False),
-        "dc_voltage": table.positive("dc_voltage") if "dc_voltage" in table else None,
+        "dc_voltage": table.ranged("dc_voltage") if "dc_voltage" in table else None,
         "current_noise": _non_negative(table, "current_noise"),
         "adc_bits": table.positive_integer("adc_bits", maximum=32) if "adc_bits" in table else None,
         "adc_range": table.positive("adc_range") if "adc_range" in table else None,
@@ -85,7 +85,7 @@ def drive_settings(table: ConfigTable) -> tuple[DriveSettings, float | None]:
     }
     h = None
     if "switching_frequency" in table:
-        h = 1.0 / table.positive("switching_frequency")
+        h = 1.0 / table.ranged("switching_frequency")
     try:
         return DriveSettings(**values), h
     except DataFileError:

@@ -95,6 +95,10 @@ PLAUSIBLE_RANGES: Mapping[str, tuple[float, float, str]] = MappingProxyType(
         "h": (1e-8, 0.1, "s"),
         "episode_length": (1e-6, 100.0, "s"),
         "exploration": (1e-9, 1e4, "V"),
+        # a drive's: one PWM period per sample (1 / h within h's range); the DC bus, whose
+        # 2% is the default exploration
+        "switching_frequency": (10.0, 1e8, "Hz"),
+        "dc_voltage": (1.0, 1e5, "V"),
     }
 )
 
