@@ -140,7 +140,7 @@ def one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
         (lambda text: text.split("[policy]")[0], "[policy]: missing table"),
         (  # the digital optimum depends on the delay: never assumed silently
             lambda text: text + 'target = "digital"\n',
-            "[learning] input_delay: missing: target = \"digital\"",
+            '[learning] input_delay: missing: target = "digital"',
         ),
     ],
 )

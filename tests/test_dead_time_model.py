@@ -56,4 +56,4 @@ def test_a_lack_of_rank_names_the_regressors_that_move_together() -> None:
     with pytest.raises(NotExciting) as caught:
         fit_discrete_model(transitions)
     assert caught.value.columns == (4, 5)  # w1 and w2: both constant
-    assert "w1, w2 do not vary independently" in str(caught.value)
+    assert "(x1, x2, u1, u2, w1, w2, w3): w1, w2 do not vary independently" in str(caught.value)

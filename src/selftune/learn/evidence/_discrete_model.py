@@ -30,6 +30,7 @@ __all__ = [
     "DiscreteModel",
     "Transitions",
     "fit_discrete_model",
+    "lack_of_rank",
     "regressor_names",
     "tied_columns",
 ]
@@ -158,6 +159,26 @@ def regressor_names(n: int, m: int, q: int) -> tuple[str, ...]:
     )
 
 
+def lack_of_rank(rank: int, size: int, names: tuple[str, ...], columns: tuple[int, ...]) -> str:
+    """The message of transitions that lack rank: the regressors that move together.
+
+    Parameters
+    ----------
+    rank, size : int
+        The rank found and the number of regressors.
+    names : tuple of str
+        The regressors' names (:func:`regressor_names`, and any appended channels').
+    columns : tuple of int
+        The regressors that move together (:func:`tied_columns`).
+    """
+    return (
+        f"the transitions have rank {rank} of {size} ({', '.join(names)}): "
+        f"{', '.join(names[i] for i in columns)} do not vary independently of each other "
+        "(a combination of them is the same in every sample); add exploration on every "
+        "input and perturb the reference"
+    )
+
+
 def tied_columns(null_rows: Array) -> tuple[int, ...]:
     """The columns a regression's null space involves: those whose weight in some null
     direction is at least a tenth of that direction's largest (column-scaled regressors).
@@ -215,13 +236,8 @@ def fit_discrete_model(transitions: Transitions) -> DiscreteModel:
     n, m = transitions.x.shape[1], transitions.a.shape[1]
     if rank < size:
         columns = tied_columns(Vh[rank:])
-        names = regressor_names(n, m, size - n - m)
         raise NotExciting(
-            f"the transitions have rank {rank} of {size} (n = {n} states, m = {m} inputs, "
-            f"q = {size - n - m} exogenous channels): "
-            f"{', '.join(names[i] for i in columns)} do not vary independently of each "
-            "other (a combination of them is the same in every sample); add exploration on "
-            "every input and perturb the reference",
+            lack_of_rank(rank, size, regressor_names(n, m, size - n - m), columns),
             rank=rank,
             rank_needed=size,
             block=None,

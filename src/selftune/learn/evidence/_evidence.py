@@ -51,7 +51,7 @@ from .._problem import LearningOptions, LearningProblem
 from ..data._trajectory import Trajectory
 from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
 from ._dead_time import DeadTimeModel, with_dead_time
-from ._discrete_model import regressor_names
+from ._discrete_model import lack_of_rank, regressor_names
 from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error
 
 __all__ = [
@@ -319,14 +319,15 @@ def gather_evidence(
 def _untied_dead_time(
     error: NotExciting, episode: Trajectory, options: LearningOptions
 ) -> NotExciting:
-    """A lack of rank the dead-time channels are part of, told as what it is: the currents
-    keep their signs, so the dead-time voltage is a constant the data cannot tell from the
-    reference (the error as it is otherwise)."""
-    n, m, q = episode.n, episode.m, episode.q
-    channels = [column for column in error.columns if column >= n + m + q]
-    if not options.dead_time or not channels:
+    """A lack of rank with the dead-time model, told in the log's own channels: with the
+    dead-time channels among the tied ones, the currents keep their signs, so the
+    dead-time voltage is a constant the data cannot tell from the reference."""
+    if not options.dead_time:
         return error
+    n, m, q = episode.n, episode.m, episode.q
     names = regressor_names(n, m, q) + tuple(f"sign(x{i + 1})" for i in range(n))
+    if not any(column >= n + m + q for column in error.columns):
+        return error.retold(lack_of_rank(error.rank, error.rank_needed, names, error.columns))
     tied = ", ".join(names[column] for column in error.columns)
     return error.retold(
         f"dead_time = true, but the currents' signs do not change against the rest of the "
