@@ -39,7 +39,7 @@ from selftune.errors import InputError, UnsolvableError
 from selftune.model import (
     SPMSM,
     DigitalCost,
-    DigitalSolution,
+    ModelBasedSolution,
     RegulationProblem,
     solve_digital_regulation,
     solve_optimal_regulation,
@@ -448,7 +448,7 @@ def _stated_weights(
     return Qz, Rd, Nz
 
 
-def _simulated_cost(solution: DigitalSolution, problem: RegulationProblem, z0: Array) -> float:
+def _simulated_cost(solution: ModelBasedSolution, problem: RegulationProblem, z0: Array) -> float:
     """The cost of the closed loop from ``z0`` (deviations), summed over a long simulation:
     "digital", ``sum h (x'Qx + u'Ru)`` with u the computed voltage; "sampled",
     ``sum [x; a]' W [x; a]`` with a the voltage applied during the sample."""

@@ -40,7 +40,6 @@ from selftune.learn import (
 )
 from selftune.model import (
     SPMSM,
-    DigitalSolution,
     RegulationProblem,
     solve_digital_regulation,
     solve_optimal_regulation,
@@ -333,9 +332,9 @@ def test_identify_then_design_on_the_exact_model_agrees(case: Case) -> None:
         np.testing.assert_array_equal(design.law.F, solution.law.F)
         assert _relative(design.P, solution.P) <= AGREEMENT, cost
 
-    continuous = solve_optimal_regulation(case.problem, Q, R, integral_weight=case.Q_i)
+    continuous = solve_optimal_regulation(case.problem, Q, R, integral_weight=case.Q_i, h=case.h)
     design = design_continuous(model, known)
-    assert _relative(_gain(design.law), _gain(continuous.law(case.h))) <= AGREEMENT
+    assert _relative(_gain(design.law), _gain(continuous.law)) <= AGREEMENT
     assert _relative(design.P, continuous.P) <= AGREEMENT
 
 
@@ -392,7 +391,7 @@ def test_the_simulated_sampled_loop_rejects_a_constant_voltage_error() -> None:
 @_examples(40)
 @given(cases())
 def test_continuous_servo_is_the_lqr_of_the_plant_with_the_integral(case: Case) -> None:
-    solution = solve_optimal_regulation(case.problem, Q, R, integral_weight=case.Q_i)
+    solution = solve_optimal_regulation(case.problem, Q, R, integral_weight=case.Q_i, h=case.h)
     K_truth, P_truth = _continuous_truth(case.problem, case.Q_i)
 
     assert solution.K_i is not None and solution.K.shape == (2, 2)
@@ -414,14 +413,14 @@ def test_continuous_servo_on_the_paper_motor_agrees_with_python_control() -> Non
     A, B = _continuous_servo_plant(problem)
     K_truth, P_truth, _ = control.lqr(A, B, scipy.linalg.block_diag(Q, Q_i), R)
 
-    solution = solve_optimal_regulation(problem, Q, R, integral_weight=Q_i)
+    solution = solve_optimal_regulation(problem, Q, R, integral_weight=Q_i, h=1e-4)
 
     # python-control (SLICOT's SB02MD) leaves 5e-9 in K's zero off-diagonal entries here
     # (up to 6e-6 on random motors), where selftune's Riccati residual is 1e-14: a looser
     # bar, on this motor only
-    assert _relative(_gain(solution.law(1e-4)), np.asarray(K_truth)) <= 1e-8
+    assert _relative(_gain(solution.law), np.asarray(K_truth)) <= 1e-8
     assert _relative(solution.P, np.asarray(P_truth)) <= 1e-8
-    law = solution.law(1e-4)
+    law = solution.law
     assert law.h == 1e-4 and law.K_i is not None
     np.testing.assert_array_equal(law.C, problem.C)
     assert solution.theta.shape == (10 + 8 + 8,)
@@ -433,9 +432,14 @@ def test_without_integral_action_nothing_changes() -> None:
     P = scipy.linalg.solve_continuous_are(problem.A, problem.B, Q, R)
     assert continuous.K_i is None and continuous.integral_weight is None
     assert continuous.P.shape == (2, 2) and _relative(continuous.P, P) <= AGREEMENT
-    assert continuous.law().K_i is None and continuous.law(1e-4).h == 1e-4
+    assert continuous.law.K_i is None and continuous.h == 0.0 and continuous.cost == "continuous"
     digital = solve_digital_regulation(problem, Q, R, 1e-4, input_delay=1)
-    assert isinstance(digital, DigitalSolution)
+    assert type(digital) is type(continuous)  # one model-based solution type
+    assert digital.h == 1e-4 and digital.input_delay == 1 and digital.cost == "digital"
+    with pytest.raises(InputError, match="theta: "):
+        digital.theta  # noqa: B018
+    with pytest.raises(InputError, match="sampled_plant: "):
+        continuous.sampled_plant  # noqa: B018
     assert digital.K_i is None and digital.integral_weight is None
     assert digital.P.shape == (4, 4) and digital.law.h is None
 
@@ -459,7 +463,7 @@ def test_integrator_augmented_in_continuous_and_digital_form() -> None:
 
 def _solvers() -> list[object]:
     return [
-        lambda problem, Q_i: solve_optimal_regulation(problem, Q, R, integral_weight=Q_i),
+        lambda problem, Q_i: solve_optimal_regulation(problem, Q, R, integral_weight=Q_i, h=1e-4),
         lambda problem, Q_i: solve_digital_regulation(
             problem, Q, R, 1e-4, input_delay=1, integral_weight=Q_i
         ),
@@ -493,8 +497,7 @@ def test_more_regulated_outputs_than_inputs_cannot_be_integrated(solve: object) 
         solve(problem, np.eye(3))  # type: ignore[operator]
 
 
-def test_the_law_of_a_servo_solution_needs_the_sampling_period() -> None:
+def test_the_continuous_servo_optimum_needs_the_drive_sampling_period() -> None:
     problem = SPMSM.paper().regulation_problem(100.0)
-    solution = solve_optimal_regulation(problem, Q, R, integral_weight=200.0**2 * Q)
     with pytest.raises(InputError, match="h: "):
-        solution.law()
+        solve_optimal_regulation(problem, Q, R, integral_weight=200.0**2 * Q)

@@ -57,7 +57,6 @@ from .learn import (
 )
 from .model import (
     SPMSM,
-    DigitalSolution,
     ModelBasedSolution,
     RegulationProblem,
     lqr,
@@ -76,7 +75,6 @@ __all__ = [
     "ConsistencyError",
     "ConvergenceError",
     "DataFileError",
-    "DigitalSolution",
     "ExcitationError",
     "InputError",
     "LearnConfig",

@@ -39,8 +39,7 @@ from ..learn import (
 )
 from ..model import (
     SPMSM,
-    DigitalSolution,
-    ModelBasedSolution,
+        ModelBasedSolution,
     RegulationProblem,
     solve_digital_regulation,
     solve_optimal_regulation,
@@ -118,7 +117,7 @@ class Experiment:
         weights = (STATE_WEIGHT * np.eye(2), INPUT_WEIGHT * np.eye(2))
         return LearningProblem(*weights, C=np.eye(2), F=self.problem().F), self.K0
 
-    def digital_optimum(self, delay: int, hold: str) -> DigitalSolution:
+    def digital_optimum(self, delay: int, hold: str) -> ModelBasedSolution:
         """The optimum of the digital cost on the true sampled loop with a delay of d
         samples; ``hold`` is what the inverter holds over a sample (``"rotor"``: the dq
         zero-order hold; ``"stationary"``: a PWM inverter's stationary-frame vector)."""

@@ -92,7 +92,7 @@ from ..learn import (
     gather_evidence,
 )
 from ..loop import SampledLoop
-from ..model import SPMSM, DigitalSolution, solve_digital_regulation
+from ..model import SPMSM, ModelBasedSolution, solve_digital_regulation
 from ..report import HOT_RESISTANCE, drive_text, feedback_excess_cost, steady_torque_error
 from ..sim import DriveSettings, RealisticDrive
 from ..tuning import TuningSettings, algorithm3, known_flux_form, offpolicy, tuning_settings
@@ -149,7 +149,7 @@ class _Truth:
     motor: SPMSM
     plant: tuple[Array, Array]
     w: Array
-    optimum: DigitalSolution
+    optimum: ModelBasedSolution
 
 
 @dataclass(frozen=True)
@@ -170,7 +170,7 @@ def _failed(error: SelftuneError, data_seconds: float = 0.0) -> _Candidate:
     )
 
 
-def _optimum(model: SPMSM, settings: TuningSettings, Q_i: Array | None) -> DigitalSolution:
+def _optimum(model: SPMSM, settings: TuningSettings, Q_i: Array | None) -> ModelBasedSolution:
     """The digital servo optimum of ``model`` on the drive's loop (delay, hold, Q_i)."""
     speed, h = settings.speed, settings.h
     return solve_digital_regulation(

@@ -46,7 +46,6 @@ from ._paper import (
     paper_Q,
     paper_R,
 )
-from ._regulator import RegulatorSolution
 from ._text import compact, fixed, labels, matrix_block, scientific, vector
 from ._validation import (
     DEFINITENESS_TOLERANCE,
@@ -91,7 +90,6 @@ __all__ = [
     "Array",
     "ControlLaw",
     "Discretization",
-    "RegulatorSolution",
     "WithLaw",
     "as_matrix",
     "as_vector",

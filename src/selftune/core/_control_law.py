@@ -267,6 +267,12 @@ class WithLaw:
         return self.law.K_i
 
     @property
+    def L(self) -> Array:
+        """Gain on w of the overall control ``u = -K x + L w``, ``L = U + K X`` (K's part
+        on the state)."""
+        return self.law.U + self.law.K_x @ self.law.X
+
+    @property
     def state(self) -> tuple[str, ...]:
         """The names of the columns of ``[K, K_i]`` in order."""
         return self.law.state

@@ -121,11 +121,6 @@ class LearnedController(WithLaw, PolicyIterationFacts):
         return self.history[-1].theta if self.history else None
 
     @property
-    def L(self) -> Array:
-        """Gain on w of the overall control ``u = -K x + L w``, ``L = U + K X``."""
-        return self.law.U + self.law.K_x @ self.law.X
-
-    @property
     def verdict(self) -> Quality:
         """:attr:`quality`, which a judged result has (raises otherwise).
 

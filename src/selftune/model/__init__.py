@@ -7,15 +7,16 @@ import it (an import contract checks that); the learners see only sampled data.
 - :class:`RegulationProblem`: ``x' = A x + B u + D w, w' = E w, e = C x + F w`` and its
   regulator equations;
 - :func:`solve_optimal_regulation`: the optimal ``K*, P*, X*, U*`` (with
-  ``integral_weight``, the optimal servo controller: ``K_i`` too);
+  ``integral_weight``, the optimal servo controller: ``K_i`` too), a
+  :class:`ModelBasedSolution` of the continuous loop;
 - :func:`solve_digital_regulation`: the optimal digital controller of the sampled loop
   with a computation delay (:mod:`._digital`), with integral action if asked.
 """
 
 from __future__ import annotations
 
-from ..core import RegulatorSolution, lqr, policy_value
-from ._digital import DigitalCost, DigitalSolution, solve_digital_regulation
+from ..core import lqr, policy_value
+from ._digital import DigitalCost, solve_digital_regulation
 from ._motor import SPMSM
 from ._optimum import ModelBasedSolution, solve_optimal_regulation
 from ._problem import RegulationProblem
@@ -23,10 +24,8 @@ from ._problem import RegulationProblem
 __all__ = [
     "SPMSM",
     "DigitalCost",
-    "DigitalSolution",
     "ModelBasedSolution",
     "RegulationProblem",
-    "RegulatorSolution",
     "lqr",
     "policy_value",
     "solve_digital_regulation",

@@ -25,15 +25,11 @@ columns are ``K_i``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..core import (
     Array,
-    ControlLaw,
-    WithLaw,
     as_matrix,
     check_weights,
     discretize,
@@ -43,69 +39,13 @@ from ..core import (
 )
 from ..errors import InputError, UnsolvableError
 from ..loop import Cost, SampledLoop
-from ._optimum import check_integral_weight
+from ._optimum import ModelBasedSolution, check_integral_weight
 from ._problem import RegulationProblem
 
-__all__ = ["DigitalSolution", "solve_digital_regulation"]
+__all__ = ["DigitalCost", "solve_digital_regulation"]
 
 #: The costs a digital optimum can minimize (see :func:`solve_digital_regulation`).
 DigitalCost = Cost
-
-
-@dataclass(frozen=True, eq=False)
-class DigitalSolution(WithLaw):
-    """The optimal digital regulator of a sampled plant with a computation delay.
-
-    Attributes
-    ----------
-    law : ControlLaw
-        The law a drive runs: ``K`` over ``z_k = [xbar_k; ubar_(k-d); ...; ubar_(k-1)]``
-        (V/A on the state, V/V on the delayed inputs), ``X``, ``U`` and ``history = d``;
-        with integral action also ``K_i`` (V/(A s) for the motor), ``C``, ``F`` and ``h``.
-    P : ndarray, shape (n + d m + r_i, n + d m + r_i)
-        Value matrix of the augmented state (the integrator's r_i = r states last with
-        integral action, r_i = 0 without): the optimal cost from ``z_0`` is
-        ``z_0' P z_0`` (for the motor in A^2 s times the unit of Q).
-    h : float
-        Sampling period, s.
-    input_delay : int
-        d: the voltage computed at sample k acts over ``[t_(k+d), t_(k+d+1))``.
-    cost : {"digital", "sampled"}
-        The cost minimized (see :func:`solve_digital_regulation`).
-    Ad : ndarray, shape (n, n)
-        ``expm(A h)`` (exact zero-order-hold discretization).
-    Bd : ndarray, shape (n, m)
-        Effect of the applied (held) voltage on ``x_(k+1)``, A/V for the motor.
-    Ed : ndarray, shape (n, q)
-        Effect of the held reference ``w_k`` on ``x_(k+1)``.
-    Q : ndarray, shape (n, n)
-        The continuous state weight given.
-    R : ndarray, shape (m, m)
-        The continuous input weight given.
-    integral_weight : ndarray, shape (r, r), or None
-        ``Q_i``, the weight of the integrator ``z``; None without integral action.
-    """
-
-    law: ControlLaw
-    P: Array
-    h: float
-    input_delay: int
-    cost: DigitalCost
-    Ad: Array
-    Bd: Array
-    Ed: Array
-    Q: Array
-    R: Array
-    integral_weight: Array | None = None
-
-    @property
-    def loop(self) -> SampledLoop:
-        """The sampled loop this optimum is of (its period, delay and integrator)."""
-        if self.integral_weight is None:
-            return SampledLoop(self.h, self.input_delay)
-        return SampledLoop(
-            self.h, self.input_delay, C=self.law.C, F=self.law.F, Q_i=self.integral_weight
-        )
 
 
 def _check_arguments(
@@ -166,7 +106,7 @@ def solve_digital_regulation(
     cost: DigitalCost = "digital",
     integral_weight: ArrayLike | None = None,
     plant: tuple[ArrayLike, ArrayLike, ArrayLike] | None = None,
-) -> DigitalSolution:
+) -> ModelBasedSolution:
     """The optimal digital regulator of ``problem`` sampled at h with a delay of d samples.
 
     ``(X, U)`` solve the regulator equations (as :func:`solve_optimal_regulation`: E = 0,
@@ -218,7 +158,9 @@ def solve_digital_regulation(
 
     Returns
     -------
-    DigitalSolution
+    ModelBasedSolution
+        Of the sampled loop (``loop.h = h``, ``loop.input_delay = d``), with the sampled
+        plant ``Ad, Bd, Ed``.
 
     Raises
     ------
@@ -252,16 +194,15 @@ def solve_digital_regulation(
     K, P = loop.optimum((Ad, Bd), weights)
     for matrix in (P, Ad, Bd, Ed, Q_, R_):
         matrix.setflags(write=False)
-    return DigitalSolution(
+    return ModelBasedSolution(
         law=loop.law(K, X, U),
         P=P,
-        h=period,
-        input_delay=delay,
+        loop=loop,
+        problem=problem,
+        Q=Q_,
+        R=R_,
         cost=cost,
         Ad=Ad,
         Bd=Bd,
         Ed=Ed,
-        Q=Q_,
-        R=R_,
-        integral_weight=Q_i,
     )

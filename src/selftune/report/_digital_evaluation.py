@@ -19,7 +19,7 @@ import numpy as np
 
 from ..core import Array, ControlLaw
 from ..errors import UnsolvableError
-from ..model import SPMSM, DigitalSolution, solve_digital_regulation
+from ..model import SPMSM, ModelBasedSolution, solve_digital_regulation
 from ..sim import DriveSettings, RealisticDrive, constant, simulate_loop
 from ..tuning import TuningResult, TuningSettings
 from ._evaluate import TuningEvaluation, gains, learner_integral_weight
@@ -96,13 +96,13 @@ def evaluate_digital(
     )
 
 
-def feedback_excess_cost(optimum: DigitalSolution, law: ControlLaw, w: Array) -> float:
+def feedback_excess_cost(optimum: ModelBasedSolution, law: ControlLaw, w: Array) -> float:
     """The digital cost of ``law``'s feedback over the optimum's, minus 1, for the torque
     step from rest on the optimum's sampled loop (see the module docstring).
 
     Parameters
     ----------
-    optimum : DigitalSolution
+    optimum : ModelBasedSolution
         The optimum of the true sampled loop (its plant, delay, weights, integrator).
     law : ControlLaw
         The learned law (the same delay and integrator).
@@ -114,7 +114,7 @@ def feedback_excess_cost(optimum: DigitalSolution, law: ControlLaw, w: Array) ->
     float
         ``inf`` if the feedback does not stabilize the loop.
     """
-    loop, plant = optimum.loop, (optimum.Ad, optimum.Bd)
+    loop, plant = optimum.loop, optimum.sampled_plant[:2]
     if law.history != loop.input_delay or law.r != loop.r:
         return float("nan")
     weights = loop.weights(optimum.Q, optimum.R, "digital")

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..core import Array, RegulatorSolution, finite_or_null, to_jsonable
+from ..core import Array, finite_or_null, to_jsonable
+from ..model import ModelBasedSolution
 from ..tuning import TuningResult
 from ._evaluate import TuningEvaluation
 
@@ -33,12 +34,12 @@ def history_document(result: TuningResult, evaluation: TuningEvaluation) -> list
     return rows
 
 
-def regulator_document(solution: RegulatorSolution | TuningResult) -> dict[str, Array]:
+def regulator_document(solution: ModelBasedSolution | TuningResult) -> dict[str, Array]:
     """``K``, ``P``, ``X``, ``U`` and ``theta`` of a learned or model-based regulator (JSON).
 
     Parameters
     ----------
-    solution : RegulatorSolution or TuningResult
+    solution : ModelBasedSolution or TuningResult
         The regulator.
     """
     return {name: getattr(solution, name) for name in ("K", "P", "X", "U", "theta")}

@@ -14,7 +14,7 @@ import numpy as np
 from ..core import Array, ControlLaw, policy_value
 from ..errors import UnsolvableError
 from ..learn import LearningProblem, Trajectory
-from ..model import SPMSM, DigitalSolution, ModelBasedSolution, solve_optimal_regulation
+from ..model import SPMSM, ModelBasedSolution, solve_optimal_regulation
 from ..sim import DriveSettings, constant, simulate
 from ..tuning import TuningResult, TuningSettings, known_flux_form
 
@@ -57,7 +57,7 @@ class TuningEvaluation:
         integral weight (digital target, :mod:`._digital_evaluation`).
     """
 
-    optimum: ModelBasedSolution | DigitalSolution
+    optimum: ModelBasedSolution
     theta_error: Array
     learned_cost: Array
     true_cost: Array
@@ -152,7 +152,11 @@ def evaluate(
         return evaluate_digital(result, motor, settings, drive)
     weight = learner_integral_weight(motor, settings) if result.law.K_i is not None else None
     optimum = solve_optimal_regulation(
-        motor.regulation_problem(settings.speed), settings.Q, settings.R, integral_weight=weight
+        motor.regulation_problem(settings.speed),
+        settings.Q,
+        settings.R,
+        integral_weight=weight,
+        h=settings.h,
     )
     theta_star = optimum.theta
     x_bar0 = -result.X @ result.w  # the learner's own start: what its P_j are about
@@ -175,7 +179,7 @@ def evaluate(
     excess = float("nan")
     if weight is None and 0.0 < optimal_cost < float("inf"):
         excess = feedback_value(motor, settings, result.K) / optimal_cost - 1.0
-    best = gains(optimum.law(settings.h))
+    best = gains(optimum.law)
     return TuningEvaluation(
         optimum=optimum,
         theta_error=np.array(theta_error),

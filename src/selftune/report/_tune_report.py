@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..core import matrix_block
-from ..model import SPMSM, DigitalSolution
+from ..model import SPMSM
 from ..sim import DriveSettings
 from ..tuning import TuningResult, TuningSettings
 from ._documents import history_document
@@ -180,7 +180,7 @@ def tune_document(
         Its steady torque on the simulated drive.
     """
     optimum = evaluation.optimum
-    best = optimum.law if isinstance(optimum, DigitalSolution) else optimum.law(settings.h)
+    best = optimum.law
     return {
         "algorithm": result.algorithm,
         "target": result.target,
