@@ -39,7 +39,7 @@ from ..learn import (
 )
 from ..model import (
     SPMSM,
-        ModelBasedSolution,
+    ModelBasedSolution,
     RegulationProblem,
     solve_digital_regulation,
     solve_optimal_regulation,

@@ -65,7 +65,6 @@ from .verdict._verdict import (
     ModelErrors,
     design_target,
     model_errors,
-    relative_size,
     verdict,
     with_model_sensitivity,
     without_extra,
@@ -276,7 +275,7 @@ def _precise(
     """:func:`_prepared`, refused unless the target's standard errors are small enough."""
     evidence, known, errors = _prepared(data, problem, options)
     check_precision(
-        (relative_size(errors.K_se, errors.K), relative_size(errors.U_se, errors.U)),
+        errors.relative,
         evidence,
         options.max_relative_error,
         servo=problem.integral_weight is not None,

@@ -38,10 +38,13 @@ from ..learners._policy_iteration import IterationRecord
 __all__ = [
     "SERVO_FEEDFORWARD_LIMIT",
     "STABILITY_MARGIN",
+    "BlockErrors",
     "Quality",
+    "block_errors",
     "check_precision",
     "check_safety",
     "closed_loop_radius",
+    "relative_size",
     "standard_errors",
 ]
 
@@ -52,6 +55,54 @@ STABILITY_MARGIN = 1e-4
 PLAUSIBLE_MODELS = 24
 
 Design = Callable[[DiscreteModel], tuple[Array, Array, Array]]
+
+
+@dataclass(frozen=True)
+class BlockErrors:
+    """Relative standard errors by block: each ``||se|| / ||value||`` over the block.
+
+    Attributes
+    ----------
+    K : float
+        Of K, the feedback of the currents and the delayed voltages: what sets the fast
+        dynamics (the headline and the ``max_relative_error`` gate).
+    K_i : float or None
+        Of the integral gain (None without integral action): reported apart, as its
+        entries are often two orders of magnitude larger than K's.
+    U : float
+        Of the feedforward U (0 without a reference).
+    """
+
+    K: float
+    K_i: float | None
+    U: float
+
+
+def block_errors(
+    gain: tuple[Array, Array], feedforward: tuple[Array, Array], width: int
+) -> BlockErrors:
+    """The relative standard errors of ``[K, K_i]`` split after ``width`` columns, and of U.
+
+    Parameters
+    ----------
+    gain : (ndarray, ndarray)
+        Standard errors of ``[K, K_i]`` and its value.
+    feedforward : (ndarray, ndarray)
+        Standard errors of U and its value.
+    width : int
+        The columns of K (the rest are K_i's).
+    """
+    (gain_se, K), (U_se, U) = gain, feedforward
+    K_i = None
+    if K.shape[1] > width:
+        K_i = relative_size(gain_se[:, width:], K[:, width:])
+    return BlockErrors(relative_size(gain_se[:, :width], K[:, :width]), K_i, relative_size(U_se, U))
+
+
+def relative_size(se: Array, value: Array) -> float:
+    size = float(np.linalg.norm(value))
+    ratio = float(np.linalg.norm(se)) / size if size > 0 else 0.0
+    return ratio if np.isfinite(ratio) else 0.0
 
 
 @dataclass(frozen=True)
@@ -84,7 +135,10 @@ class Quality:
     P_se : ndarray
         Standard errors of P's entries.
     K_relative_se : float
-        ``||K_se|| / ||K||``.
+        ``||K_se|| / ||K||`` over K, the feedback of the currents and the delayed
+        voltages (the headline, and what ``max_relative_error`` gates).
+    K_i_relative_se : float or None
+        ``||K_i_se|| / ||K_i||``, reported apart; None without integral action.
     U_relative_se : float
         ``||U_se|| / ||U||`` (0 without a reference).
     stability_margin : float
@@ -110,11 +164,17 @@ class Quality:
     U_se: Array
     P_se: Array
     K_relative_se: float
+    K_i_relative_se: float | None
     U_relative_se: float
     stability_margin: float
     voltage_error: float | None
     log_precision: str
     notes: tuple[str, ...]
+
+    @property
+    def relative_se(self) -> BlockErrors:
+        """The relative standard errors of K, K_i and U, block by block."""
+        return BlockErrors(self.K_relative_se, self.K_i_relative_se, self.U_relative_se)
 
     def lines(self) -> list[str]:
         """The verdict as report lines (what the command line prints)."""
@@ -123,9 +183,12 @@ class Quality:
             if self.noise_rms is None
             else ", ".join(f"{value:.3g}" for value in self.noise_rms)
         )
+        integral = ""
+        if self.K_i_relative_se is not None:
+            integral = f", K_i within +-{_relative(self.K_i_relative_se)}"
         lines = [
             "quality (from the data alone):",
-            f"  K within +-{_relative(self.K_relative_se)}, U within "
+            f"  K within +-{_relative(self.K_relative_se)}{integral}, U within "
             f"+-{_relative(self.U_relative_se)} (one standard error, relative)",
             f"  measurement noise {noise} (the states' unit); consistency statistic "
             f"{self.consistency_statistic:.3g} (refused above {self.consistency_threshold:.3g})",
@@ -276,7 +339,7 @@ def check_safety(
             plausible=int(radii.size),
         )
     # the precision first: a result too noisy to keep fails both, and this says why
-    check_precision((quality.K_relative_se, quality.U_relative_se), evidence, limit, servo=servo)
+    check_precision(quality.relative_se, evidence, limit, servo=servo)
     step = _monotone(history)
     if step is not None:
         raise PolicyIterationFailure(
@@ -298,15 +361,17 @@ SERVO_FEEDFORWARD_LIMIT = 0.25
 
 
 def check_precision(
-    relative: tuple[float, float], evidence: Evidence, limit: float, servo: bool = False
+    relative: BlockErrors, evidence: Evidence, limit: float, servo: bool = False
 ) -> None:
     """Raise unless the relative standard errors of K and U are within ``limit`` (U within
-    :data:`SERVO_FEEDFORWARD_LIMIT` for a servo controller, ``servo``).
+    :data:`SERVO_FEEDFORWARD_LIMIT` for a servo controller, ``servo``). K is the feedback
+    of the currents and the delayed voltages; K_i is reported, not gated (its entries,
+    often 200 times K's, would hide K's error in a norm over both).
 
     Parameters
     ----------
-    relative : (float, float)
-        Relative standard errors of K and U.
+    relative : BlockErrors
+        Relative standard errors of K, K_i and U.
     evidence : Evidence
         The data's model and noise.
     limit : float
@@ -323,7 +388,7 @@ def check_precision(
         misses part of the data too.
     """
     U_limit = max(limit, SERVO_FEEDFORWARD_LIMIT) if servo else limit
-    worst = max(relative[0] / limit, relative[1] / U_limit)
+    worst = max(relative.K / limit, relative.U / U_limit)
     if not worst > 1.0:
         return
     duration = sum(float(e.duration) for e in evidence.episodes)
@@ -343,13 +408,13 @@ def check_precision(
             "saturated sensor or ADC, the voltage limit) or a misaligned voltage log"
         )
     raise TooLittleData(
-        f"{TOO_LITTLE_DATA}: the standard error of K is {relative[0]:.2%} "
-        f"and of U {relative[1]:.2%} of their size (the limits are {limit:.2%} and "
+        f"{TOO_LITTLE_DATA}: the standard error of K is {relative.K:.2%} "
+        f"and of U {relative.U:.2%} of their size (the limits are {limit:.2%} and "
         f"{U_limit:.2%}) from {duration:.4g} s of data with about {_noise_text(evidence)} of "
         f"noise; about {needed:.3g} s of the same kind of data would bring them within the "
         f"limits (or richer excitation: more exploration, reference changes, another "
         f"operating point){cause}",
-        relative_se=(float(relative[0]), float(relative[1])),
+        relative_se=(float(relative.K), float(relative.U)),
         max_relative_se=(float(limit), float(U_limit)),
         data_seconds=duration,
         needed_seconds=needed,

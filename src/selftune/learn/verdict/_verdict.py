@@ -13,7 +13,15 @@ from .._problem import LearningOptions, LearningProblem
 from ..evidence._discrete_model import DiscreteModel
 from ..evidence._evidence import INFLATION_LIMIT, Evidence
 from ..learners._identify import design_continuous, design_digital
-from ._quality import PLAUSIBLE_MODELS, Quality, closed_loop_radius, standard_errors
+from ._quality import (
+    PLAUSIBLE_MODELS,
+    BlockErrors,
+    Quality,
+    block_errors,
+    closed_loop_radius,
+    relative_size,
+    standard_errors,
+)
 
 __all__ = [
     "ROUNDING_FLOOR",
@@ -63,7 +71,8 @@ def _outputs(law: ControlLaw, P: Array) -> tuple[Array, Array, Array]:
 @dataclass(frozen=True)
 class ModelErrors:
     """The target's optimum on the fitted model and its standard errors, known before any
-    learner runs."""
+    learner runs. ``K`` is ``[K, K_i]``; its first ``feedback_width`` columns are the
+    law's K (the currents' and the delayed voltages' feedback)."""
 
     K: Array
     U: Array
@@ -72,6 +81,12 @@ class ModelErrors:
     U_se: Array
     P_se: Array
     notes: tuple[str, ...]
+    feedback_width: int
+
+    @property
+    def relative(self) -> BlockErrors:
+        """The relative standard errors of K, K_i and U."""
+        return block_errors((self.K_se, self.K), (self.U_se, self.U), self.feedback_width)
 
 
 def model_errors(
@@ -87,6 +102,7 @@ def model_errors(
         return _outputs(without_extra(learned, q), P)
 
     K, U, P = design(model)
+    width = design_target(model, problem, options)[0].K.shape[1]
     if fit is None:
         assert model.covariance is not None
         note = (
@@ -96,11 +112,11 @@ def model_errors(
         errors = standard_errors(
             design, model.matrices, model.parameters, model.covariance, model.h
         )
-        return ModelErrors(K, U, P, *errors, notes=(note,))
+        return ModelErrors(K, U, P, *errors, notes=(note,), feedback_width=width)
     K_se, U_se, P_se = standard_errors(
         design, fit.matrices, fit.parameters, fit.parameter_covariance, model.h
     )
-    return ModelErrors(K, U, P, K_se, U_se, P_se, notes=())
+    return ModelErrors(K, U, P, K_se, U_se, P_se, notes=(), feedback_width=width)
 
 
 #: The alternative dead-time model's noise width, in units of the estimated noise on
@@ -152,10 +168,9 @@ def with_model_sensitivity(
     )
 
 
-def relative_size(se: Array, value: Array) -> float:
-    size = float(np.linalg.norm(value))
-    ratio = float(np.linalg.norm(se)) / size if size > 0 else 0.0
-    return ratio if np.isfinite(ratio) else 0.0
+def _floored(se: Array, value: Array) -> Array:
+    """Standard errors no smaller than the rounding floor of the block's size."""
+    return np.maximum(se, ROUNDING_FLOOR * float(np.max(np.abs(value), initial=0.0)))
 
 
 def verdict(
@@ -180,10 +195,13 @@ def verdict(
             "the standard errors include the O(h^2) quadrature error of the continuous data "
             "equation, measured against the continuous optimum of the fitted model"
         )
-    # rounding: no learner is exact beyond about 1e-10 of the gain's size
-    K_se = np.maximum(K_se, ROUNDING_FLOOR * float(np.max(np.abs(K_learned))))
-    U_se = np.maximum(U_se, ROUNDING_FLOOR * float(np.max(np.abs(law.U), initial=0.0)))
+    # rounding: no learner is exact beyond about 1e-10 of each block's size
+    width = law.K.shape[1]
+    K_se = np.hstack([_floored(K_se[:, :width], K_learned[:, :width]),
+                      _floored(K_se[:, width:], K_learned[:, width:])])  # fmt: skip
+    U_se = _floored(U_se, law.U)
     radii = _radii(law, evidence, options)
+    relative = block_errors((K_se, K_learned), (U_se, law.U), width)
     alignment = evidence.alignment
     quality = Quality(
         shift=alignment.shift,
@@ -197,8 +215,9 @@ def verdict(
         K_se=K_se,
         U_se=U_se,
         P_se=errors.P_se if options.method == "identify" else np.full_like(errors.P, np.nan),
-        K_relative_se=relative_size(K_se, K_learned),
-        U_relative_se=relative_size(U_se, law.U),
+        K_relative_se=relative.K,
+        K_i_relative_se=relative.K_i,
+        U_relative_se=relative.U,
         stability_margin=1.0 - float(radii[0]),
         voltage_error=dead_time_voltage(evidence),
         log_precision=evidence.precision,
