@@ -1273,6 +1273,29 @@ def test_ctrl_c_whose_keyboard_interrupt_was_lost_leaves_nothing(
     assert snapshot(tmp_path) == {}
 
 
+def test_ctrl_c_while_the_command_line_starts_is_one_line() -> None:
+    """A SIGINT while numpy is first imported (the bulk of a command's first second) ends
+    the command with one line and exit code 130, not a traceback: importing the command
+    line itself imports nothing heavy, so the interrupt lands inside its handling."""
+    code = (
+        "import os, signal, sys\n"
+        "class InterruptAtNumpy:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'numpy':\n"
+        "            os.kill(os.getpid(), signal.SIGINT)\n"
+        "        return None\n"
+        "sys.meta_path.insert(0, InterruptAtNumpy())\n"
+        "from selftune.cli import main\n"
+        "sys.argv = ['selftune', 'solve']\n"
+        "sys.exit(main())\n"
+    )
+    process = subprocess.Popen(
+        [sys.executable, "-c", code], text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    _, err = process.communicate(timeout=TIMEOUT)
+    assert (process.returncode, err) == (130, "selftune: interrupted\n"), err
+
+
 # -- output sets: written whole or not at all ---------------------------------------------
 
 
