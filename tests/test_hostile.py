@@ -1273,6 +1273,29 @@ def test_ctrl_c_whose_keyboard_interrupt_was_lost_leaves_nothing(
     assert snapshot(tmp_path) == {}
 
 
+def test_ctrl_c_while_the_command_line_starts_is_one_line() -> None:
+    """A SIGINT while numpy is first imported (the bulk of a command's first second) ends
+    the command with one line and exit code 130, not a traceback: importing the command
+    line itself imports nothing heavy, so the interrupt lands inside its handling."""
+    code = (
+        "import os, signal, sys\n"
+        "class InterruptAtNumpy:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'numpy':\n"
+        "            os.kill(os.getpid(), signal.SIGINT)\n"
+        "        return None\n"
+        "sys.meta_path.insert(0, InterruptAtNumpy())\n"
+        "from selftune.cli import main\n"
+        "sys.argv = ['selftune', 'solve']\n"
+        "sys.exit(main())\n"
+    )
+    process = subprocess.Popen(
+        [sys.executable, "-c", code], text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    _, err = process.communicate(timeout=TIMEOUT)
+    assert (process.returncode, err) == (130, "selftune: interrupted\n"), err
+
+
 # -- output sets: written whole or not at all ---------------------------------------------
 
 
@@ -1409,6 +1432,80 @@ def test_json_to_standard_output_is_the_json_alone(tmp_path: Path) -> None:
     assert (code, err) == (0, "")
     assert set(json.loads(out)) >= {"K", "P", "B", "X", "U", "control_law", "quality", "iterations"}
     assert sorted(path.name for path in tmp_path.iterdir()) == ["config.toml", "data.csv"]
+
+
+# -- temporaries a killed run left ---------------------------------------------------------
+
+
+def _pid_of_a_finished_process() -> int:
+    process = subprocess.Popen([sys.executable, "-c", "pass"])
+    process.wait()
+    return process.pid
+
+
+def test_a_later_run_removes_the_temporaries_a_killed_run_left(tmp_path: Path) -> None:
+    """SIGKILL while an output was written leaves its temporary beside it (nothing can
+    catch SIGKILL); the next run writing the same output removes it, and leaves alone
+    the temporary of a process that still runs (this one) and anything not named so."""
+    from selftune.core import write_text
+    from selftune.core._atomic import output_directory
+
+    dead, alive = _pid_of_a_finished_process(), os.getpid()
+    stale_set, live_set = (
+        tmp_path / f".out.{dead}.k2f_9x0a.tmp",
+        tmp_path / f".out.{alive}.q8z3.tmp",
+    )
+    stale_file, live_file = (
+        tmp_path / f".log.csv.{dead}.ab1c.csv",
+        tmp_path / f".log.csv.{alive}.zz.csv",
+    )
+    for directory in (stale_set, live_set):
+        directory.mkdir()
+        (directory / "results.json").write_text("half written")
+    for file in (stale_file, live_file):
+        file.write_text("half written")
+    others = [tmp_path / f".out.{dead}.tmp", tmp_path / f".other.{dead}.k2f_9x0a.tmp"]
+    for file in others:
+        file.write_text("the user's")
+
+    with output_directory(tmp_path / "out", {"results.json"}, "reproduction") as directory:
+        write_text(directory / "results.json", "{}")
+    write_text(tmp_path / "log.csv", "t\n0\n")
+
+    assert not stale_set.exists() and not stale_file.exists()
+    assert (live_set / "results.json").read_text() == "half written"
+    assert live_file.read_text() == "half written"
+    assert all(file.read_text() == "the user's" for file in others)
+    assert (tmp_path / "out" / "results.json").read_text() == "{}"
+
+
+@pytest.mark.parametrize("kind", ["directory", "file"])
+def test_ctrl_c_just_as_the_temporary_is_created_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, kind: str
+) -> None:
+    """A SIGINT right after the temporary was created (a directory made, a file's
+    descriptor closed), before the writer holds its name, must not leave it behind."""
+    from selftune.core._atomic import atomic_path, output_directory
+
+    step = "mkdir" if kind == "directory" else "close"
+    original = getattr(os, step)
+
+    def then_interrupted(*args: Any, **kwargs: Any) -> Any:
+        monkeypatch.setattr(os, step, original)
+        result = original(*args, **kwargs)
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(1)  # the handler runs here
+        return result
+
+    monkeypatch.setattr(os, step, then_interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        if kind == "directory":
+            with output_directory(tmp_path / "out", {"results.json"}, "reproduction"):
+                pass
+        else:
+            with atomic_path(tmp_path / "log.csv"):
+                pass
+    assert snapshot(tmp_path) == {}
 
 
 # -- the library: bad values are errors where they enter ----------------------------------

@@ -1103,3 +1103,32 @@ def test_times_that_cannot_resolve_the_steps_are_refused(
     csv = tmp_path / "coarse.csv"
     csv.write_text("t,x1,u1\n" + "".join(f"{t!r},1,2\n" for t in times.astype(float).tolist()))
     expect_error(load_csv, csv, "Trajectory.t", part)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_what_save_trajectory_writes_load_trajectory_reads(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, suffix: str
+) -> None:
+    """A simulation of ``num_samples`` samples has ``num_samples + 1`` sample times; at
+    the bound on a data file's sample times (lowered here so the case stays small, the
+    same bound for the writer and the readers) the file is written and read back, one
+    sample more is refused before anything is written, naming the bound."""
+    from types import MappingProxyType
+
+    from selftune.core import _validation
+    from selftune.sim import simulate
+
+    bound = 40
+    limits = MappingProxyType({**_validation.LIMITS, "samples": bound})
+    for module in (selftune_io, selftune_csv, selftune_npz):
+        monkeypatch.setattr(module, "LIMITS", limits, raising=False)
+    A, B = np.array([[-10.0, 1.0], [0.0, -20.0]]), np.array([[0.0], [1.0]])
+    path = tmp_path / f"run{suffix}"
+    fits = simulate(A, B, x0=[1.0, 0.5], h=1e-3, num_samples=bound - 1)
+    save_trajectory(fits, path)
+    assert same(load_trajectory(path).x, fits.x)
+    path.unlink()
+    one_more = simulate(A, B, x0=[1.0, 0.5], h=1e-3, num_samples=bound)
+    with pytest.raises(DataFileError, match=f"{bound + 1} sample times.* at most {bound} "):
+        save_trajectory(one_more, path)
+    assert list(tmp_path.iterdir()) == []

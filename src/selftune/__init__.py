@@ -21,7 +21,9 @@ never uses ``model``; an import contract checks both)::
 
 from __future__ import annotations
 
-from .config import LearnConfig, MotorConfig, load_learn_config, load_motor_config
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from .errors import (
     CoarseTimeResolution,
     ConfigurationMismatch,
@@ -43,28 +45,32 @@ from .errors import (
     TooShort,
     UnsolvableError,
 )
-from .learn import (
-    LearnedController,
-    LearningOptions,
-    LearningProblem,
-    Trajectory,
-    learn_controller,
-    learn_lqr,
-    learn_output_regulation,
-    learn_regulator,
-    load_trajectory,
-    save_trajectory,
-)
-from .model import (
-    SPMSM,
-    ModelBasedSolution,
-    RegulationProblem,
-    lqr,
-    policy_value,
-    solve_digital_regulation,
-    solve_optimal_regulation,
-)
-from .sim import simulate, simulate_batch
+
+if TYPE_CHECKING:
+    from .config import LearnConfig, MotorConfig, load_learn_config, load_motor_config
+    from .learn import (
+        LearnedController,
+        LearningOptions,
+        LearningProblem,
+        Trajectory,
+        learn_controller,
+        learn_lqr,
+        learn_output_regulation,
+        learn_regulator,
+        load_trajectory,
+        save_trajectory,
+    )
+    from .model import (
+        SPMSM,
+        ModelBasedSolution,
+        RegulationProblem,
+        lqr,
+        policy_value,
+        solve_digital_regulation,
+        solve_optimal_regulation,
+    )
+    from .sim import simulate, simulate_batch
+
 
 __version__ = "0.1.0"
 
@@ -113,3 +119,58 @@ __all__ = [
     "solve_digital_regulation",
     "solve_optimal_regulation",
 ]
+
+# The rest of the public names, imported when first used rather than with the package
+# (numpy and scipy take about a second): ``selftune.cli`` is then quick to import, and a
+# Ctrl-C during a command's imports reaches the command line's own handling (one line,
+# exit code 130) rather than ending in a traceback.
+_LAZY: dict[str, str] = {
+    "LearnConfig": "config",
+    "MotorConfig": "config",
+    "load_learn_config": "config",
+    "load_motor_config": "config",
+    "LearnedController": "learn",
+    "LearningOptions": "learn",
+    "LearningProblem": "learn",
+    "Trajectory": "learn",
+    "learn_controller": "learn",
+    "learn_lqr": "learn",
+    "learn_output_regulation": "learn",
+    "learn_regulator": "learn",
+    "load_trajectory": "learn",
+    "save_trajectory": "learn",
+    "SPMSM": "model",
+    "ModelBasedSolution": "model",
+    "RegulationProblem": "model",
+    "lqr": "model",
+    "policy_value": "model",
+    "solve_digital_regulation": "model",
+    "solve_optimal_regulation": "model",
+    "simulate": "sim",
+    "simulate_batch": "sim",
+}
+
+# The subpackages ``import selftune`` has always made available as attributes.
+_SUBPACKAGES = ("config", "core", "learn", "loop", "model", "sim")
+
+
+def __getattr__(name: str) -> Any:
+    """A public name (or subpackage) of selftune, imported on first use (PEP 562).
+
+    Parameters
+    ----------
+    name : str
+        The attribute asked for.
+    """
+    if name in _SUBPACKAGES:
+        return importlib.import_module(f"{__name__}.{name}")
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """The module's names, the public ones not yet imported included."""
+    return sorted(set(globals()) | set(__all__))

@@ -6,6 +6,7 @@
 - :func:`output_directory`, :func:`check_output_directory`: a set of output files in a
   directory, put in place as one set, so that a failed or interrupted run leaves
   nothing and a rerun never mixes its files with an earlier run's;
+- their temporaries (:mod:`._temporaries`): one a killed run left is removed by the next;
 - :func:`open_regular_file`, :func:`read_regular_file`: input files are regular files
   (FIFOs, devices and directories are refused before anything blocks) of bounded size;
   :func:`open_zip`, :func:`read_npy_header`, :func:`read_npy_data`: a zip archive's
@@ -34,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import DataFileError, InputError, raise_if_interrupted
+from ._temporaries import CREATE_NEW, remove_stale_temporaries, temporary_path
 
 __all__ = [
     "atomic_path",
@@ -322,14 +324,10 @@ def atomic_path(path: str | os.PathLike[str], suffix: str = "") -> Iterator[Path
     check_output_file(path)
     target = Path(path)
     directory = target.parent if str(target.parent) else Path(".")
-    handle, temporary_name = tempfile.mkstemp(
-        prefix=f".{target.name}.",
-        suffix=suffix or ".tmp",
-        dir=directory,
-    )
-    os.close(handle)
-    temporary = Path(temporary_name)
-    try:
+    remove_stale_temporaries(directory, target.name, directories=False)
+    temporary = temporary_path(directory, target.name, suffix or ".tmp")
+    try:  # created inside: a Ctrl-C just after the file exists still removes it
+        os.close(os.open(temporary, CREATE_NEW, 0o600))
         yield temporary
         os.chmod(temporary, _mode_for(target))
         check_output_file(path)
@@ -501,8 +499,10 @@ def output_directory(
     check_output_directory(path, names, what, contents=bool(names))
     target = Path(path).resolve() if Path(path).is_symlink() else Path(path).absolute()
     home = target.parent if target.parent.is_dir() else _existing_ancestor(target)
-    temporary = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=home))
-    try:
+    remove_stale_temporaries(home, target.name, directories=True)
+    temporary = temporary_path(home, target.name, ".tmp")
+    try:  # created inside: a Ctrl-C just after the directory exists still removes it
+        temporary.mkdir(mode=0o700)
         yield temporary
         written = set(os.listdir(temporary))
         with _interrupts_deferred():

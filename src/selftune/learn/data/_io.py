@@ -46,6 +46,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ...core._validation import LIMITS
 from ._csv import csv_dimensions, load_csv, save_csv
 from ._data_file import PathLike, file_error
 from ._npz import load_npz, npz_dimensions, save_npz
@@ -145,14 +146,23 @@ def save_trajectory(trajectory: Trajectory, path: PathLike) -> None:
     Raises
     ------
     DataFileError
-        If the suffix is neither ``.csv`` nor ``.npz``.
+        If the suffix is neither ``.csv`` nor ``.npz``, or the trajectory has more sample
+        times than :func:`load_trajectory` reads (``LIMITS["samples"]``): nothing is
+        written that could not be read back.
     InputError
         If ``trajectory`` is not a :class:`Trajectory`.
     OSError
         If the file cannot be written (e.g. the directory does not exist).
     """
     target = Path(path)
-    if _format_for(target) == ".csv":
+    file_format = _format_for(target)
+    if isinstance(trajectory, Trajectory) and len(trajectory.t) > LIMITS["samples"]:
+        raise file_error(
+            target,
+            f"not written: {len(trajectory.t)} sample times, and at most"
+            f" {LIMITS['samples']} are read from a data file",
+        )
+    if file_format == ".csv":
         save_csv(trajectory, target)
     else:
         save_npz(trajectory, target)
