@@ -8,9 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drive_logs import reference_log
 from selftune import SPMSM, solve_optimal_regulation
 from selftune.cli import main
 from selftune.errors import NotExciting
+from selftune.learn import LearningOptions, learn_controller
 from selftune.learn.evidence._discrete_model import Transitions, fit_discrete_model
 
 MOTOR = """[motor]
@@ -57,3 +59,14 @@ def test_a_lack_of_rank_names_the_regressors_that_move_together() -> None:
         fit_discrete_model(transitions)
     assert caught.value.columns == (4, 5)  # w1 and w2: both constant
     assert "(x1, x2, u1, u2, w1, w2, w3): w1, w2 do not vary independently" in str(caught.value)
+
+
+def test_a_noise_free_log_says_no_consistency_test_applies() -> None:
+    # An exact fit passes the consistency test whatever its statistic (rounding only);
+    # the verdict used to print that statistic above its threshold for an accepted log.
+    log, _, known = reference_log(seconds=0.05)
+    learned = learn_controller(log, *known, LearningOptions(target="digital", input_delay=1))
+    assert learned.quality is not None and learned.quality.consistency_exact
+    text = "\n".join(learned.quality.lines())
+    assert "noise-free: no consistency test" in text and "refused above" not in text
+    assert not any("correlated in time" in note for note in learned.quality.notes)

@@ -297,7 +297,9 @@ def gather_evidence(
         )
     if structure is not None and (fit is None or not test.exact):  # exact: nothing to miss
         _check_structure(fitted, alignment, fit, relative, options.dead_time)
-    if fit is not None and fit.correlation_inflation > INFLATION_LIMIT and not options.dead_time:
+    inflated = fit is not None and fit.correlation_inflation > INFLATION_LIMIT
+    if inflated and not test.exact and not options.dead_time:  # exact: rounding only
+        assert fit is not None
         causes = (
             "an input error the log does not show (inverter dead time: set dead_time = true)",
             "a nonlinearity (a saturated sensor or ADC, the voltage limit)",

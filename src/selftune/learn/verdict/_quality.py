@@ -126,6 +126,9 @@ class Quality:
         The input-residual cross-correlation statistic.
     consistency_threshold : float
         Its threshold (chi-square at p = 1e-6); the data were refused above it.
+    consistency_exact : bool
+        The model explains the data to rounding (noise-free data): the test, and every
+        test of the output errors, does not apply.
     noise_handling : str
         ``"smoothed"``, ``"instruments"`` or ``"none"`` (see LearningOptions).
     K_se : ndarray
@@ -159,6 +162,7 @@ class Quality:
     residual_rms: Array
     consistency_statistic: float
     consistency_threshold: float
+    consistency_exact: bool
     noise_handling: str
     K_se: Array
     U_se: Array
@@ -186,12 +190,17 @@ class Quality:
         integral = ""
         if self.K_i_relative_se is not None:
             integral = f", K_i within +-{_relative(self.K_i_relative_se)}"
+        consistency = (
+            "the model explains the data to rounding (noise-free: no consistency test)"
+            if self.consistency_exact
+            else f"consistency statistic {self.consistency_statistic:.3g} (refused above "
+            f"{self.consistency_threshold:.3g})"
+        )
         lines = [
             "quality (from the data alone):",
             f"  K within +-{_relative(self.K_relative_se)}{integral}, U within "
             f"+-{_relative(self.U_relative_se)} (one standard error, relative)",
-            f"  measurement noise {noise} (the states' unit); consistency statistic "
-            f"{self.consistency_statistic:.3g} (refused above {self.consistency_threshold:.3g})",
+            f"  measurement noise {noise} (the states' unit); {consistency}",
             f"  log alignment: the voltage applied during sample k is in row k - {self.shift}"
             f" (the data show {self.detected_shift}); stability margin "
             f"{self.stability_margin:.3g}; logged as {self.log_precision}",

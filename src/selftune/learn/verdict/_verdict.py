@@ -179,10 +179,12 @@ def verdict(
     """The quality of ``law`` and the spectral radii of its loop on plausible models."""
     model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
     notes = list(errors.notes)
-    if evidence.fit is not None and evidence.fit.correlation_inflation > INFLATION_LIMIT:
+    exact = evidence.consistency.exact  # rounding only: no test of the errors applies
+    fit = evidence.fit
+    if fit is not None and fit.correlation_inflation > INFLATION_LIMIT and not exact:
         notes.append(
             f"the model misses part of the data: its output errors are correlated in time "
-            f"({evidence.fit.correlation_inflation:.3g} times the variance white noise "
+            f"({fit.correlation_inflation:.3g} times the variance white noise "
             "gives); the standard errors include that, a bias it may cause they cannot show"
         )
     K_learned = _outputs(law, errors.P)[0]
@@ -211,6 +213,7 @@ def verdict(
         residual_rms=model.residual_rms,
         consistency_statistic=evidence.consistency.statistic,
         consistency_threshold=evidence.consistency.threshold,
+        consistency_exact=evidence.consistency.exact,
         noise_handling=options.noise if options.method == "adp" else "output error",
         K_se=K_se,
         U_se=U_se,
