@@ -285,3 +285,12 @@ def test_a_refusal_retold_or_pickled_keeps_its_class_and_fields(
     restored = pickle.loads(pickle.dumps(error))
     assert type(restored) is type(error) and vars(restored) == vars(error)
     assert str(restored) == str(error)
+
+
+def test_messages_show_numbers_not_numpy_reprs() -> None:
+    # numpy 2 formats a scalar with !r as np.float64(...); a user reads the number
+    with pytest.raises(InputError) as caught:
+        simulate(np.eye(1) * -1.0, np.ones((1, 1)), t=np.array([0.0, 2e-4, 1e-4]))
+    assert "np.float64" not in str(caught.value) and "0.0001" in str(caught.value)
+    retold = InputError("x").retold(f"h: got {np.float64(0.25)!r}")
+    assert str(retold) == "h: got 0.25"

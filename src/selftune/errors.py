@@ -28,6 +28,7 @@ words. Each cause also derives from the error class that names its kind
 from __future__ import annotations
 
 import copy
+import re
 import threading
 from typing import Any, Self
 
@@ -55,8 +56,21 @@ __all__ = [
 ]
 
 
+#: numpy's repr of a scalar, ``np.float64(0.5)``: a message shows the number alone.
+_NUMPY_SCALAR = re.compile(r"\bnp\.(?:float|int|uint|complex|bool|str)_?\d*\(([^()]*)\)")
+
+
 class SelftuneError(Exception):
-    """Base class of every error selftune raises on purpose."""
+    """Base class of every error selftune raises on purpose.
+
+    Its message shows numbers as a user writes them: a numpy scalar's repr
+    (``np.float64(0.5)``, from a value formatted with ``!r``) is shown as ``0.5``.
+    """
+
+    def __init__(self, *args: object) -> None:
+        if args and isinstance(args[0], str):
+            args = (_NUMPY_SCALAR.sub(r"\1", args[0]), *args[1:])
+        super().__init__(*args)
 
     def retold(self, message: str) -> Self:
         """This error with another message: the same class and fields.
@@ -67,7 +81,7 @@ class SelftuneError(Exception):
             The new message (its ``str()``).
         """
         error = copy.copy(self)
-        error.args = (message,)
+        error.args = (_NUMPY_SCALAR.sub(r"\1", message),)
         return error
 
 
