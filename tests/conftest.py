@@ -23,13 +23,14 @@ if TYPE_CHECKING:
     from selftune.bench import BenchReport
     from selftune.report import Reproduction
 
-# A plain pytest: 25 examples where a test does not ask for a number (hypothesis's own
-# default is 100); .ci/run loads "ci", which keeps hypothesis's 100.
+# A plain pytest: 10 examples where a test does not ask for a number, and fewer than it
+# asks for where it does (tests/example_counts.py); .ci/run loads "ci", which keeps
+# hypothesis's 100 and every number asked for.
 settings.register_profile(
     "default",
     deadline=None,
     derandomize=True,
-    max_examples=25,
+    max_examples=10,
     suppress_health_check=[HealthCheck.too_slow],
 )
 settings.register_profile("ci", settings.get_profile("default"), max_examples=100)

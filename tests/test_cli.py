@@ -401,7 +401,7 @@ def _mutate(edits: list[tuple[int, str | None]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-@examples(300, quick=75)  # a quarter, as the default profile draws of hypothesis's 100
+@examples(300, quick=30)  # a tenth, as the default profile draws of ci's 100
 @given(edits=_edits)
 def test_fuzzed_motor_files_exit_cleanly(edits: list[tuple[int, str | None]]) -> None:
     text = _mutate(edits)
