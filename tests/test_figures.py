@@ -193,9 +193,6 @@ def test_texts_are_readable_in_print(drawn: dict[str, Figure]) -> None:
             assert all(text.get_fontsize() >= 8.5 for text in legend.get_texts()), stem
 
 
-# tests/test_cli_tuning.py's reproduce test saves all five figures through save_figure as
-# PNG and SVG and checks both formats in a plain pytest
-@pytest.mark.slow
 def test_a_figure_is_saved_as_png_and_svg(drawn: dict[str, Figure], tmp_path: Any) -> None:
     paths = save_figure(drawn["fig1"], tmp_path / "fig1")
     assert [path.name for path in paths] == ["fig1.png", "fig1.svg"]

@@ -1289,27 +1289,6 @@ def test_ctrl_c_whose_keyboard_interrupt_was_lost_leaves_nothing(
 # -- output sets: written whole or not at all ---------------------------------------------
 
 
-@pytest.fixture
-def quick_figures(monkeypatch: pytest.MonkeyPatch) -> list[str]:
-    """Figures written as small files (the set is what is tested here, not matplotlib);
-    returns the stems saved, in order."""
-    from selftune.core import write_text
-    from selftune.report import _figures
-
-    saved: list[str] = []
-
-    def save_figure(figure: Any, stem: Any) -> list[Path]:
-        saved.append(str(stem))
-        paths = [Path(f"{stem}{suffix}") for suffix in (".png", ".svg")]
-        for path in paths:
-            write_text(path, f"{path.name} of run {len(saved)}")
-        return paths
-
-    monkeypatch.setattr(_figures, "_figures", lambda r: ((f"fig{i}", None) for i in range(1, 6)))
-    monkeypatch.setattr(_figures, "save_figure", save_figure)
-    return saved
-
-
 def _set(directory: Path) -> dict[str, bytes]:
     return {path.name: path.read_bytes() for path in sorted(directory.iterdir())}
 
