@@ -311,7 +311,9 @@ def test_dead_time_error_opposes_the_current_and_compensation_removes_it() -> No
     reference = constant(MOTOR.exogenous(SPEED, torque_for(MOTOR, 5.0)))
     w_e, volts = MOTOR.p * SPEED, 2.0  # t_d f_sw V_dc
     per_period = 2.0 * np.pi / (w_e * H)  # 314.16 samples
-    window = slice(5000, 5000 + 50 * 314)  # 50 periods of 314 samples (0.05% short)
+    # after 0.1 s (80 time constants of the loop), 10 periods of 314 samples (0.05% short):
+    # the dead-time error's mean is the same as over 50 periods, to 2e-5
+    window = slice(1000, 1000 + 10 * 314)
     errors = {}
     for compensation in (False, True):
         settings = DriveSettings(
@@ -319,7 +321,7 @@ def test_dead_time_error_opposes_the_current_and_compensation_removes_it() -> No
             current_noise=0.01,
         )  # fmt: skip
         record = RealisticDrive(MOTOR, SPEED, H, settings).record(
-            law, reference, num_samples=20000, exploration=None, seed=0
+            law, reference, num_samples=window.stop, exploration=None, seed=0
         )
         # the applied mean dq voltage of the command alone is sinc(w_e h / 2) u
         command = np.sinc(w_e * H / (2 * np.pi)) * record.trajectory.u
@@ -327,7 +329,7 @@ def test_dead_time_error_opposes_the_current_and_compensation_removes_it() -> No
         current = record.true_currents[window].mean(axis=0)
     assert per_period == pytest.approx(314.16, abs=0.01)
     plain = complex(*errors[False])
-    assert abs(plain) == pytest.approx(4.0 / np.pi * volts, rel=1e-3)  # found 4e-5
+    assert abs(plain) == pytest.approx(4.0 / np.pi * volts, rel=1e-3)  # found 1e-5
     opposite = np.angle(-plain / complex(*current))
     assert abs(opposite) < 0.5 * w_e * H  # the sign held over a sample lags by h / 2
     # compensation's sign is one sample (d = 1) old: (4/pi) V0 2 sin(w_e h / 2) remains
