@@ -149,7 +149,7 @@ def test_learned_controller_matches_optimum_at_fine_sampling(
     K0 = lqr(problem.A, problem.B, 10.0 * np.eye(n), np.eye(m))[0]
     closed_loop = np.max(np.abs(np.linalg.eigvals(problem.A - problem.B @ K0)))
     h = 2e-4 / closed_loop
-    data = record(problem, K0, h, duration=8.0, seed=n + m + r + q)
+    data = record(problem, K0, h, duration=4.0, seed=n + m + r + q)
     learned = regulator(
         data, problem.C, problem.E, problem.F, np.eye(n), np.eye(m), K0, interval=50
     )
