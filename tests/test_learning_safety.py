@@ -179,9 +179,10 @@ def structured(speed: float = 150.0) -> LearningOptions:
     )
 
 
-# seeds 4 to 11 are slow: more of the same draw, a second each
+# seeds 2 to 11 are slow: more of the same draw, a second each (seeds 0 to 3 and most
+# others learn; test_refusals.py refuses seed 8 in every plain pytest)
 @pytest.mark.parametrize(
-    "seed", [seed if seed < 4 else pytest.param(seed, marks=pytest.mark.slow) for seed in range(12)]
+    "seed", [seed if seed < 2 else pytest.param(seed, marks=pytest.mark.slow) for seed in range(12)]
 )
 def test_short_noisy_logs_with_the_motor_structure_learn_or_say_how_much_data_they_need(
     seed: int,
