@@ -1,6 +1,6 @@
-"""Shared test settings: one BLAS thread, hypothesis profiles (.ci/run loads "ci"), and
-the long computations several test files read, made once per session (the quick bench, the
-reproduction).
+"""Shared test settings: one BLAS thread, hypothesis profiles (.ci/run loads "ci"), the
+long computations several test files read, made once per session (the quick bench, the
+reproduction), and the reproduction's figures written as small files.
 
 The tests solve many tiny matrices; BLAS threads only contend for the cores (the suite
 ran 1.5-3 times slower with them). The variables are set before numpy is first imported,
@@ -14,7 +14,8 @@ import os
 for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 
-from typing import TYPE_CHECKING  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import TYPE_CHECKING, Any  # noqa: E402
 
 import pytest  # noqa: E402
 from hypothesis import HealthCheck, settings  # noqa: E402
@@ -23,13 +24,14 @@ if TYPE_CHECKING:
     from selftune.bench import BenchReport
     from selftune.report import Reproduction
 
-# A plain pytest: 25 examples where a test does not ask for a number (hypothesis's own
-# default is 100); .ci/run loads "ci", which keeps hypothesis's 100.
+# A plain pytest: 10 examples where a test does not ask for a number, and fewer than it
+# asks for where it does (tests/example_counts.py); .ci/run loads "ci", which keeps
+# hypothesis's 100 and every number asked for.
 settings.register_profile(
     "default",
     deadline=None,
     derandomize=True,
-    max_examples=25,
+    max_examples=10,
     suppress_health_check=[HealthCheck.too_slow],
 )
 settings.register_profile("ci", settings.get_profile("default"), max_examples=100)
@@ -64,3 +66,25 @@ def reproduction() -> Reproduction:
     from selftune.report import reproduce  # here: only the sessions that need it load it
 
     return reproduce(0)
+
+
+@pytest.fixture
+def quick_figures(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """Figures written as small files (the output set is what is tested, not matplotlib:
+    tests/test_figures.py draws and saves the real ones); returns the stems saved, in
+    order."""
+    from selftune.core import write_text
+    from selftune.report import _figures
+
+    saved: list[str] = []
+
+    def save_figure(figure: Any, stem: Any) -> list[Path]:
+        saved.append(str(stem))
+        paths = [Path(f"{stem}{suffix}") for suffix in (".png", ".svg")]
+        for path in paths:
+            write_text(path, f"{path.name} of run {len(saved)}")
+        return paths
+
+    monkeypatch.setattr(_figures, "_figures", lambda r: ((f"fig{i}", None) for i in range(1, 6)))
+    monkeypatch.setattr(_figures, "save_figure", save_figure)
+    return saved

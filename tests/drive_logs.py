@@ -9,6 +9,7 @@ noise on the measured currents inside the loop, a gentle initial controller.
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,6 +31,7 @@ def gentle_K0(motor: SPMSM, h: float) -> Array:
     return 0.0125 * motor.L_s / h * np.eye(2)
 
 
+@cache
 def reference_log(
     motor: SPMSM = REFERENCE_MOTOR,
     *,
@@ -41,7 +43,11 @@ def reference_log(
     seed: int = 0,
 ) -> tuple[Trajectory, RegulationProblem, tuple[LearningProblem, Array]]:
     """A log of the reference experiment, the true problem and what the learner knows:
-    the problem and the K0 the log was taken under."""
+    the problem and the K0 the log was taken under.
+
+    Made once per session for each set of arguments (several tests refuse or learn the same
+    log; the hardware-like drive takes a second of CPU for 0.5 s); its arrays are read-only
+    so that no test can change another's log."""
     settings = replace(DriveSettings.ideal(), input_delay=1) if settings is None else settings
     problem = motor.regulation_problem(speed)
     K0 = gentle_K0(motor, h)
@@ -57,6 +63,9 @@ def reference_log(
     log = drive.run(
         law, held(reference), num_samples=round(seconds / h), exploration=uniform(10.8), seed=seed
     )
+    for array in (log.t, log.x, log.u, log.w, log.angle, K0):
+        if isinstance(array, np.ndarray):
+            array.setflags(write=False)
     known = (LearningProblem(Q, R, C=np.eye(2), F=problem.F), K0)
     return log, problem, known
 

@@ -15,10 +15,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import selftune
+from example_counts import examples
 from selftune import commands
 from selftune.cli import main
 
@@ -400,7 +401,7 @@ def _mutate(edits: list[tuple[int, str | None]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-@settings(max_examples=300)
+@examples(300, quick=30)  # a tenth, as the default profile draws of ci's 100
 @given(edits=_edits)
 def test_fuzzed_motor_files_exit_cleanly(edits: list[tuple[int, str | None]]) -> None:
     text = _mutate(edits)

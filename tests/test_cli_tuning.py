@@ -14,16 +14,13 @@ from selftune.cli import main
 from selftune.report import Reproduction
 
 PAPER_THETA = [1.8743, 1.8743, 0, 31.1868, 0, 0, 31.1868, 0, 27.1642, -31.1868, -9.9210]
+FIGURES = ("fig1", "fig2", "fig3", "fig4", "fig5")
 
 
-def test_reproduce_writes_every_figure_and_the_numbers(
-    tmp_path: Path,
-    capsys: pytest.CaptureFixture[str],
-    monkeypatch: pytest.MonkeyPatch,
-    reproduction: Reproduction,
-) -> None:
-    """The command writes the session's reproduction (``reproduce(0)``, what it computes
-    with the default seed): every figure drawn and saved, and the numbers."""
+def run_reproduce(out: Path, monkeypatch: pytest.MonkeyPatch, reproduction: Reproduction) -> None:
+    """``selftune reproduce --out OUT`` on the session's reproduction (``reproduce(0)``,
+    what the command computes with the default seed); it succeeds and leaves no temporary
+    file."""
     import selftune.report
 
     seeds: list[int] = []
@@ -33,17 +30,26 @@ def test_reproduce_writes_every_figure_and_the_numbers(
         return reproduction
 
     monkeypatch.setattr(selftune.report, "reproduce", session_reproduce)
-    out = tmp_path / "results"
     assert main(["reproduce", "--out", str(out)]) == 0
     assert seeds == [0]
-    printed = capsys.readouterr().out
-    for stem in ("fig1", "fig2", "fig3", "fig4", "fig5"):
-        for suffix in (".png", ".svg"):
-            path = out / f"{stem}{suffix}"
-            assert path.stat().st_size > 1000, path
-    assert (out / "fig1.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "<svg" in (out / "fig4.svg").read_text()[:500]
     assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary files
+
+
+def test_reproduce_writes_the_numbers_and_a_file_per_figure(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    reproduction: Reproduction,
+    quick_figures: list[str],
+) -> None:
+    """The command writes the session's reproduction: the numbers, and each figure as PNG
+    and SVG (small files here; the next test saves the real ones)."""
+    out = tmp_path / "results"
+    run_reproduce(out, monkeypatch, reproduction)
+    printed = capsys.readouterr().out
+    for stem in FIGURES:
+        for suffix in (".png", ".svg"):
+            assert (out / f"{stem}{suffix}").is_file(), stem
     results = json.loads((out / "results.json").read_text())
     np.testing.assert_allclose(results["model_based"]["theta"], PAPER_THETA, atol=1e-4)
     algorithms = results["algorithms"]
@@ -63,6 +69,22 @@ def test_reproduce_writes_every_figure_and_the_numbers(
         value = float(printed_row[0].split()[column])
         assert value == pytest.approx(algorithms[key]["theta"][3], abs=5e-5)
     assert "rank 9 of 11" in printed
+
+
+# Drawing and saving all five figures twice takes 4-6 s of matplotlib: a plain pytest
+# writes the set above and saves a real figure as PNG and SVG in tests/test_figures.py.
+@pytest.mark.slow
+def test_reproduce_draws_and_saves_every_figure(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, reproduction: Reproduction
+) -> None:
+    out = tmp_path / "results"
+    run_reproduce(out, monkeypatch, reproduction)
+    for stem in FIGURES:
+        for suffix in (".png", ".svg"):
+            path = out / f"{stem}{suffix}"
+            assert path.stat().st_size > 1000, path
+    assert (out / "fig1.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "<svg" in (out / "fig4.svg").read_text()[:500]
 
 
 def motor_file(tmp_path: Path, learning: str = "") -> Path:

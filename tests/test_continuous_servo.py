@@ -131,7 +131,9 @@ def paper_weights(problem: RegulationProblem) -> tuple[np.ndarray, np.ndarray, n
     return Q, R, Q_i
 
 
+@cache
 def learn_paper_servo(h: float, discounts: tuple[float, ...] | None = None) -> LearnedController:
+    """The servo learned from :func:`paper_data`, once per module (three tests read it)."""
     problem, data = paper_data(h)
     output = (problem.C, problem.E, problem.F)
     return learn_servo(data, output, paper_weights(problem), PAPER_K0, discounts=discounts)

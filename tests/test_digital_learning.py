@@ -15,6 +15,7 @@ import scipy.linalg
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from example_counts import examples
 from sampled_loops import Loop, steps_and_sines
 from selftune import SPMSM, ConsistencyError, RegulationProblem, solve_optimal_regulation
 from selftune.core import delay_augmented, discretize, dlqr
@@ -115,7 +116,7 @@ def well_excited_plant(n: int, m: int, seed: int) -> tuple[np.ndarray, np.ndarra
     return A, B
 
 
-@settings(max_examples=15)
+@examples(15, quick=5)  # up to 12 states: 91 monomials, two learners each
 @given(st.integers(1, 6), st.integers(1, 3), st.sampled_from([0, 1, 2]), st.integers(0, 10**6))
 def test_plain_state_feedback_on_random_plants(n: int, m: int, delay: int, seed: int) -> None:
     plant = well_excited_plant(n, m, seed)

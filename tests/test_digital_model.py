@@ -24,9 +24,10 @@ import numpy as np
 import pytest
 import scipy.integrate
 import scipy.linalg
-from hypothesis import assume, example, given, settings, target
+from hypothesis import assume, example, given, target
 from hypothesis import strategies as st
 
+from example_counts import at_least
 from selftune.core import (
     continuous_from_discrete,
     delay_augmented,
@@ -61,13 +62,6 @@ MAX_STEIN_CONDITION = 1e5
 
 SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
 PAPER_Q, PAPER_R = 1e3 * np.eye(2), np.eye(2)
-
-
-def _examples(count: int) -> settings:
-    """At least ``count`` examples; more when the hypothesis profile asks for more
-    (``SELFTUNE_HYPOTHESIS_PROFILE=thorough``)."""
-    default = settings.default
-    return settings(max_examples=max(count, default.max_examples if default else 0))
 
 
 def _relative(actual: Array, expected: Array) -> float:
@@ -166,7 +160,7 @@ def motors(draw: st.DrawFn) -> tuple[SPMSM, float]:
 # -- dlqr --------------------------------------------------------------------------------------
 
 
-@_examples(150)
+@at_least(150)
 @given(dlqr_cases())
 @example(_random_dlqr_case(3, n=6, m=3, radius=1.5, cross=True))
 def test_dlqr_agrees_with_slicot(case: tuple[Array, Array, Array, Array, Array]) -> None:
@@ -226,7 +220,7 @@ def _trajectory_cost(closed_loop: Array, stage: Array, x0: Array, steps: int) ->
     return total
 
 
-@_examples(40)
+@at_least(40)
 @given(dlqr_cases(), SEEDS)
 def test_dpolicy_value_is_the_cost_of_a_simulated_trajectory(
     case: tuple[Array, Array, Array, Array, Array], seed: int
@@ -280,7 +274,7 @@ def _quadrature_weights(A: Array, B: Array, Q: Array, R: Array, h: float) -> Arr
     return np.asarray(integral, dtype=np.float64)
 
 
-@_examples(25)
+@at_least(25)
 @given(
     SEEDS,
     st.integers(min_value=1, max_value=4),
@@ -323,7 +317,7 @@ def test_sampled_data_weights_reject_a_bad_period() -> None:
 # -- continuous_from_discrete ----------------------------------------------------------------
 
 
-@_examples(60)
+@at_least(60)
 @given(
     SEEDS,
     st.integers(min_value=1, max_value=6),
@@ -511,7 +505,7 @@ def test_the_digital_optimum_of_the_paper_motor() -> None:
     assert worst <= AGREEMENT
 
 
-@_examples(40)
+@at_least(40)
 @given(motors(), PERIODS, DELAYS, COSTS, SEEDS)
 def test_the_digital_optimum_of_random_motors(
     motor_and_speed: tuple[SPMSM, float], h: float, d: int, cost: DigitalCost, seed: int

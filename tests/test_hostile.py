@@ -20,7 +20,8 @@ per key taken through the command line (its route: exit 2, that one line, nothin
 left); the valid values of the sweep run through the command line, their numbers checked.
 
 Run: ``python -m pytest tests/test_hostile.py -q -p no:cacheprovider`` (add
-``-m "slow or not slow"`` for the subprocess cases and interrupts marked slow).
+``-m "slow or not slow"`` for the subprocess cases, the interrupts and the successful
+tune, marked slow).
 """
 
 from __future__ import annotations
@@ -965,6 +966,10 @@ ISOLATED = [case for case in CASES if case.isolated]
 #: The isolated cases a plain ``pytest`` runs: one that would block (a FIFO) and one that
 #: would exhaust memory (a zip bomb); the others are slow (each starts a Python process).
 QUICK_ISOLATED = ("special-fifo-data-csv", "npz-bomb-lying-size")
+#: The in-process cases a plain ``pytest`` leaves out: "tune-ok" learns for 4 s, and
+#: tests/test_cli_tuning.py's test_tune_learns_the_optimum_of_the_motor_in_the_file[offpolicy]
+#: runs the same command (the default algorithm) to its optimum, and checks its output.
+SLOW_IN_PROCESS = ("tune-ok",)
 
 
 # -- running ------------------------------------------------------------------------------
@@ -1063,7 +1068,15 @@ def verify(
     assert after == before, "a failed run changed its directory"
 
 
-@pytest.mark.parametrize("case", IN_PROCESS, ids=[case.name for case in IN_PROCESS])
+@pytest.mark.parametrize(
+    "case",
+    [
+        pytest.param(
+            case, id=case.name, marks=pytest.mark.slow if case.name in SLOW_IN_PROCESS else ()
+        )
+        for case in IN_PROCESS
+    ],
+)
 def test_hostile_input_in_process(case: Case, tmp_path: Path) -> None:
     case.files(tmp_path)
     before = snapshot(tmp_path)
@@ -1297,27 +1310,6 @@ def test_ctrl_c_while_the_command_line_starts_is_one_line() -> None:
 
 
 # -- output sets: written whole or not at all ---------------------------------------------
-
-
-@pytest.fixture
-def quick_figures(monkeypatch: pytest.MonkeyPatch) -> list[str]:
-    """Figures written as small files (the set is what is tested here, not matplotlib);
-    returns the stems saved, in order."""
-    from selftune.core import write_text
-    from selftune.report import _figures
-
-    saved: list[str] = []
-
-    def save_figure(figure: Any, stem: Any) -> list[Path]:
-        saved.append(str(stem))
-        paths = [Path(f"{stem}{suffix}") for suffix in (".png", ".svg")]
-        for path in paths:
-            write_text(path, f"{path.name} of run {len(saved)}")
-        return paths
-
-    monkeypatch.setattr(_figures, "_figures", lambda r: ((f"fig{i}", None) for i in range(1, 6)))
-    monkeypatch.setattr(_figures, "save_figure", save_figure)
-    return saved
 
 
 def _set(directory: Path) -> dict[str, bytes]:

@@ -11,6 +11,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from example_counts import examples
 from learners import regulator
 from selftune import (
     ConvergenceError,
@@ -148,7 +149,7 @@ def test_learned_controller_matches_optimum_at_fine_sampling(
     K0 = lqr(problem.A, problem.B, 10.0 * np.eye(n), np.eye(m))[0]
     closed_loop = np.max(np.abs(np.linalg.eigvals(problem.A - problem.B @ K0)))
     h = 2e-4 / closed_loop
-    data = record(problem, K0, h, duration=8.0, seed=n + m + r + q)
+    data = record(problem, K0, h, duration=4.0, seed=n + m + r + q)
     learned = regulator(
         data, problem.C, problem.E, problem.F, np.eye(n), np.eye(m), K0, interval=50
     )
@@ -217,7 +218,7 @@ def test_error_shrinks_at_second_order(method: str) -> None:
 # -- plain LQR ----------------------------------------------------------------------------
 
 
-@settings(max_examples=15)
+@examples(15, quick=5)  # 40,000 samples each
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 5), m=st.integers(1, 3))
 def test_learn_lqr_matches_riccati_and_recovers_B(seed: int, n: int, m: int) -> None:
     rng = np.random.default_rng(seed)

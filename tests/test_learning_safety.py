@@ -179,9 +179,10 @@ def structured(speed: float = 150.0) -> LearningOptions:
     )
 
 
-# seeds 4 to 11 are slow: more of the same draw, a second each
+# seeds 2 to 11 are slow: more of the same draw, a second each (seeds 0 to 3 and most
+# others learn; test_refusals.py refuses seed 8 in every plain pytest)
 @pytest.mark.parametrize(
-    "seed", [seed if seed < 4 else pytest.param(seed, marks=pytest.mark.slow) for seed in range(12)]
+    "seed", [seed if seed < 2 else pytest.param(seed, marks=pytest.mark.slow) for seed in range(12)]
 )
 def test_short_noisy_logs_with_the_motor_structure_learn_or_say_how_much_data_they_need(
     seed: int,
@@ -227,6 +228,10 @@ def test_the_structure_statistic_is_chi_square_when_the_structure_holds() -> Non
     assert max(statistics) < float(scipy.special.chdtri(9, TEST_LEVEL))
 
 
+# slow: more of the same draw; in every plain pytest,
+# test_dead_time_modelled_with_the_motor_structure_is_learned_and_reported learns the same
+# way from seed 0, with the same check, which the structure check must tolerate
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 2])
 def test_the_structure_check_tolerates_the_dead_time_models_own_approximation(seed: int) -> None:
     # the dead-time model's error near zero current correlates the output errors (inflation

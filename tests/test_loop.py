@@ -11,9 +11,10 @@ from __future__ import annotations
 import control
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
+from example_counts import examples
 from selftune.core import ControlLaw
 from selftune.errors import InputError, UnsolvableError
 from selftune.loop import SampledLoop
@@ -61,7 +62,7 @@ def _law(rng: np.random.Generator, n: int, m: int, q: int, d: int, r: int, h: fl
     return ControlLaw(K, X, U, history=d, K_i=K_i, C=C, F=F, h=h)
 
 
-@settings(max_examples=40, deadline=None)
+@examples(40, quick=10)
 @given(seed=SEEDS, d=st.integers(0, 2), integral=st.booleans())
 def test_the_closed_loop_is_the_law_stepped_on_the_plant(seed: int, d: int, integral: bool) -> None:
     rng = np.random.default_rng(seed)
@@ -85,7 +86,7 @@ def test_the_closed_loop_is_the_law_stepped_on_the_plant(seed: int, d: int, inte
         x, z = x_next, z_next
 
 
-@settings(max_examples=30, deadline=None)
+@examples(30, quick=10)
 @given(seed=SEEDS, d=st.integers(0, 2), integral=st.booleans())
 def test_the_optimum_is_slicots_on_the_augmented_plant(seed: int, d: int, integral: bool) -> None:
     rng = np.random.default_rng(seed)
@@ -114,7 +115,7 @@ def test_the_optimum_is_slicots_on_the_augmented_plant(seed: int, d: int, integr
     assert np.linalg.norm(P - P_ref) <= max(bar, 1e-9) * np.linalg.norm(P_ref)
 
 
-@settings(max_examples=25, deadline=None)
+@examples(25, quick=10)
 @given(seed=SEEDS, d=st.integers(0, 2))
 def test_a_laws_value_is_its_summed_digital_cost(seed: int, d: int) -> None:
     rng = np.random.default_rng(seed)

@@ -17,19 +17,12 @@ from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
+from example_counts import at_least
 from selftune import SPMSM, InputError, ModelBasedSolution, solve_optimal_regulation
 from selftune.core import unpack_theta
-
-
-def _examples(count: int) -> settings:
-    """At least ``count`` examples; more when the hypothesis profile asks for more
-    (``SELFTUNE_HYPOTHESIS_PROFILE=thorough``)."""
-    default = settings.default
-    return settings(max_examples=max(count, default.max_examples if default else 0))
-
 
 SPEED = 10.0  # rad/s, mechanical
 TORQUE = 10.0  # N m
@@ -168,7 +161,7 @@ def test_table_parameters_with_the_texts_weight_give_the_numbers_in_the_notes() 
 # -- 7b. closed forms for random motors -----------------------------------------------------------
 
 
-@_examples(100)
+@at_least(100)
 @given(motors, speeds, torques)
 def test_closed_form_equilibrium_is_the_regulation_solution(
     motor: SPMSM, speed: float, torque: float
@@ -188,7 +181,7 @@ def test_closed_form_equilibrium_is_the_regulation_solution(
     np.testing.assert_array_equal(x_e, motor.current_reference(torque))
 
 
-@_examples(100)
+@at_least(100)
 @given(motors, speeds, torques)
 def test_equilibrium_is_a_rest_point_of_the_full_model(
     motor: SPMSM, speed: float, torque: float
@@ -208,7 +201,7 @@ def test_equilibrium_is_a_rest_point_of_the_full_model(
     assert abs(derivative[2]) <= 1e-12 * abs(torque) / motor.J + 1e-300
 
 
-@_examples(100)
+@at_least(100)
 @given(
     motors,
     speeds,
@@ -247,7 +240,7 @@ def test_full_model_currents_at_constant_speed_are_the_regulation_form(
     )
 
 
-@_examples(60)
+@at_least(60)
 @given(motors, speeds, st.floats(min_value=1.0, max_value=1e5))
 def test_motor_lqr_is_the_scalar_riccati_solution(
     motor: SPMSM, speed: float, q_weight: float
@@ -268,7 +261,7 @@ def test_motor_lqr_is_the_scalar_riccati_solution(
 # -- the two problems are solvable -----------------------------------------------------------------
 
 
-@_examples(40)
+@at_least(40)
 @given(motors, speeds, torques)
 def test_known_flux_problem_is_solvable(motor: SPMSM, speed: float, torque: float) -> None:
     problem = motor.regulation_problem(speed)
@@ -286,7 +279,7 @@ def test_known_flux_problem_is_solvable(motor: SPMSM, speed: float, torque: floa
     assert second <= 1e-10 * (norm(solution.X) + norm(F))
 
 
-@_examples(40)
+@at_least(40)
 @given(motors, speeds)
 def test_no_load_problem_is_solvable_with_zero_x(motor: SPMSM, speed: float) -> None:
     problem = motor.no_load_problem(speed)

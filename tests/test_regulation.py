@@ -29,10 +29,11 @@ import numpy as np
 import pytest
 import scipy.linalg
 import scipy.optimize
-from hypothesis import assume, example, given, settings, target
+from hypothesis import assume, example, given, target
 from hypothesis import strategies as st
 from numpy.typing import ArrayLike
 
+from example_counts import at_least
 from selftune import (
     InputError,
     RegulationProblem,
@@ -42,14 +43,6 @@ from selftune import (
     solve_optimal_regulation,
 )
 from selftune.core import unpack_theta
-
-
-def _examples(count: int) -> settings:
-    """At least ``count`` examples; more when the hypothesis profile asks for more
-    (``SELFTUNE_HYPOTHESIS_PROFILE=thorough``)."""
-    default = settings.default
-    return settings(max_examples=max(count, default.max_examples if default else 0))
-
 
 Array = np.ndarray
 
@@ -271,7 +264,7 @@ def _condition(M: Array) -> float:
 # -- 1. K and P against python-control and the Hamiltonian ----------------------------------------
 
 
-@_examples(150)
+@at_least(150)
 @given(lqr_cases())
 @example(_random_lqr_case(seed=8, n=8, m=4, shift=0.5, q_floor=0.1))
 @example(_random_lqr_case(seed=1, n=8, m=1, shift=-0.5, q_floor=0.1))
@@ -296,7 +289,7 @@ def test_lqr_agrees_with_python_control_and_the_hamiltonian(case: LqrCase) -> No
     assert max(differences) <= AGREEMENT, differences
 
 
-@_examples(100)
+@at_least(100)
 @given(regulation_cases(max_n=8, max_m=4))
 @example(_random_regulation_case(6, n=8, m=4, r=3, rotations=2, zero_modes=1, shift=0.4))
 def test_solve_optimal_regulation_feedback_agrees_with_python_control(
@@ -319,7 +312,7 @@ def test_solve_optimal_regulation_feedback_agrees_with_python_control(
     assert max(differences) <= AGREEMENT, differences
 
 
-@_examples(100)
+@at_least(100)
 @given(
     st.builds(
         _random_lqr_case,
@@ -345,7 +338,7 @@ def test_lqr_backward_error_is_tiny_even_when_ill_conditioned(case: LqrCase) -> 
 # -- 5. invariants of the optimum and of policy values -----------------------------------------
 
 
-@_examples(100)
+@at_least(100)
 @given(lqr_cases(), SEEDS)
 def test_optimum_invariants_and_policy_values(case: LqrCase, seed: int) -> None:
     A, B, Q, R = case.A, case.B, case.Q, case.R
@@ -415,7 +408,7 @@ def test_scalar_lqr_has_the_closed_form() -> None:
     np.testing.assert_allclose(K, [[b * P_expected / r]], rtol=1e-14)
 
 
-@_examples(60)
+@at_least(60)
 @given(regulation_cases())
 def test_theta_unpacks_to_p_k_and_the_exogenous_block(case: RegulationCase) -> None:
     problem = case.problem
@@ -432,7 +425,7 @@ def test_theta_unpacks_to_p_k_and_the_exogenous_block(case: RegulationCase) -> N
 # -- 2. regulator-equation residuals -------------------------------------------------------------
 
 
-@_examples(150)
+@at_least(150)
 @given(regulation_cases())
 @example(_random_regulation_case(3, n=6, m=4, r=2, rotations=2, zero_modes=0, shift=0.3))
 @example(_random_regulation_case(4, n=6, m=3, r=3, rotations=0, zero_modes=2, shift=0.3))
@@ -457,7 +450,7 @@ def test_regulator_residuals_are_tiny(case: RegulationCase) -> None:
     assert worst <= RESIDUAL, residuals
 
 
-@_examples(60)
+@at_least(60)
 @given(
     st.integers(min_value=1, max_value=6).flatmap(
         lambda n: st.tuples(
@@ -513,7 +506,7 @@ def test_kkt_oracle_matches_the_closed_form_on_a_well_conditioned_case() -> None
     assert _relative(_kkt_minimizer(N, c, W), closed_form) <= 1e-13
 
 
-@_examples(100)
+@at_least(100)
 @given(regulation_cases(max_n=5, max_m=4, m_above_r=True), st.booleans())
 def test_min_trace_pair_is_the_kkt_solution(case: RegulationCase, weighted: bool) -> None:
     problem = case.problem
@@ -551,7 +544,7 @@ def test_min_trace_pair_is_the_kkt_solution(case: RegulationCase, weighted: bool
             assert float(moved @ W @ moved) >= cost * (1.0 - 1e-14)
 
 
-@_examples(20)
+@at_least(20)
 @given(regulation_cases(max_n=3, max_m=3, max_blocks=1, m_above_r=True))
 def test_min_trace_pair_agrees_with_slsqp(case: RegulationCase) -> None:
     problem = case.problem
@@ -652,7 +645,7 @@ def test_solve_optimal_regulation_rejects_an_unstabilizable_complex_mode() -> No
     _assert_names_eigenvalue(str(info.value), 0.5 + 3.0j)
 
 
-@_examples(40)
+@at_least(40)
 @given(
     SEEDS,
     st.integers(min_value=1, max_value=4),
@@ -734,7 +727,7 @@ def test_more_outputs_than_inputs_is_unsolvable(E: Array) -> None:
     _assert_names_eigenvalue(str(info.value), complex(np.linalg.eigvals(E)[0]))
 
 
-@_examples(40)
+@at_least(40)
 @given(SEEDS, st.integers(min_value=2, max_value=5), st.integers(min_value=1, max_value=2))
 def test_a_random_transmission_zero_at_an_eigenvalue_of_e_is_named(
     seed: int, n: int, m: int
@@ -789,7 +782,7 @@ def test_undetectable_mode_on_the_imaginary_axis_is_named() -> None:
     _assert_names_eigenvalue(str(info.value), 2.5j)
 
 
-@_examples(30)
+@at_least(30)
 @given(SEEDS, st.integers(min_value=1, max_value=3), st.floats(min_value=0.05, max_value=2.0))
 def test_undetectable_modes_are_found_in_any_coordinates(
     seed: int, observed: int, unstable: float

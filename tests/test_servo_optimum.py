@@ -26,9 +26,10 @@ import control
 import numpy as np
 import pytest
 import scipy.linalg
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
+from example_counts import at_least
 from selftune.core import ControlLaw, discretize, integrator_augmented
 from selftune.errors import InputError, UnsolvableError
 from selftune.learn import (
@@ -51,12 +52,6 @@ Q, R = 1e3 * np.eye(2), np.eye(2)
 PAPER_K0 = 20 * np.pi * np.eye(2)
 #: Agreement with the independent Riccati solvers and the learner's design (relative).
 AGREEMENT = 1e-9
-
-
-def _examples(count: int) -> settings:
-    """At least ``count`` examples; more under ``SELFTUNE_HYPOTHESIS_PROFILE=thorough``."""
-    default = settings.default
-    return settings(max_examples=max(count, default.max_examples if default else 0))
 
 
 def _relative(actual: Array, expected: Array) -> float:
@@ -270,7 +265,7 @@ def _knowledge(case: Case) -> LearningProblem:
 # -- the digital servo optimum ---------------------------------------------------------------
 
 
-@_examples(40)
+@at_least(40)
 @given(cases())
 def test_digital_servo_is_the_riccati_solution_of_the_augmented_plant(case: Case) -> None:
     solution = solve_digital_regulation(
@@ -288,7 +283,7 @@ def test_digital_servo_is_the_riccati_solution_of_the_augmented_plant(case: Case
     assert closed_loop_radius(_exact_model(case), solution.law, case.delay) < 1.0
 
 
-@_examples(25)
+@at_least(25)
 @given(cases())
 def test_sampled_servo_gain_agrees_with_the_shift_only_rd_riccati(case: Case) -> None:
     solution = solve_digital_regulation(
@@ -307,7 +302,7 @@ def test_sampled_servo_gain_agrees_with_the_shift_only_rd_riccati(case: Case) ->
         assert _relative(solution.P, P_truth) <= AGREEMENT
 
 
-@_examples(30)
+@at_least(30)
 @given(cases())
 def test_identify_then_design_on_the_exact_model_agrees(case: Case) -> None:
     """The learner's design on the exact discrete model, for both costs. Its sampled cost
@@ -338,7 +333,7 @@ def test_identify_then_design_on_the_exact_model_agrees(case: Case) -> None:
     assert _relative(design.P, continuous.P) <= AGREEMENT
 
 
-@_examples(40)
+@at_least(40)
 @given(cases(), st.floats(-20.0, 20.0), st.floats(-20.0, 20.0))
 def test_a_constant_input_disturbance_leaves_no_steady_state_error(
     case: Case, u_d: float, u_q: float
@@ -388,7 +383,7 @@ def test_the_simulated_sampled_loop_rejects_a_constant_voltage_error() -> None:
 # -- the continuous servo optimum ------------------------------------------------------------
 
 
-@_examples(40)
+@at_least(40)
 @given(cases())
 def test_continuous_servo_is_the_lqr_of_the_plant_with_the_integral(case: Case) -> None:
     solution = solve_optimal_regulation(case.problem, Q, R, integral_weight=case.Q_i, h=case.h)

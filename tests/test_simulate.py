@@ -7,11 +7,12 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 import scipy.linalg
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
+from example_counts import examples
 from selftune import SPMSM, InputError, solve_optimal_regulation
 from selftune.learn import Trajectory
 from selftune.sim import (
@@ -566,7 +567,7 @@ def plant_cases(draw: st.DrawFn) -> dict[str, object]:
     return {"n": n, "m": m, "q": q, "N": N, "P": plants, "seed": seed, "h": h, "exo": exo}
 
 
-@settings(max_examples=60)
+@examples(60, quick=15)
 @given(plant_cases())
 def test_random_sizes_agree_with_the_plain_recursion(case: dict[str, int]) -> None:
     n, m, q, N, P = case["n"], case["m"], case["q"], case["N"], case["P"]

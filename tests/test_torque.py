@@ -11,9 +11,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
+from example_counts import examples
 from selftune import SPMSM, ConvergenceError, InputError
 from selftune.report import Reproduction, evaluate, steady_state
 from selftune.sim import SimulatedDrive
@@ -97,7 +98,7 @@ motors = st.builds(
 
 
 @pytest.mark.slow  # 40 tunings; test_paper_motor_targets and the tune CLI tests run each algorithm
-@settings(max_examples=40)
+@examples(40, quick=10)
 @given(
     motor=motors,
     speed=st.floats(5.0, 200.0),

@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
+from example_counts import at_least
 from selftune.core import (
     pack_theta,
     theta_sizes,
@@ -25,14 +26,6 @@ from selftune.core import (
     vecs_hat,
     vecs_hat_from_outer,
 )
-
-
-def _examples(count: int) -> settings:
-    """At least ``count`` examples; more when the hypothesis profile asks for more
-    (``SELFTUNE_HYPOTHESIS_PROFILE=thorough``)."""
-    default = settings.default
-    return settings(max_examples=max(count, default.max_examples if default else 0))
-
 
 # Bounded, normal floats: the identities below are exact up to rounding, so the
 # tolerances are a few ulps of the magnitudes involved.
@@ -146,7 +139,7 @@ def test_vecs_hat_matches_definition(x: np.ndarray) -> None:
     np.testing.assert_array_equal(vecs_hat(x), _reference_vecs_hat(x))
 
 
-@_examples(200)
+@at_least(200)
 @given(_symmetric_and_vector())
 def test_quadratic_form_equals_vecs_hat_dot_vecs(case: tuple[np.ndarray, np.ndarray]) -> None:
     P, x = case
