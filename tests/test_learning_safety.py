@@ -11,10 +11,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import scipy.linalg
 import scipy.special
 
 from drive_logs import Q, R, noisy, reference_log
-from selftune import SPMSM, ConsistencyError, ConvergenceError, ExcitationError
+from selftune import SPMSM, ConsistencyError, ConvergenceError, ExcitationError, simulate
 from selftune.learn import (
     TOO_LITTLE_DATA,
     LearningOptions,
@@ -26,7 +27,7 @@ from selftune.learn import (
 )
 from selftune.learn.evidence._evidence import TEST_LEVEL, structure_statistic
 from selftune.model import solve_digital_regulation, solve_optimal_regulation
-from selftune.sim import DriveSettings
+from selftune.sim import DriveSettings, uniform
 
 
 def relative(value: np.ndarray, truth: np.ndarray) -> float:
@@ -241,3 +242,23 @@ def test_the_structure_check_tolerates_the_dead_time_models_own_approximation(se
     learned = learn_controller(log, *known, options)
     truth = solve_digital_regulation(problem, Q, R, 1e-4, input_delay=1)
     assert relative(learned.K, truth.K) < 4 * learned.quality.K_relative_se + 1e-3
+
+
+def test_a_slow_optimum_sampled_fast_is_not_refused_for_its_own_margin() -> None:
+    # The optimum of a slow plant sampled at 1 kHz has a margin of 2e-5 per sample; a
+    # fixed 1e-4 per sample refused its exact, noise-free log as "does not stabilize every
+    # plant the data allow". The margin asked for now scales with the optimum's own.
+    A, B = np.diag([-0.02, -0.03]), np.array([[1.0], [1.0]])
+    Q_slow, R_slow, h = 1e-6 * np.eye(2), np.eye(1), 1e-3
+    log = simulate(
+        A, B, K=np.zeros((1, 2)), exploration=uniform(1.0), h=h, num_samples=2000, seed=1
+    )
+    learned = learn_controller(
+        log, LearningProblem(Q_slow, R_slow), np.zeros((1, 2)), LearningOptions(target="digital")
+    )
+    Ad = scipy.linalg.expm(A * h)
+    Bd = np.linalg.solve(A, (Ad - np.eye(2)) @ B)
+    P = scipy.linalg.solve_discrete_are(Ad, Bd, h * Q_slow, h * R_slow)
+    K = np.linalg.solve(h * R_slow + Bd.T @ P @ Bd, Bd.T @ P @ Ad)
+    assert np.max(np.abs(np.linalg.eigvals(Ad - Bd @ K))) > 1 - 1e-4  # slower than 1e-4
+    assert relative(learned.K, K) < 1e-6

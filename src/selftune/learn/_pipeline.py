@@ -344,7 +344,13 @@ def _judged(
     law, P, B, history = learned
     quality, radii = verdict(law, errors, evidence, options)
     check_safety(
-        quality, evidence, history, options.max_relative_error, radii, servo=law.K_i is not None
+        quality,
+        evidence,
+        history,
+        options.max_relative_error,
+        radii,
+        servo=law.K_i is not None,
+        optimum_radius=errors.optimum_radius,
     )
     return LearnedController(
         law=law,

@@ -44,12 +44,19 @@ __all__ = [
     "check_precision",
     "check_safety",
     "closed_loop_radius",
+    "largest_radius",
     "relative_size",
     "standard_errors",
 ]
 
-#: The least stability margin ``1 - spectral radius`` of the learned sampled loop.
+#: The least stability margin ``1 - spectral radius`` of the learned sampled loop on
+#: every plausible model, per sample; a loop whose optimum is itself slower (a slow plant
+#: sampled fast) needs only :data:`OPTIMUM_MARGIN_FRACTION` of the optimum's own margin.
 STABILITY_MARGIN = 1e-4
+
+#: The fraction of the optimum's own margin the learned loop must keep when that margin is
+#: below :data:`STABILITY_MARGIN` (see :func:`largest_radius`).
+OPTIMUM_MARGIN_FRACTION = 0.5
 
 #: Models drawn from the parameters' uncertainty on which the learned loop must be stable.
 PLAUSIBLE_MODELS = 24
@@ -299,6 +306,22 @@ def _monotone(history: tuple[IterationRecord, ...]) -> int | None:
     return None
 
 
+def largest_radius(optimum_radius: float) -> float:
+    """The largest spectral radius accepted for the learned loop on a plausible model:
+    ``1 - STABILITY_MARGIN``, or ``1 - OPTIMUM_MARGIN_FRACTION (1 - optimum_radius)`` when
+    the optimum's own margin is smaller (but positive), so that the margin scales with
+    the loop's own optimum and not with the sampling period alone.
+
+    Parameters
+    ----------
+    optimum_radius : float
+        The spectral radius of the target's optimum on the fitted model.
+    """
+    own = 1.0 - optimum_radius  # not stable with margin itself: the margin stands
+    slower = 0.0 < own < STABILITY_MARGIN
+    return 1.0 - (OPTIMUM_MARGIN_FRACTION * own if slower else STABILITY_MARGIN)
+
+
 def check_safety(
     quality: Quality,
     evidence: Evidence,
@@ -306,6 +329,7 @@ def check_safety(
     limit: float,
     radii: Array,
     servo: bool = False,
+    optimum_radius: float = 0.0,
 ) -> None:
     """Raise unless the data support the controller (see the module docstring).
 
@@ -323,6 +347,9 @@ def check_safety(
         Spectral radii of the learned loop on plausible models (the fitted one first).
     servo : bool
         The controller has integral action (:func:`check_precision`).
+    optimum_radius : float
+        The spectral radius of the target's optimum on the fitted model
+        (:func:`largest_radius`; default 0: the margin is :data:`STABILITY_MARGIN`).
 
     Raises
     ------
@@ -335,15 +362,16 @@ def check_safety(
         If the standard errors exceed ``limit``: too little data for the noise (an
         ExcitationError).
     """
-    if radii.size and float(np.max(radii)) > 1.0 - STABILITY_MARGIN:
-        unstable = int(np.sum(radii > 1.0 - STABILITY_MARGIN))
+    limit = largest_radius(optimum_radius)
+    if radii.size and float(np.max(radii)) > limit:
+        unstable = int(np.sum(radii > limit))
         raise NotStabilizing(
             f"the learned controller does not stabilize every plant the data allow: the "
             f"sampled loop's spectral radius reaches {float(np.max(radii)):.6f} on "
             f"{unstable} of {radii.size} plausible models "
             "(1 is the stability limit); use longer or better-excited data, or a gentler cost",
             spectral_radius=float(np.max(radii)),
-            max_radius=1.0 - STABILITY_MARGIN,
+            max_radius=limit,
             unstable=unstable,
             plausible=int(radii.size),
         )

@@ -82,6 +82,7 @@ class ModelErrors:
     P_se: Array
     notes: tuple[str, ...]
     feedback_width: int
+    optimum_radius: float
 
     @property
     def relative(self) -> BlockErrors:
@@ -102,7 +103,9 @@ def model_errors(
         return _outputs(without_extra(learned, q), P)
 
     K, U, P = design(model)
-    width = design_target(model, problem, options)[0].K.shape[1]
+    optimum = design_target(model, problem, options)[0]
+    width = optimum.K.shape[1]
+    radius = closed_loop_radius(model, optimum, options.input_delay)
     if fit is None:
         assert model.covariance is not None
         note = (
@@ -112,11 +115,15 @@ def model_errors(
         errors = standard_errors(
             design, model.matrices, model.parameters, model.covariance, model.h
         )
-        return ModelErrors(K, U, P, *errors, notes=(note,), feedback_width=width)
+        return ModelErrors(
+            K, U, P, *errors, notes=(note,), feedback_width=width, optimum_radius=radius
+        )
     K_se, U_se, P_se = standard_errors(
         design, fit.matrices, fit.parameters, fit.parameter_covariance, model.h
     )
-    return ModelErrors(K, U, P, K_se, U_se, P_se, notes=(), feedback_width=width)
+    return ModelErrors(
+        K, U, P, K_se, U_se, P_se, notes=(), feedback_width=width, optimum_radius=radius
+    )
 
 
 #: The alternative dead-time model's noise width, in units of the estimated noise on
