@@ -138,6 +138,17 @@ def one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
         (lambda text: text.replace("interval = 10", "interval = 0"), "interval: must be positive"),
         (lambda text: text.replace("F = [[", "F = [[1.0, "), "[regulation] F"),
         (lambda text: text.split("[policy]")[0], "[policy]: missing table"),
+        (  # data with w columns and no [regulation]: said against the file (was a traceback)
+            lambda text: text.split("[regulation]")[0] + "[learning]" + text.split("[learning]")[1],
+            "[regulation]: missing table, but the data have 2 exogenous column(s)",
+        ),
+        (  # a configuration the learner objects to is said against the file (was the data's)
+            lambda text: (
+                re.sub(r"E = .*", "E = [[0.0, 1.0], [-1.0, 0.0]]", text)
+                + 'target = "digital"\ninput_delay = 0\n'
+            ),
+            "learn.toml: [regulation] E: the digital target and identify-then-design need w held",
+        ),
         (  # the digital optimum depends on the delay: never assumed silently
             lambda text: text + 'target = "digital"\n',
             '[learning] input_delay: missing: target = "digital"',

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from .config import LearnConfig, MotorConfig, load_learn_config
+from .config import LEARN_TABLES, LearnConfig, MotorConfig, load_learn_config
 from .core import (
     Array,
     compact,
@@ -36,7 +36,7 @@ from .core import (
     write_json,
 )
 from .core._atomic import check_output_directory, check_output_file
-from .errors import InputError, SelftuneError
+from .errors import DataFileError, InputError, Refusal, SelftuneError
 from .model import ModelBasedSolution, solve_optimal_regulation
 
 __all__ = [
@@ -261,10 +261,29 @@ def _learn(data: Any, config: LearnConfig, source: str) -> Any:
         interval=config.interval, max_iterations=config.max_iterations,
         tolerance=config.tolerance, **config.options,  # type: ignore[arg-type]
     )  # fmt: skip
+    mistake: DataFileError | None = None
     with _numerics(source) as caught:
-        result = learn_controller(data, problem, config.K0, options)
+        try:
+            result = learn_controller(data, problem, config.K0, options)
+        except InputError as exc:
+            mistake = _against_config(exc, config.source)
+            if mistake is None:
+                raise
+    if mistake is not None:
+        raise mistake
     _check_numerics(source, caught, result.P, result.K, result.U)
     return result
+
+
+def _against_config(error: InputError, config_file: str) -> DataFileError | None:
+    """The learner's objection to a configuration value (a key of CONFIG.toml, not a
+    refusal of the data), said against the configuration file and its table; None for
+    any other error."""
+    key, _, reason = str(error).partition(": ")
+    tables = [name for name, keys in LEARN_TABLES.items() if key in keys]
+    if isinstance(error, Refusal) or not tables or not reason:
+        return None
+    return DataFileError(f"{config_file}: [{tables[0]}] {key}: {reason}")
 
 
 def learn_command(data_path: str, config_path: str, json_path: str | None) -> int:

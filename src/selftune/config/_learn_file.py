@@ -143,6 +143,13 @@ def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> L
     policy = config.table("policy", required=True)
     learning = config.table("learning")
     C = E = F = None
+    if q and "regulation" not in config:
+        raise config.table("regulation").error(
+            None,
+            f"missing table, but the data have {q} exogenous column(s) w (the reference and "
+            "back-EMF channels): give C, E, F of the error to regulate (E = 0 for a held "
+            "reference), or leave the w columns out of the data for plain state feedback",
+        )
     if "regulation" in config:
         regulation = config.table("regulation")
         if q == 0:
