@@ -11,8 +11,14 @@ import pytest
 from drive_logs import reference_log
 from selftune import SPMSM, solve_optimal_regulation
 from selftune.cli import main
-from selftune.errors import NotExciting
-from selftune.learn import LearningOptions, Trajectory, learn_controller
+from selftune.errors import ConfigurationMismatch, InputError, NotExciting, Refusal
+from selftune.learn import (
+    LearningOptions,
+    LearningProblem,
+    Trajectory,
+    learn_controller,
+    load_trajectory,
+)
 from selftune.learn.evidence._dead_time import with_dead_time
 from selftune.learn.evidence._discrete_model import Transitions, fit_discrete_model
 
@@ -95,3 +101,58 @@ def test_a_noise_free_log_says_no_consistency_test_applies() -> None:
     text = "\n".join(learned.quality.lines())
     assert "noise-free: no consistency test" in text and "refused above" not in text
     assert not any("correlated in time" in note for note in learned.quality.notes)
+
+
+EXAMPLE_LOG = Path(__file__).parents[1] / "examples" / "data" / "drive_log.csv"
+
+
+def _with_angle(angle_of: object) -> Trajectory:
+    log = load_trajectory(EXAMPLE_LOG)
+    assert log.angle is not None
+    angle = angle_of(log.angle)  # type: ignore[operator]
+    return Trajectory(t=log.t, x=log.x, u=log.u, w=log.w, angle=angle)
+
+
+def _example_options(**changes: object) -> LearningOptions:
+    return LearningOptions(
+        target="digital", input_delay=1, logged_input="commanded", dead_time=True, **changes
+    )  # type: ignore[arg-type]
+
+
+def _example_problem() -> LearningProblem:
+    F = np.array([[0.0, 0.0], [0.0, -2 / (3 * 3 * 0.35)]])
+    return LearningProblem(1e3 * np.eye(2), np.eye(2), C=np.eye(2), F=F, integral_action=True)
+
+
+@pytest.mark.parametrize(
+    ("angle_of", "expected"),
+    [
+        (lambda a: np.degrees(a % (2 * np.pi)), "as an angle in degrees wraps; give it in rad"),
+        (lambda a: np.full_like(a, 1e40), "reaches 1e+40: not an angle in rad"),
+        (
+            lambda a: np.random.default_rng(1).uniform(0, 2 * np.pi, a.shape),
+            "does not advance smoothly",
+        ),
+        (np.zeros_like, "explains the data worse than no angle at all"),
+        (np.negative, "explains the data worse than no angle at all"),
+    ],
+)
+def test_a_wrong_angle_column_is_named(angle_of: object, expected: str) -> None:
+    # each used to end in "too little data ... N s would do" or "set dead_time = true"
+    log = _with_angle(angle_of)
+    with pytest.raises(InputError, match="theta") as caught:
+        learn_controller(log, _example_problem(), np.eye(2), _example_options())
+    assert expected in str(caught.value) and not isinstance(caught.value, Refusal)
+
+
+def test_an_electrical_speed_the_angle_contradicts_is_named() -> None:
+    log = _with_angle(lambda a: a)
+    with pytest.raises(ConfigurationMismatch, match="electrical_speed: says -150") as caught:
+        learn_controller(
+            log, _example_problem(), np.eye(2), _example_options(electrical_speed=-150.0)
+        )
+    assert caught.value.key == "electrical_speed"
+    learned = learn_controller(
+        log, _example_problem(), np.eye(2), _example_options(electrical_speed=150.0)
+    )
+    assert learned.quality is not None

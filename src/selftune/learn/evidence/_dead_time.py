@@ -33,6 +33,7 @@ import numpy as np
 import scipy.special
 
 from ...core import Array
+from ...errors import ConfigurationMismatch, InputError
 from ..data._trajectory import Trajectory
 from ._alignment import aligned_transitions
 
@@ -40,6 +41,7 @@ __all__ = [
     "OFFSET_GRID",
     "DeadTimeModel",
     "angle_offset",
+    "check_angle",
     "direction_signs",
     "phase_signs",
     "with_dead_time",
@@ -55,6 +57,99 @@ _PHASES = np.exp(2j * np.pi * np.arange(3) / 3)
 #: How the phase signs were computed: from the log's angle, from the electrical speed
 #: with a fitted offset, or the current's direction (see the module docstring).
 DeadTimeModel = Literal["phase signs", "speed", "current direction"]
+
+
+#: The largest electrical angle read, rad (an unwrapped angle of 1e6 rad is 160,000
+#: electrical turns): a larger one is not an angle in rad.
+ANGLE_LIMIT = 1e6
+
+#: The most the angle's sample-to-sample steps may scatter about their median (median
+#: absolute deviation, rad) for an angle sampled at each row: at constant speed they are
+#: equal; a speed changing by 1,000 rad/s within 10 ms at 10 kHz scatters them by 0.005.
+ANGLE_SCATTER = np.pi / 8
+
+#: How far the angle's own speed may be from ``electrical_speed`` (relative).
+SPEED_AGREEMENT = 0.1
+
+#: How many standard deviations ``sqrt(2 / T)`` of a residual sum over T samples the
+#: angle's dead-time model may explain the data worse than the current's direction.
+ANGLE_EVIDENCE = 3.0
+
+
+def check_angle(angle: Array, t: Array, electrical_speed: float | None) -> None:
+    """Raise unless ``angle`` is an electrical rotor angle in rad, sampled at each row.
+
+    Checked where the dead-time model uses it: finite and within :data:`ANGLE_LIMIT`;
+    wrapping (if it does) by 2 pi, not 360; advancing smoothly from row to row; and, with
+    ``electrical_speed`` given, at that speed (its sign too).
+
+    Parameters
+    ----------
+    angle : ndarray, shape (N + 1,)
+        The log's angle column ``theta``, rad.
+    t : ndarray, shape (N + 1,)
+        The sample times, s.
+    electrical_speed : float or None
+        ``p speed`` the configuration states, rad/s.
+
+    Raises
+    ------
+    InputError
+        Naming the column, for an angle that is not one in rad at each row.
+    ConfigurationMismatch
+        Naming ``electrical_speed``, when the angle turns at another speed.
+    """
+    column = "theta (the electrical rotor angle, rad)"
+    largest = float(np.max(np.abs(angle)))
+    if largest > ANGLE_LIMIT:
+        raise InputError(f"{column}: reaches {largest:.3g}: not an angle in rad")
+    steps = np.diff(angle)
+    jumps = np.abs(steps[np.abs(steps) > np.pi])
+    if jumps.size and float(np.median(jumps)) > 3.0 * np.pi:
+        row = int(np.flatnonzero(np.abs(steps) > np.pi)[0])
+        raise InputError(
+            f"{column}: jumps by {steps[row]:.4g} from row {row} to {row + 1}, as an angle in "
+            "degrees wraps; give it in rad"
+        )
+    wrapped = (steps + np.pi) % (2.0 * np.pi) - np.pi
+    middle = float(np.median(wrapped))
+    scatter = float(np.median(np.abs(wrapped - middle)))
+    if scatter > ANGLE_SCATTER:
+        raise InputError(
+            f"{column}: does not advance smoothly from row to row (its steps scatter by "
+            f"{scatter:.3g} rad about their median {middle:.3g} rad): it should be the "
+            "electrical angle at each row's sample time"
+        )
+    if electrical_speed is None:
+        return
+    rate = middle / float(np.median(np.diff(t)))
+    if abs(rate - electrical_speed) > SPEED_AGREEMENT * abs(electrical_speed) + 1e-9:
+        raise ConfigurationMismatch(
+            f"electrical_speed: says {electrical_speed:.6g} rad/s, but the angle column theta "
+            f"turns at {rate:.6g} rad/s; check the speed's sign and the pole pairs (p speed), "
+            "or the angle's sign",
+            key="electrical_speed",
+        )
+
+
+def _check_angle_explains(episodes: Sequence[Trajectory], signs: list[Array], shift: int) -> None:
+    """Raise unless the phase signs of the log's angle explain the data at least about as
+    well as the current's direction alone, which needs no angle: a wrong angle (its sign,
+    the mechanical for the electrical, a constant) puts the dead-time voltage at the wrong
+    place, and the one-step residual rises above the direction's by more than the
+    :data:`ANGLE_EVIDENCE` standard deviations its sampling allows."""
+    floor = _direction_floor([e.x for e in episodes])
+    with_angle = sum(_residual(e, s, shift) for e, s in zip(episodes, signs, strict=True))
+    without = sum(_residual(e, direction_signs(e.x, floor), shift) for e in episodes)
+    count = sum(e.num_samples for e in episodes)
+    excess = with_angle / without - 1.0 if without > 0.0 else 0.0
+    if excess > ANGLE_EVIDENCE * np.sqrt(2.0 / count):
+        raise InputError(
+            f"theta (the electrical rotor angle, rad): explains the data worse than no angle "
+            f"at all (the one-step residual is {excess:.1%} above that of the current's "
+            "direction alone): check its sign, its unit (rad), that it is the electrical "
+            "angle (p times the mechanical) and that row k holds the angle at row k's time"
+        )
 
 
 def phase_signs(x: Array, angle: Array, width: float = 0.0) -> Array:
@@ -104,6 +199,12 @@ def direction_signs(x: Array, floor: float) -> Array:
 def _appended(episode: Trajectory, signs: Array) -> Trajectory:
     w = signs if episode.w is None else np.hstack([episode.w, signs[: episode.w.shape[0]]])
     return Trajectory(t=episode.t, x=episode.x, u=episode.u, w=w, angle=episode.angle)
+
+
+def _direction_floor(currents: Sequence[Array]) -> float:
+    """Below 2% of the currents' rms the direction's vector fades (:func:`direction_signs`)."""
+    scale = float(np.sqrt(np.mean(np.concatenate(list(currents)) ** 2)))
+    return 0.02 * max(scale, 1e-300)
 
 
 def _residual(episode: Trajectory, signs: Array, shift: int) -> float:
@@ -172,7 +273,10 @@ def with_dead_time(
     """
     angles = [episode.angle for episode in episodes if episode.angle is not None]
     if len(angles) == len(episodes):
+        for episode, angle in zip(episodes, angles, strict=True):
+            check_angle(angle, episode.t, electrical_speed)
         signs = [phase_signs(e.x, a, width) for e, a in zip(episodes, angles, strict=True)]
+        _check_angle_explains(episodes, signs, shift)
         return [_appended(e, s) for e, s in zip(episodes, signs, strict=True)], "phase signs"
     if electrical_speed is not None:
         result = []
@@ -181,6 +285,5 @@ def with_dead_time(
             angle = electrical_speed * (episode.t - episode.t[0]) + offset
             result.append(_appended(episode, phase_signs(episode.x, angle, width)))
         return result, "speed"
-    scale = float(np.sqrt(np.mean(np.concatenate([e.x for e in episodes]) ** 2)))
-    floor = 0.02 * max(scale, 1e-300)
+    floor = _direction_floor([e.x for e in episodes])
     return [_appended(e, direction_signs(e.x, floor)) for e in episodes], "current direction"
