@@ -114,9 +114,13 @@ def _with_angle(angle_of: object) -> Trajectory:
 
 
 def _example_options(**changes: object) -> LearningOptions:
-    return LearningOptions(
-        target="digital", input_delay=1, logged_input="commanded", dead_time=True, **changes
-    )  # type: ignore[arg-type]
+    values: dict[str, object] = {
+        "target": "digital",
+        "input_delay": 1,
+        "logged_input": "commanded",
+        "dead_time": True,
+    }
+    return LearningOptions(**{**values, **changes})  # type: ignore[arg-type]
 
 
 def _example_problem() -> LearningProblem:
@@ -156,3 +160,13 @@ def test_an_electrical_speed_the_angle_contradicts_is_named() -> None:
         log, _example_problem(), np.eye(2), _example_options(electrical_speed=150.0)
     )
     assert learned.quality is not None
+
+
+def test_swapped_u_and_w_columns_are_suspected_in_the_refusal() -> None:
+    log = load_trajectory(EXAMPLE_LOG)
+    assert log.w is not None
+    count = log.num_samples
+    swapped = Trajectory(t=log.t, x=log.x, u=log.w[:count], w=np.vstack([log.u, log.u[-1:]]))
+    options = _example_options(dead_time=False)
+    with pytest.raises(Refusal, match="are the u and w columns swapped"):
+        learn_controller(swapped, _example_problem(), np.eye(2), options)

@@ -37,6 +37,7 @@ from ..errors import (
     ConsistencyError,
     ExcitationError,
     InputError,
+    Refusal,
     SelftuneDeprecationWarning,
     SelftuneError,
     TooLittleData,
@@ -77,6 +78,11 @@ __all__ = [
     "assess",
     "learn_controller",
 ]
+
+
+#: A log whose u columns change at fewer than the first fraction of its rows and whose w
+#: columns change at more than the second looks like one with u and w swapped.
+SWAP_RATES = (0.2, 0.8)
 
 
 def aligned_trajectory(episode: Trajectory, shift: int) -> Trajectory:
@@ -165,6 +171,40 @@ def learn_controller(
         As the learners raise them.
     """
     K0_, options = _initial_policy(problem, K0, options)
+    try:
+        return _learned(data, problem, K0_, options)
+    except Refusal as error:
+        hint = _swapped_columns(as_trajectories(data))
+        if not hint:
+            raise
+        raise error.retold(f"{error}; {hint}") from error
+
+
+def _swapped_columns(episodes: Sequence[Trajectory]) -> str:
+    """A hint when the u columns change as rarely as a held reference does and the w
+    columns as often as voltages do (u and w swapped in the log), else ``""``."""
+    if episodes[0].w is None:
+        return ""
+    u_rate, w_rate = (
+        float(np.mean(np.concatenate([np.any(np.diff(a, axis=0) != 0.0, axis=1) for a in arrays])))
+        for arrays in ([e.u for e in episodes], [e.w for e in episodes if e.w is not None])
+    )
+    if not (u_rate < SWAP_RATES[0] and w_rate > SWAP_RATES[1]):
+        return ""
+    return (
+        f"the inputs u change at only {u_rate:.0%} of the rows and the reference w at "
+        f"{w_rate:.0%}, as a held reference and voltages would: are the u and w columns "
+        "swapped? (u: the voltages; w: the reference, held over each sample)"
+    )
+
+
+def _learned(
+    data: Trajectory | Sequence[Trajectory],
+    problem: LearningProblem,
+    K0_: Array,
+    options: LearningOptions,
+) -> LearnedController:
+    """:func:`learn_controller` with K0 and the options read."""
     try:
         evidence, known, errors = _precise(data, problem, options)
     except (ConsistencyError, UnsolvableError, ExcitationError) as error:
