@@ -203,3 +203,17 @@ def test_a_drive_value_out_of_range_is_named_by_its_own_key(
     assert main(["tune", "--motor", str(path)]) == 2
     error = capsys.readouterr().err.strip()
     assert expected in error and "[learning]" not in error and len(error.splitlines()) == 1
+
+
+def test_a_batch_too_short_for_its_noise_is_followed_by_the_one_the_learner_asks_for() -> None:
+    # A self-tuning session does what the refusal says: it runs the batch length the
+    # learner names (once, up to ten episode lengths) instead of giving up.
+    motor = SPMSM(R_s=0.6, L_s=8e-3, phi_pm=0.35, p=3)
+    drive = replace(DriveSettings.ideal(), input_delay=1, current_noise=0.03)
+    settings = drive_settings(motor, 50.0, 3.0, drive, episode_length=0.02, dead_time=False)
+    result = run_algorithm("offpolicy", motor, settings, drive=drive)
+    assert result.data_seconds > 0.02 and result.quality.K_relative_se <= 0.05
+    assert any("batch was too short for its noise" in note for note in result.notes)
+    best = evaluate(result, motor, settings, drive).optimum.law.K
+    error = np.linalg.norm(result.law.K - best) / np.linalg.norm(best)  # K's block, as stated
+    assert error <= 3 * result.quality.K_relative_se

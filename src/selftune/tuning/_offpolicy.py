@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..learn import learn_controller
+from ..errors import TooLittleData
+from ..learn import LearnedController, learn_controller
 from ..sim import held, uniform
 from ._drive import Drive
 from ._episodes import checked, known_form
@@ -14,7 +17,12 @@ from ._learning import check_drive, from_learned, learning_options, learning_pro
 from ._results import TuningResult
 from ._settings import TuningSettings
 
-__all__ = ["BACK_EMF_FEEDFORWARD", "offpolicy"]
+__all__ = ["BACK_EMF_FEEDFORWARD", "LONGEST_BATCH_FACTOR", "offpolicy"]
+
+#: When the learner finds the batch too short for its noise (TooLittleData), the session
+#: runs one longer batch of the length it asks for (with a quarter more), up to this many
+#: times ``episode_length``; beyond, or if that one is refused too, the refusal stands.
+LONGEST_BATCH_FACTOR = 10.0
 
 #: The feedforward of the batch's controller: ``u_q += w_1``, the assumed back-EMF.
 BACK_EMF_FEEDFORWARD = np.array([[0.0, 0.0], [1.0, 0.0]])
@@ -68,15 +76,33 @@ def offpolicy(
     def perturbed(t: Array) -> Array:
         return w + reference_perturbation(t, kind, settings.torque)
 
-    batch = drive.run(
-        ControlLaw.regulator(settings.K0, X, BACK_EMF_FEEDFORWARD),
-        held(perturbed),
-        num_samples=settings.samples_per_episode,
-        exploration=uniform(settings.exploration),
-        seed=settings.seed,
-        assumed_flux=phi_pm,
-    )
-    checked(batch, settings.K0, settings)
-    problem = learning_problem(drive, settings, phi_pm)
-    learned = learn_controller(batch, problem, settings.K0, learning_options(drive, settings))
-    return from_learned(algorithm, learned, w, batch.duration, settings, identified)
+    def learned_from(samples: int) -> tuple[LearnedController, float]:
+        batch = drive.run(
+            ControlLaw.regulator(settings.K0, X, BACK_EMF_FEEDFORWARD),
+            held(perturbed),
+            num_samples=samples,
+            exploration=uniform(settings.exploration),
+            seed=settings.seed,
+            assumed_flux=phi_pm,
+        )
+        checked(batch, settings.K0, settings)
+        problem = learning_problem(drive, settings, phi_pm)
+        options = learning_options(drive, settings)
+        return learn_controller(batch, problem, settings.K0, options), batch.duration
+
+    notes: tuple[str, ...] = ()
+    try:
+        learned, seconds = learned_from(settings.samples_per_episode)
+    except TooLittleData as refusal:
+        longer = 1.25 * refusal.needed_seconds
+        if not longer <= LONGEST_BATCH_FACTOR * settings.episode_length:
+            raise
+        learned, seconds = learned_from(int(np.ceil(longer / settings.h)))
+        K_se, U_se = refusal.relative_se
+        notes = (
+            f"the {settings.episode_length:g} s batch was too short for its noise (standard "
+            f"errors of K {K_se:.2%}, of U {U_se:.2%}); a {seconds:.3g} s batch was run, as "
+            "the learner asked",
+        )
+    result = from_learned(algorithm, learned, w, seconds, settings, identified)
+    return replace(result, notes=(*result.notes, *notes))
