@@ -22,7 +22,7 @@ from ..errors import UnsolvableError
 from ..model import SPMSM, ModelBasedSolution, solve_digital_regulation
 from ..sim import DriveSettings, RealisticDrive, constant, simulate_loop
 from ..tuning import TuningResult, TuningSettings
-from ._evaluate import TuningEvaluation, gains, learner_integral_weight
+from ._evaluate import TuningEvaluation, block_error, learner_integral_weight
 
 __all__ = [
     "STEP_SECONDS",
@@ -77,22 +77,19 @@ def evaluate_digital(
         input_delay=law.history, integral_weight=weight,
         plant=truth.sampled_plant(settings.speed, settings.h, hold),
     )  # fmt: skip
-    best, learned = gains(optimum.law), gains(law)
     nan = np.full(len(result.history), np.nan)
     w_true = truth.exogenous(settings.speed, settings.torque)
     excess = feedback_excess_cost(optimum, law, w_true)
-    K_error = float("nan")
-    if learned.shape == best.shape:
-        K_error = float(np.linalg.norm(learned - best) / np.linalg.norm(best))
     return TuningEvaluation(
         optimum=optimum,
         theta_error=nan,
         learned_cost=nan,
         true_cost=nan,
         final_theta_error=float("nan"),
-        K_error=K_error,
-        U_error=float(np.linalg.norm(law.U - optimum.U) / np.linalg.norm(optimum.U)),
+        K_error=block_error(law.K, optimum.law.K),
+        U_error=block_error(law.U, optimum.U),
         excess_cost=excess,
+        K_i_error=block_error(law.K_i, optimum.law.K_i),
     )
 
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import Array, ControlLaw, policy_value
+from ..core import Array, policy_value
 from ..errors import UnsolvableError
 from ..learn import LearningProblem, Trajectory
 from ..model import SPMSM, ModelBasedSolution, solve_optimal_regulation
@@ -20,10 +20,10 @@ from ..tuning import TuningResult, TuningSettings, known_flux_form
 
 __all__ = [
     "TuningEvaluation",
+    "block_error",
     "closed_loop_response",
     "evaluate",
     "feedback_value",
-    "gains",
     "learner_integral_weight",
     "steady_state",
 ]
@@ -49,12 +49,16 @@ class TuningEvaluation:
     final_theta_error : float
         ``||Theta - Theta*|| / ||Theta*||`` of the result (NaN for the digital target).
     K_error, U_error : float
-        ``||K - K*|| / ||K*||`` and ``||U - U*|| / ||U*||`` (K with K_i beside it).
+        ``||K - K*|| / ||K*||`` and ``||U - U*|| / ||U*||``, K the feedback of the
+        currents and the delayed voltages (the block the quality's ``K_relative_se`` is
+        over); NaN if the laws' K differ in shape.
     excess_cost : float
         The true cost of the result's feedback over the optimum's, minus 1, for the
         torque step from rest: on the continuous loop (continuous target, NaN with
         integral action) or on the sampled loop with the drive's delay and the same
         integral weight (digital target, :mod:`._digital_evaluation`).
+    K_i_error : float
+        ``||K_i - K_i*|| / ||K_i*||``; NaN without integral action.
     """
 
     optimum: ModelBasedSolution
@@ -65,6 +69,7 @@ class TuningEvaluation:
     K_error: float
     U_error: float
     excess_cost: float = float("nan")
+    K_i_error: float = float("nan")
 
 
 def steady_state(
@@ -179,7 +184,6 @@ def evaluate(
     excess = float("nan")
     if weight is None and 0.0 < optimal_cost < float("inf"):
         excess = feedback_value(motor, settings, result.K) / optimal_cost - 1.0
-    best = gains(optimum.law)
     return TuningEvaluation(
         optimum=optimum,
         theta_error=np.array(theta_error),
@@ -188,21 +192,25 @@ def evaluate(
         final_theta_error=float("nan")
         if result.theta is None
         else float(np.linalg.norm(result.theta - theta_star)) / norm,
-        K_error=float(np.linalg.norm(gains(result.law) - best)) / float(np.linalg.norm(best)),
-        U_error=float(np.linalg.norm(result.U - optimum.U)) / float(np.linalg.norm(optimum.U)),
+        K_error=block_error(result.law.K, optimum.law.K),
+        U_error=block_error(result.U, optimum.U),
         excess_cost=excess,
+        K_i_error=block_error(result.law.K_i, optimum.law.K_i),
     )
 
 
-def gains(law: ControlLaw) -> Array:
-    """``[K, K_i]`` of a law (``K`` without integral action).
+def block_error(learned: Array | None, best: Array | None) -> float:
+    """``||learned - best|| / ||best||`` of one block of a law (K, K_i or U); NaN where
+    either has no such block or their shapes differ.
 
     Parameters
     ----------
-    law : ControlLaw
-        The controller.
+    learned, best : ndarray or None
+        The block of the result and of the optimum.
     """
-    return law.K if law.K_i is None else np.hstack([law.K, law.K_i])
+    if learned is None or best is None or learned.shape != best.shape:
+        return float("nan")
+    return float(np.linalg.norm(learned - best) / np.linalg.norm(best))
 
 
 def learner_integral_weight(motor: SPMSM, settings: TuningSettings) -> Array | None:

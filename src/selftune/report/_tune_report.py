@@ -139,10 +139,13 @@ def tune_lines(
         f"on the simulated drive: steady torque error {torque.steady_error:+.3%}; after R_s "
         f"+{HOT_RESISTANCE - 1:.0%} without re-tuning {torque.hot_error:+.3%}"
     )
+    integral = ""
+    if result.law.K_i is not None:
+        integral = f", ||K_i - K_i*|| / ||K_i*|| = {evaluation.K_i_error:.2e}"
     lines.append(
         f"against the model-based optimum of the same loop: ||K - K*|| / ||K*|| = "
-        f"{evaluation.K_error:.2e}, ||U - U*|| / ||U*|| = {evaluation.U_error:.2e}, "
-        f"excess cost {evaluation.excess_cost:.2e}"
+        f"{evaluation.K_error:.2e}{integral}, ||U - U*|| / ||U*|| = "
+        f"{evaluation.U_error:.2e}, excess cost {evaluation.excess_cost:.2e}"
     )
     if result.identified:
         identified = result.identified
@@ -192,6 +195,7 @@ def tune_document(
         "data_seconds": result.data_seconds,
         "model_based": best.document(),
         "K_relative_error": evaluation.K_error,
+        "K_i_relative_error": evaluation.K_i_error,
         "U_relative_error": evaluation.U_error,
         "theta_relative_error": evaluation.final_theta_error,
         "excess_cost": evaluation.excess_cost,
