@@ -212,7 +212,7 @@ def _learned(
             raise
         raise _without_structure(error, data, problem, options) from error
     if options.method == "identify":
-        model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
+        model = evidence.model
         law, P, B = design_target(model, known, options)
         history: tuple[IterationRecord, ...] = ()
     elif options.target == "digital":
@@ -297,7 +297,7 @@ def assess(
     """
     options = LearningOptions() if options is None else options
     evidence, _, errors = _prepared(data, problem, options)
-    model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
+    model = evidence.model
     value = errors.P if P is None else np.asarray(P, dtype=float)
     if feedforward:
         return _judged((law, value, model.Bd, history), evidence, errors, options)
@@ -458,7 +458,7 @@ def _digital_adp(
     if instruments is not None:
         transitions = replace(transitions, instruments=transitions_of(instruments))
     learned = learn_digital_adp(transitions, problem, K0, options)
-    model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
+    model = evidence.model
     return learned.law, learned.P, model.Bd, learned.history
 
 

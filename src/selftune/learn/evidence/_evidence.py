@@ -51,7 +51,7 @@ from .._problem import LearningOptions, LearningProblem
 from ..data._trajectory import Trajectory
 from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
 from ._dead_time import DeadTimeModel, with_dead_time
-from ._discrete_model import lack_of_rank, regressor_names
+from ._discrete_model import DiscreteModel, lack_of_rank, regressor_names
 from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error
 
 __all__ = [
@@ -142,6 +142,12 @@ class Evidence:
     extra: int
     precision: str = "float64"
     dead_time_model: DeadTimeModel | None = None
+
+    @property
+    def model(self) -> DiscreteModel:
+        """The model the verdict and identify-then-design use: the output-error fit's, or
+        the least-squares one of the alignment without a fit."""
+        return self.alignment.model if self.fit is None else self.fit.model
 
     @property
     def model_noise(self) -> Array | None:

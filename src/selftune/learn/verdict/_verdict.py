@@ -96,14 +96,14 @@ def model_errors(
     """Standard errors of the target's optimum from the output-error model's covariance."""
     problem, q = problems
     fit = evidence.fit
-    model = evidence.alignment.model if fit is None else fit.model
+    model = evidence.model
 
     def design(candidate: DiscreteModel) -> tuple[Array, Array, Array]:
         learned, P, _ = design_target(candidate, problem, options)
         return _outputs(without_extra(learned, q), P)
 
-    K, U, P = design(model)
-    optimum = design_target(model, problem, options)[0]
+    optimum, P, _ = design_target(model, problem, options)
+    K, U, P = _outputs(without_extra(optimum, q), P)
     width = optimum.K.shape[1]
     radius = closed_loop_radius(model, optimum, options.input_delay)
     if fit is None:
@@ -158,8 +158,7 @@ def with_model_sensitivity(
         Target and method.
     """
     problem, q = problems
-    fit = alternative.fit
-    model = alternative.alignment.model if fit is None else fit.model
+    model = alternative.model
     learned, P, _ = design_target(model, problem, options)
     K, U, _ = _outputs(without_extra(learned, q), P)
     note = (
@@ -184,7 +183,7 @@ def verdict(
     law: ControlLaw, errors: ModelErrors, evidence: Evidence, options: LearningOptions
 ) -> tuple[Quality, Array]:
     """The quality of ``law`` and the spectral radii of its loop on plausible models."""
-    model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
+    model = evidence.model
     notes = list(errors.notes)
     exact = evidence.consistency.exact  # rounding only: no test of the errors applies
     fit = evidence.fit
@@ -240,7 +239,7 @@ def _radii(law: ControlLaw, evidence: Evidence, options: LearningOptions) -> Arr
     """Spectral radii of the learned loop on the fitted model (first) and on models drawn
     from the parameters' uncertainty (a fixed seed: the verdict is reproducible)."""
     fit = evidence.fit
-    model = evidence.alignment.model if fit is None else fit.model
+    model = evidence.model
     radii = [closed_loop_radius(model, law, options.input_delay)]
     if fit is not None:
         rng = np.random.default_rng(0)
@@ -265,6 +264,6 @@ def dead_time_voltage(evidence: Evidence) -> float | None:
     """
     if not evidence.extra:
         return None
-    model = evidence.alignment.model if evidence.fit is None else evidence.fit.model
+    model = evidence.model
     gain = model.Ed[:, model.Ed.shape[1] - evidence.extra :]
     return -float(np.trace(np.linalg.solve(model.Bd, gain))) / evidence.extra
