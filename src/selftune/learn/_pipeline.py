@@ -62,12 +62,10 @@ from .learners._servo import servo_from_moments
 from .verdict._quality import check_precision, check_safety
 from .verdict._verdict import (
     ROUNDING_FLOOR,
-    SIGN_WIDTH_FACTOR,
     ModelErrors,
     design_target,
     model_errors,
     verdict,
-    with_model_sensitivity,
     without_extra,
 )
 
@@ -361,16 +359,6 @@ def _prepared(
     evidence = gather_evidence(episodes, problem, options)
     known = reduced_problem(problem, evidence.extra)
     errors = model_errors(evidence, (known, problem.q), options)
-    noise = evidence.model_noise
-    if evidence.extra and noise is not None and evidence.dead_time_model != "current direction":
-        # per phase: the dq noise of amplitude-invariant Clarke is sqrt(2/3) of it
-        width = SIGN_WIDTH_FACTOR * float(np.mean(noise)) * np.sqrt(1.5)
-        try:
-            other = gather_evidence(episodes, problem, options, sign_width=width)
-        except SelftuneError:
-            other = None  # the alternative is refused: the first model's errors stand
-        if other is not None:
-            errors = with_model_sensitivity(errors, other, (known, problem.q), options)
     return evidence, known, errors
 
 

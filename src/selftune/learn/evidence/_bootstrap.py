@@ -16,13 +16,21 @@ conditional on the logged inputs. Each parameter's variance is the larger of the
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
 from ...core import Array
 from ._output_error import OutputErrorFit, _gauss_newton, _Log
 
-__all__ = ["BOOTSTRAP_DRAWS", "SHORT_LOG", "bootstrapped", "slowest_time_constant"]
+__all__ = [
+    "BOOTSTRAP_DRAWS",
+    "SHORT_LOG",
+    "bootstrapped",
+    "refits",
+    "slowest_time_constant",
+    "with_spread",
+]
 
 #: Refits of the bootstrap.
 BOOTSTRAP_DRAWS = 24
@@ -74,34 +82,79 @@ def bootstrapped(
     floor : ndarray, shape (n,)
         The states' rounding floor.
     """
-    rng = np.random.default_rng(20261123)
     noise_root = np.linalg.cholesky(fit.noise_covariance)
-    draws = []
-    for _ in range(BOOTSTRAP_DRAWS):
-        fresh = [
+
+    def world(rng: np.random.Generator) -> list[_Log]:
+        return [
             _Log(x=xhat + rng.standard_normal(xhat.shape) @ noise_root.T, a=log.a, w=log.w)
             for xhat, log in zip(fit.simulated, logs, strict=True)
         ]
+
+    draws = refits(fit, world, (matrices, structured), floor, BOOTSTRAP_DRAWS)
+    if draws is None:
+        return fit
+    return with_spread(fit, np.var(draws, axis=0, ddof=1))
+
+
+def refits(
+    fit: OutputErrorFit,
+    world: Callable[[np.random.Generator], list[_Log]],
+    kind: tuple[Callable[[Array], tuple[Array, Array, Array]], bool],
+    floor: Array,
+    count: int,
+    start: Array | None = None,
+) -> Array | None:
+    """The parameters refitted to ``count`` logs drawn from ``world`` (seeded: the verdict
+    is reproducible); None if fewer than half are finite.
+
+    Parameters
+    ----------
+    fit : OutputErrorFit
+        The fit the draws start from.
+    world : callable
+        A random generator's draw of the logs: what the data would be if the fit were true.
+    kind : (callable, bool)
+        The parameters' map to ``(Ad, Bd, Ed)`` and whether it is a structure's.
+    floor : ndarray, shape (n,)
+        The states' rounding floor.
+    count : int
+        Number of draws.
+    start : ndarray, shape (p,), optional
+        The parameters each refit starts from (default: the fit's).
+
+    Returns
+    -------
+    ndarray, shape (draws, p), or None
+    """
+    matrices, structured = kind
+    rng = np.random.default_rng(20261123)
+    origin = fit.parameters if start is None else start
+    draws = []
+    for _ in range(count):
         refit = _gauss_newton(
-            fresh, fit.parameters.copy(), matrices, structured, REFIT_ITERATIONS,
-            fit.model.h, floor,
-        )  # fmt: skip
+            world(rng), origin.copy(), matrices, structured, REFIT_ITERATIONS, fit.model.h, floor
+        )
         if np.all(np.isfinite(refit.parameters)):
             draws.append(refit.parameters)
-    if len(draws) < BOOTSTRAP_DRAWS // 2:
-        return fit
-    spread = np.var(np.array(draws), axis=0, ddof=1)
+    return np.array(draws) if len(draws) >= count // 2 and len(draws) >= 2 else None
+
+
+def with_spread(fit: OutputErrorFit, spread: Array, extra: Array | None = None) -> OutputErrorFit:
+    """``fit`` with each parameter's variance at least ``spread``'s (the correlations of
+    its own covariance kept), plus an ``extra`` covariance.
+
+    Parameters
+    ----------
+    fit : OutputErrorFit
+        The fit.
+    spread : ndarray, shape (p,)
+        Variances of the parameters measured by refits.
+    extra : ndarray, shape (p, p), optional
+        A covariance to add (e.g. of a correction's own error).
+    """
     linear = np.maximum(np.diag(fit.parameter_covariance), 1e-300)
     scale = np.sqrt(np.maximum(1.0, spread / linear))
     covariance = fit.parameter_covariance * np.outer(scale, scale)
-    return OutputErrorFit(
-        model=fit.model,
-        parameters=fit.parameters,
-        parameter_covariance=covariance,
-        noise_covariance=fit.noise_covariance,
-        simulated=fit.simulated,
-        residuals=fit.residuals,
-        iterations=fit.iterations,
-        structure=fit.structure,
-        correlation_inflation=fit.correlation_inflation,
-    )
+    if extra is not None:
+        covariance = covariance + extra
+    return replace(fit, parameter_covariance=covariance)

@@ -27,10 +27,9 @@ unexplained error nor mistaken for back-EMF or feedforward.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal
+from typing import Literal, TypeVar
 
 import numpy as np
-import scipy.special
 
 from ...core import Array
 from ...errors import ConfigurationMismatch, InputError
@@ -44,6 +43,7 @@ __all__ = [
     "check_angle",
     "direction_signs",
     "phase_signs",
+    "sign_vector",
     "with_dead_time",
 ]
 
@@ -51,8 +51,11 @@ __all__ = [
 #: then refined 0.05 degree apart around the best.
 OFFSET_GRID = np.deg2rad(np.arange(0.0, 60.0, 1.0))
 
-#: The directions of phases a, b, c in the stationary frame.
-_PHASES = np.exp(2j * np.pi * np.arange(3) / 3)
+#: ``sqrt(3) / 2``: the phases b and c lie at -+120 degrees from a.
+_HALF_ROOT3 = 0.5 * float(np.sqrt(3.0))
+
+#: A sample's value (float) or many samples' (ndarray).
+Number = TypeVar("Number", float, Array)
 
 #: How the phase signs were computed: from the log's angle, from the electrical speed
 #: with a fitted offset, or the current's direction (see the module docstring).
@@ -152,12 +155,8 @@ def _check_angle_explains(episodes: Sequence[Trajectory], signs: list[Array], sh
         )
 
 
-def phase_signs(x: Array, angle: Array, width: float = 0.0) -> Array:
+def phase_signs(x: Array, angle: Array) -> Array:
     """The dq vector ``(2/3) sum_x sign(i_x) exp(j 2 pi x / 3)`` of the phase currents' signs.
-
-    With a ``width``, each sign is the expected sign of a current measured with Gaussian
-    noise of that standard deviation, ``erf(i_x / (sqrt(2) width))``: smooth near zero,
-    where the measured sign is the noise's.
 
     Parameters
     ----------
@@ -165,21 +164,36 @@ def phase_signs(x: Array, angle: Array, width: float = 0.0) -> Array:
         ``[i_d, i_q]``, A.
     angle : ndarray, shape (T,)
         Electrical rotor angle ``theta_e`` at each sample, rad.
-    width : float
-        Standard deviation of the noise on each measured phase current, A (0: the signs
-        as measured).
 
     Returns
     -------
     ndarray, shape (T, 2)
         Length 4/3 (or 0 where every phase current is 0), dimensionless.
     """
-    rotor = np.exp(1j * angle)
-    stationary = (x[:, 0] + 1j * x[:, 1]) * rotor
-    phases = np.real(stationary[:, np.newaxis] * np.conj(_PHASES))
-    signs = np.sign(phases) if width <= 0.0 else scipy.special.erf(phases / (np.sqrt(2.0) * width))
-    vector = (2.0 / 3.0) * (signs @ _PHASES) * np.conj(rotor)
-    return np.column_stack([vector.real, vector.imag])
+    return np.column_stack(sign_vector(x[:, 0], x[:, 1], np.cos(angle), np.sin(angle)))
+
+
+def sign_vector(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Number, Number]:
+    """:func:`phase_signs` of one sample (floats) or of many (arrays of one shape).
+
+    Parameters
+    ----------
+    i_d, i_q : float or ndarray
+        The dq currents, A.
+    cos, sin : float or ndarray
+        ``cos theta_e`` and ``sin theta_e`` of the electrical rotor angle.
+
+    Returns
+    -------
+    (d, q)
+        The dq components of the signs' vector.
+    """
+    alpha, beta = i_d * cos - i_q * sin, i_d * sin + i_q * cos
+    a = np.sign(alpha)
+    b = np.sign(-0.5 * alpha + _HALF_ROOT3 * beta)
+    c = np.sign(-0.5 * alpha - _HALF_ROOT3 * beta)
+    v_alpha, v_beta = (2.0 / 3.0) * (a - 0.5 * (b + c)), (2.0 / 3.0) * _HALF_ROOT3 * (b - c)
+    return v_alpha * cos + v_beta * sin, v_beta * cos - v_alpha * sin
 
 
 def direction_signs(x: Array, floor: float) -> Array:
@@ -244,11 +258,8 @@ def angle_offset(episode: Trajectory, electrical_speed: float, shift: int) -> fl
 
 
 def with_dead_time(
-    episodes: Sequence[Trajectory],
-    electrical_speed: float | None,
-    shift: int,
-    width: float = 0.0,
-) -> tuple[list[Trajectory], DeadTimeModel]:
+    episodes: Sequence[Trajectory], electrical_speed: float | None, shift: int
+) -> tuple[list[Trajectory], DeadTimeModel, list[Array] | None]:
     """The logs with the dq vector of the phase signs appended to ``w`` (two channels).
 
     Parameters
@@ -259,9 +270,6 @@ def with_dead_time(
         ``w_e``, rad/s, to compute the angle of a log without an angle column.
     shift : int
         The alignment of the logged inputs (for the offset's fit).
-    width : float
-        Noise on each measured phase current, A: the expected signs instead of the
-        measured ones (:func:`phase_signs`).
 
     Returns
     -------
@@ -270,20 +278,23 @@ def with_dead_time(
     model : str
         How the signs were computed: ``"phase signs"``, ``"speed"`` or ``"current
         direction"`` (see the module docstring).
+    angles : list of ndarray or None
+        The electrical angle of each log's rows, rad (None for the current's direction).
     """
     angles = [episode.angle for episode in episodes if episode.angle is not None]
     if len(angles) == len(episodes):
         for episode, angle in zip(episodes, angles, strict=True):
             check_angle(angle, episode.t, electrical_speed)
-        signs = [phase_signs(e.x, a, width) for e, a in zip(episodes, angles, strict=True)]
+        signs = [phase_signs(e.x, a) for e, a in zip(episodes, angles, strict=True)]
         _check_angle_explains(episodes, signs, shift)
-        return [_appended(e, s) for e, s in zip(episodes, signs, strict=True)], "phase signs"
+        appended = [_appended(e, s) for e, s in zip(episodes, signs, strict=True)]
+        return appended, "phase signs", angles
     if electrical_speed is not None:
-        result = []
-        for episode in episodes:
-            offset = angle_offset(episode, electrical_speed, shift)
-            angle = electrical_speed * (episode.t - episode.t[0]) + offset
-            result.append(_appended(episode, phase_signs(episode.x, angle, width)))
-        return result, "speed"
+        angles = [
+            electrical_speed * (e.t - e.t[0]) + angle_offset(e, electrical_speed, shift)
+            for e in episodes
+        ]
+        signs = [phase_signs(e.x, a) for e, a in zip(episodes, angles, strict=True)]
+        return [_appended(e, s) for e, s in zip(episodes, signs, strict=True)], "speed", angles
     floor = _direction_floor([e.x for e in episodes])
-    return [_appended(e, direction_signs(e.x, floor)) for e in episodes], "current direction"
+    return [_appended(e, direction_signs(e.x, floor)) for e in episodes], "current direction", None

@@ -52,7 +52,8 @@ from ..data._trajectory import Trajectory
 from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
 from ._dead_time import DeadTimeModel, with_dead_time
 from ._discrete_model import DiscreteModel, lack_of_rank, regressor_names
-from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error
+from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error, resolution_floor
+from ._sign_bias import without_sign_bias
 
 __all__ = [
     "INFLATION_LIMIT",
@@ -133,6 +134,9 @@ class Evidence:
     dead_time_model : str or None
         How the phase signs were computed (:func:`~._dead_time.with_dead_time`); None
         without ``dead_time``.
+    sign_correction : ndarray or None
+        The correction of the fit's parameters for the bias of the measured signs
+        (:mod:`._sign_bias`); None where none was made.
     """
 
     episodes: list[Trajectory] = field(repr=False)
@@ -142,6 +146,7 @@ class Evidence:
     extra: int
     precision: str = "float64"
     dead_time_model: DeadTimeModel | None = None
+    sign_correction: Array | None = field(default=None, repr=False)
 
     @property
     def model(self) -> DiscreteModel:
@@ -237,7 +242,6 @@ def gather_evidence(
     episodes: Sequence[Trajectory],
     problem: LearningProblem,
     options: LearningOptions,
-    sign_width: float = 0.0,
 ) -> Evidence:
     """Alignment, output-error model and consistency of the logs (see the module).
 
@@ -249,9 +253,6 @@ def gather_evidence(
         What the learner knows.
     options : LearningOptions
         How to learn (alignment, dead time, structure).
-    sign_width : float
-        With ``dead_time``: the noise on each measured phase current, A, for the expected
-        signs instead of the measured ones (:func:`~._dead_time.phase_signs`).
 
     Returns
     -------
@@ -267,7 +268,7 @@ def gather_evidence(
         If the structure the options state explains the data worse than none (a
         ConsistencyError).
     """
-    fitted, dead_time_model = _fitted(episodes, options, sign_width)
+    fitted, dead_time_model, angles = _fitted(episodes, options)
     try:
         alignment = check_alignment(fitted, options.logged_input, options.input_delay)
     except NotExciting as error:
@@ -320,8 +321,14 @@ def gather_evidence(
             threshold=INFLATION_LIMIT,
             causes=causes,
         )
+    correction = None
+    if angles is not None and fit is not None and not test.exact:
+        floor = resolution_floor(np.concatenate([e.x for e in episodes]), relative)
+        corrected = without_sign_bias(fit, fitted, alignment.shift, angles, floor)
+        if corrected is not None:
+            fit, correction = corrected
     extra = problem.n if options.dead_time else 0
-    return Evidence(fitted, alignment, fit, test, extra, precision, dead_time_model)
+    return Evidence(fitted, alignment, fit, test, extra, precision, dead_time_model, correction)
 
 
 def _untied_dead_time(
@@ -418,11 +425,12 @@ def _check_structure(
 
 
 def _fitted(
-    episodes: Sequence[Trajectory], options: LearningOptions, width: float = 0.0
-) -> tuple[list[Trajectory], DeadTimeModel | None]:
-    """The logs as the model sees them: with the dead time's channels if asked for."""
+    episodes: Sequence[Trajectory], options: LearningOptions
+) -> tuple[list[Trajectory], DeadTimeModel | None, list[Array] | None]:
+    """The logs as the model sees them: with the dead time's channels if asked for, and
+    the electrical angle of each log's rows where the phase signs use one."""
     if not options.dead_time:
-        return list(episodes), None
+        return list(episodes), None, None
     if episodes[0].n != 2 or episodes[0].m != 2:
         raise InputError(
             f"dead_time: the dead-time model is for a three-phase machine's dq currents "
@@ -430,9 +438,9 @@ def _fitted(
         )
     shift = stated_shift(options.logged_input, options.input_delay)
     if shift is None:  # "auto": the alignment of the simpler model decides the offset's fit
-        rough, _ = with_dead_time(episodes, None, 0)
+        rough, _, _ = with_dead_time(episodes, None, 0)
         shift = check_alignment(rough, "auto", options.input_delay).shift
-    return with_dead_time(episodes, options.electrical_speed, shift, width)
+    return with_dead_time(episodes, options.electrical_speed, shift)
 
 
 def reduced_problem(problem: LearningProblem, extra: int) -> LearningProblem:

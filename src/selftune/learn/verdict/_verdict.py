@@ -25,14 +25,12 @@ from ._quality import (
 
 __all__ = [
     "ROUNDING_FLOOR",
-    "SIGN_WIDTH_FACTOR",
     "ModelErrors",
     "dead_time_voltage",
     "design_target",
     "model_errors",
     "relative_size",
     "verdict",
-    "with_model_sensitivity",
     "without_extra",
 ]
 
@@ -126,54 +124,6 @@ def model_errors(
     )
 
 
-#: The alternative dead-time model's noise width, in units of the estimated noise on
-#: each phase current (:func:`with_model_sensitivity`).
-SIGN_WIDTH_FACTOR = 2.0
-
-
-def with_model_sensitivity(
-    errors: ModelErrors,
-    alternative: Evidence,
-    problems: tuple[LearningProblem, int],
-    options: LearningOptions,
-) -> ModelErrors:
-    """``errors`` with the optimum's change under an alternative, equally plausible model
-    of the data added to the standard errors (in quadrature, entry by entry).
-
-    The dead-time model takes each phase current's sign as measured; near zero current
-    the noise decides it, which biases the fit beyond its standard errors (measured on
-    the honesty sweep: 2-5 of them). The same fit with the expected signs under the
-    noise (:func:`~._dead_time.phase_signs` with a width) moves the optimum by about that
-    bias; counting the move as uncertainty keeps the stated errors honest.
-
-    Parameters
-    ----------
-    errors : ModelErrors
-        The optimum and its standard errors on the data's own model.
-    alternative : Evidence
-        The evidence of the same logs under the alternative model.
-    problems : (LearningProblem, int)
-        The problem as the model sees it, and the user's q.
-    options : LearningOptions
-        Target and method.
-    """
-    problem, q = problems
-    model = alternative.model
-    learned, P, _ = design_target(model, problem, options)
-    K, U, _ = _outputs(without_extra(learned, q), P)
-    note = (
-        "the standard errors include the result's sensitivity to the dead-time model near "
-        "zero current (the phase currents' signs as measured, against their expected "
-        "values under the noise)"
-    )
-    return replace(
-        errors,
-        K_se=np.hypot(errors.K_se, K - errors.K),
-        U_se=np.hypot(errors.U_se, U - errors.U),
-        notes=(*errors.notes, note),
-    )
-
-
 def _floored(se: Array, value: Array) -> Array:
     """Standard errors no smaller than the rounding floor of the block's size."""
     return np.maximum(se, ROUNDING_FLOOR * float(np.max(np.abs(value), initial=0.0)))
@@ -187,7 +137,13 @@ def verdict(
     notes = list(errors.notes)
     exact = evidence.consistency.exact  # rounding only: no test of the errors applies
     fit = evidence.fit
-    if fit is not None and fit.correlation_inflation > INFLATION_LIMIT and not exact:
+    if evidence.sign_correction is not None:
+        notes.append(
+            "the dead-time model's bias from the currents' signs near zero (where the noise "
+            "decides them) was measured on simulations of the fitted model and removed; the "
+            "standard errors include the correction's own size"
+        )
+    elif fit is not None and fit.correlation_inflation > INFLATION_LIMIT and not exact:
         notes.append(
             f"the model misses part of the data: its output errors are correlated in time "
             f"({fit.correlation_inflation:.3g} times the variance white noise "

@@ -1,0 +1,170 @@
+"""The dead-time model's bias from the currents' signs near zero, measured and removed.
+
+The dead-time channels are the phase currents' signs as measured (:mod:`._dead_time`).
+Where a phase current is within the noise of zero, the noise decides its sign: the
+channel is then wrong where the true current is small, which correlates the error with
+the current itself, so the fit is biased (errors in variables that no number of samples
+removes). The fitted resistance takes the part of the dead-time voltage the wrong signs
+hide, and the feedforward U follows it: on the README's drive (2 V of dead time, 10 mA
+of noise, 0.3 A rms currents) U was 5-9% off under standard errors of 1.4-2.2%; with the
+true signs, 0.07% off.
+
+The bias is measured on the fitted model itself (a parametric bootstrap): the model's
+own currents are simulated from the logged inputs with the dead time switching on their
+true signs, measurement noise of the estimated covariance is added, the signs are taken
+from those noisy currents as from the log, and the model is refitted
+(:data:`BIAS_DRAWS` times). The refits' mean departure from the model is the bias at
+the model; the parameters are corrected by it, their variances are at least the
+refits', and the covariance gains the correction's outer product: the bias is measured
+where the model is, not where the truth is, so the correction is known no better than
+its own size.
+
+The measurement noise is estimated from the one-step residuals of the fitted model on
+the log (their lag-one covariance is ``-Ad R``: each measured state enters two
+consecutive residuals), not from the output errors, which the signs' errors inflate.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from ...core import Array
+from ..data._trajectory import Trajectory
+from ._alignment import applied_inputs
+from ._bootstrap import refits, with_spread
+from ._dead_time import phase_signs, sign_vector
+from ._output_error import OutputErrorFit, _finish, _Log
+
+__all__ = ["BIAS_DRAWS", "measurement_noise", "without_sign_bias"]
+
+#: Refits that measure the bias, per round.
+BIAS_DRAWS = 6
+
+#: Rounds: each measures the bias where the previous one's correction put the model.
+BIAS_ROUNDS = 2
+
+
+def measurement_noise(logs: Sequence[_Log], matrices: tuple[Array, Array, Array]) -> Array | None:
+    """The covariance ``R`` of the measurement noise on the states, unit^2, from the lag-one
+    covariance ``-Ad R`` of the model's one-step residuals; None unless it is positive
+    definite (the residuals then say nothing of the noise).
+
+    Parameters
+    ----------
+    logs : sequence of _Log
+        The aligned logs.
+    matrices : (Ad, Bd, Ed)
+        The fitted model.
+    """
+    Ad, Bd, Ed = matrices
+    lagged, count = np.zeros_like(Ad), 0
+    for log in logs:
+        e = log.x[1:] - log.x[:-1] @ Ad.T - log.a @ Bd.T - log.w @ Ed.T
+        lagged += e[1:].T @ e[:-1]
+        count += e.shape[0] - 1
+    if count < 2:
+        return None
+    R = -np.linalg.solve(Ad, lagged / count)
+    R = 0.5 * (R + R.T)
+    return R if bool(np.all(np.linalg.eigvalsh(R) > 0.0)) else None
+
+
+def _simulated(matrices: tuple[Array, Array, Array], log: _Log, x0: Array, angle: Array) -> Array:
+    """The model's currents (T + 1, 2) from ``x0`` with the dead time switching on their
+    own signs at each sample: the last two columns of ``Ed`` are the signs' gain."""
+    Ad, Bd, Ed = matrices
+    q = Ed.shape[1] - 2
+    forcing = (log.a @ Bd.T + log.w[:, :q] @ Ed[:, :q].T).tolist()
+    cos, sin = np.cos(angle).tolist(), np.sin(angle).tolist()
+    (a00, a01), (a10, a11) = Ad.tolist()
+    (g00, g01), (g10, g11) = Ed[:, q:].tolist()
+    x = np.empty((len(forcing) + 1, 2))
+    d, q_ = float(x0[0]), float(x0[1])
+    x[0] = d, q_
+    for k, (f_d, f_q) in enumerate(forcing):
+        s_d, s_q = sign_vector(d, q_, cos[k], sin[k])
+        d, q_ = (
+            a00 * d + a01 * q_ + f_d + g00 * s_d + g01 * s_q,
+            a10 * d + a11 * q_ + f_q + g10 * s_d + g11 * s_q,
+        )
+        x[k + 1] = d, q_
+    return x
+
+
+def without_sign_bias(
+    fit: OutputErrorFit,
+    episodes: Sequence[Trajectory],
+    shift: int,
+    angles: Sequence[Array],
+    floor: Array,
+) -> tuple[OutputErrorFit, Array] | None:
+    """``fit`` corrected for the signs' bias, and the correction (see the module); None
+    when the bias cannot be measured (no noise estimate, or the refits fail).
+
+    Parameters
+    ----------
+    fit : OutputErrorFit
+        The output-error fit with the measured signs as the last two exogenous channels.
+    episodes : sequence of Trajectory
+        The logs as fitted (``w`` with the signs' channels).
+    shift : int
+        The alignment of the logged inputs.
+    angles : sequence of ndarray
+        The electrical angle of each log's rows, rad.
+    floor : ndarray, shape (2,)
+        The states' rounding floor.
+    """
+    from ._output_error import _logs  # the fit's own alignment of the logs
+
+    logs = _logs(episodes, shift)
+    matrices = fit.matrices(fit.parameters)
+    R = measurement_noise(logs, matrices)
+    if R is None:
+        return None
+    R = R + np.diag(np.maximum(floor**2 - np.diag(R), 0.0))
+    root = np.linalg.cholesky(R)
+    rows = [
+        angle[first : first + log.x.shape[0]]
+        for angle, log, (_, first) in zip(
+            angles, logs, (applied_inputs(e, shift) for e in episodes), strict=True
+        )
+    ]
+    x0s = [simulated[0] for simulated in fit.simulated]
+    q = logs[0].w.shape[1] - 2
+    structured = fit.structure is not None
+    corrected, step = fit.parameters, np.zeros_like(fit.parameters)
+    draws = np.zeros((0, fit.parameters.shape[0]))
+    for _ in range(BIAS_ROUNDS):
+        matrices = fit.matrices(corrected)
+        truths = [
+            _simulated(matrices, log, x0, angle)
+            for log, x0, angle in zip(logs, x0s, rows, strict=True)
+        ]
+
+        def world(rng: np.random.Generator, truths: list[Array] = truths) -> list[_Log]:
+            drawn = []
+            for truth, log, angle in zip(truths, logs, rows, strict=True):
+                x = truth + rng.standard_normal(truth.shape) @ root.T
+                w = np.hstack([log.w[:, :q], phase_signs(x, angle)[: log.w.shape[0]]])
+                drawn.append(_Log(x=x, a=log.a, w=w))
+            return drawn
+
+        refitted = refits(fit, world, (fit.matrices, structured), floor, BIAS_DRAWS, corrected)
+        if refitted is None:
+            return None
+        draws = refitted
+        step = fit.parameters - np.mean(draws, axis=0)  # the estimate's departure, reversed
+        corrected = corrected + step
+        if float(np.max(np.abs(np.linalg.eigvals(fit.matrices(corrected)[0])))) >= 1.0:
+            return None
+    final = _finish(
+        logs, corrected, fit.matrices, structured, x0s, fit.model.h, fit.iterations, floor
+    )
+    # the same kind of parameters; the time correlation is the data's, measured at the fit
+    final = replace(final, structure=fit.structure, correlation_inflation=fit.correlation_inflation)
+    spread = np.atleast_2d(np.cov(draws.T))
+    extra = np.outer(step, step) + spread / draws.shape[0]
+    return with_spread(final, np.diag(spread), extra), corrected - fit.parameters
