@@ -103,6 +103,7 @@ def refits(
     floor: Array,
     count: int,
     start: Array | None = None,
+    iterations: int = REFIT_ITERATIONS,
 ) -> Array | None:
     """The parameters refitted to ``count`` logs drawn from ``world`` (seeded: the verdict
     is reproducible); None if fewer than half are finite.
@@ -121,6 +122,8 @@ def refits(
         Number of draws.
     start : ndarray, shape (p,), optional
         The parameters each refit starts from (default: the fit's).
+    iterations : int
+        Gauss-Newton iterations of each refit.
 
     Returns
     -------
@@ -132,7 +135,7 @@ def refits(
     draws = []
     for _ in range(count):
         refit = _gauss_newton(
-            world(rng), origin.copy(), matrices, structured, REFIT_ITERATIONS, fit.model.h, floor
+            world(rng), origin.copy(), matrices, structured, iterations, fit.model.h, floor
         )
         if np.all(np.isfinite(refit.parameters)):
             draws.append(refit.parameters)
