@@ -15,7 +15,7 @@ from dataclasses import replace
 
 import pytest
 
-from selftune import SPMSM, MotorConfig
+from selftune import SPMSM, ModelMissesEffect, MotorConfig, TooLittleData
 from selftune.report import evaluate, true_motor
 from selftune.sim import DriveSettings, RealisticDrive
 from selftune.tuning import TuningSettings, run_algorithm, tuning_settings
@@ -71,6 +71,19 @@ SPEEDS = [
     pytest.param(MIDDLE, 1000.0, 540.0, id="middle-1000"),
     pytest.param(MIDDLE, 2500.0, 540.0, id="middle-2500"),
     pytest.param(LOW_INDUCTANCE, 2500.0, 150.0, id="low-inductance-2500"),
+    pytest.param(
+        LOW_INDUCTANCE,
+        5000.0,
+        150.0,
+        id="low-inductance-5000",
+        marks=pytest.mark.xfail(
+            raises=ModelMissesEffect,
+            strict=True,
+            reason="K0 (1.25% of L_s/h) against w_e L_s = 20-40 K0, and 3 V of exploration "
+            "against 4.5 ohm, leave the currents at 0.2-0.3 A, where the dead-time model's "
+            "phase signs are the noise's (at 10 kHz 6 V of exploration, or 10 K0, pass)",
+        ),
+    ),
 ]
 
 
@@ -116,3 +129,38 @@ def test_algorithm_3_at_speed_learns_the_optimum_within_its_errors() -> None:
     evaluation = evaluate(result, motor, settings, drive)
     assert evaluation.K_error <= STANDARD_ERRORS * result.quality.K_relative_se
     assert evaluation.U_error <= STANDARD_ERRORS * result.quality.U_relative_se
+
+
+@pytest.mark.slow  # whole sessions (the paper's motor: 15-30 s each)
+@pytest.mark.parametrize("frequency", [10e3, 20e3])
+@pytest.mark.parametrize(
+    ("motor", "electrical_speed", "dc_voltage"),
+    [
+        pytest.param(PAPER, 100.0, 540.0, id="paper-100"),
+        pytest.param(PAPER, 300.0, 540.0, id="paper-300"),
+        pytest.param(MIDDLE, 1000.0, 540.0, id="middle-1000"),
+    ],
+)
+def test_algorithm_3_over_the_speeds_learns_the_optimum_within_its_errors(
+    motor: SPMSM, electrical_speed: float, dc_voltage: float, frequency: float
+) -> None:
+    settings, drive = session(motor, electrical_speed, frequency, dc_voltage)
+    result = run_algorithm("3", motor, settings, drive=drive)
+    truth = true_motor(motor, drive).phi_pm
+    flux, flux_se = result.identified["phi_pm"], result.identified["phi_pm_se"]
+    assert abs(flux - truth) <= STANDARD_ERRORS * flux_se
+    evaluation = evaluate(result, motor, settings, drive)
+    assert evaluation.K_error <= STANDARD_ERRORS * result.quality.K_relative_se
+    assert evaluation.U_error <= STANDARD_ERRORS * result.quality.U_relative_se
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    raises=TooLittleData,
+    strict=True,
+    reason="the off-policy batch under K0 at w_e L_s = 10 K0 needs 1.03 s, beyond the ten "
+    "episode lengths a session runs (10 K0 passes)",
+)
+def test_algorithm_3_at_2500_rad_s_and_20_kHz() -> None:
+    settings, drive = session(MIDDLE, 2500.0, 20e3, 540.0)
+    run_algorithm("3", MIDDLE, settings, drive=drive)
