@@ -15,7 +15,7 @@ from dataclasses import replace
 
 import pytest
 
-from selftune import SPMSM, ModelMissesEffect, MotorConfig, TooLittleData
+from selftune import SPMSM, ModelMissesEffect, MotorConfig
 from selftune.report import evaluate, true_motor
 from selftune.sim import DriveSettings, RealisticDrive
 from selftune.tuning import TuningSettings, run_algorithm, tuning_settings
@@ -152,15 +152,3 @@ def test_algorithm_3_over_the_speeds_learns_the_optimum_within_its_errors(
     evaluation = evaluate(result, motor, settings, drive)
     assert evaluation.K_error <= STANDARD_ERRORS * result.quality.K_relative_se
     assert evaluation.U_error <= STANDARD_ERRORS * result.quality.U_relative_se
-
-
-@pytest.mark.slow
-@pytest.mark.xfail(
-    raises=TooLittleData,
-    strict=True,
-    reason="the off-policy batch under K0 at w_e L_s = 10 K0 needs 1.03 s, beyond the ten "
-    "episode lengths a session runs (10 K0 passes)",
-)
-def test_algorithm_3_at_2500_rad_s_and_20_kHz() -> None:
-    settings, drive = session(MIDDLE, 2500.0, 20e3, 540.0)
-    run_algorithm("3", MIDDLE, settings, drive=drive)
