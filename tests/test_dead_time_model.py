@@ -75,8 +75,8 @@ def test_the_angle_offset_is_fitted_under_a_constant_reference() -> None:
     log = Trajectory(
         t=t, x=x, u=rng.normal(size=(count, 2)), w=np.tile([52.5, 1.0], (count + 1, 1))
     )
-    episodes, model, _ = with_dead_time([log], 240.0, 0)
-    assert model == "speed" and episodes[0].q == 4
+    channels = with_dead_time([log], 240.0, 0)
+    assert channels.model == "speed" and channels.episodes[0].q == 4
 
 
 def test_a_lack_of_rank_names_the_regressors_that_move_together() -> None:

@@ -26,7 +26,8 @@ unexplained error nor mistaken for back-EMF or feedforward.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Literal, TypeVar
 
 import numpy as np
@@ -38,10 +39,15 @@ from ._alignment import aligned_transitions
 
 __all__ = [
     "OFFSET_GRID",
+    "SWITCHING_SIGNS",
+    "DeadTimeChannels",
     "DeadTimeModel",
+    "Switching",
     "angle_offset",
     "check_angle",
     "direction_signs",
+    "path_signs",
+    "path_vector",
     "phase_signs",
     "sign_vector",
     "with_dead_time",
@@ -173,6 +179,42 @@ def phase_signs(x: Array, angle: Array) -> Array:
     return np.column_stack(sign_vector(x[:, 0], x[:, 1], np.cos(angle), np.sin(angle)))
 
 
+def path_signs(x: Array, angle: Array) -> Array:
+    """The phase signs averaged over each sample along the current's path: row k's signs
+    over ``[t_k, t_(k+1)]`` with each phase current moving linearly from its value at
+    row k to its value at row k + 1 (the last row: its own signs).
+
+    Parameters
+    ----------
+    x : ndarray, shape (T, 2)
+        ``[i_d, i_q]``, A.
+    angle : ndarray, shape (T,)
+        Electrical rotor angle ``theta_e`` at each sample, rad.
+
+    Returns
+    -------
+    ndarray, shape (T, 2)
+        At most 4/3 long, dimensionless; in the dq frame of row k.
+    """
+    cos, sin = np.cos(angle), np.sin(angle)
+    start = (x[:-1, 0], x[:-1, 1], cos[:-1], sin[:-1])
+    end = (x[1:, 0], x[1:, 1], cos[1:], sin[1:])
+    last = sign_vector(x[-1:, 0], x[-1:, 1], cos[-1:], sin[-1:])
+    return np.vstack([np.column_stack(path_vector(start, end)), np.column_stack(last)])
+
+
+def _phases(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Number, Number, Number]:
+    """The phase currents a, b, c of the dq currents at the angle (amplitude-invariant)."""
+    alpha, beta = i_d * cos - i_q * sin, i_d * sin + i_q * cos
+    return alpha, -0.5 * alpha + _HALF_ROOT3 * beta, -0.5 * alpha - _HALF_ROOT3 * beta
+
+
+def _dq(a: Number, b: Number, c: Number, cos: Number, sin: Number) -> tuple[Number, Number]:
+    """The dq components of ``(2/3) sum_x v_x exp(j 2 pi x / 3)`` at the angle."""
+    v_alpha, v_beta = (2.0 / 3.0) * (a - 0.5 * (b + c)), (2.0 / 3.0) * _HALF_ROOT3 * (b - c)
+    return v_alpha * cos + v_beta * sin, v_beta * cos - v_alpha * sin
+
+
 def sign_vector(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Number, Number]:
     """:func:`phase_signs` of one sample (floats) or of many (arrays of one shape).
 
@@ -188,12 +230,34 @@ def sign_vector(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Num
     (d, q)
         The dq components of the signs' vector.
     """
-    alpha, beta = i_d * cos - i_q * sin, i_d * sin + i_q * cos
-    a = np.sign(alpha)
-    b = np.sign(-0.5 * alpha + _HALF_ROOT3 * beta)
-    c = np.sign(-0.5 * alpha - _HALF_ROOT3 * beta)
-    v_alpha, v_beta = (2.0 / 3.0) * (a - 0.5 * (b + c)), (2.0 / 3.0) * _HALF_ROOT3 * (b - c)
-    return v_alpha * cos + v_beta * sin, v_beta * cos - v_alpha * sin
+    a, b, c = _phases(i_d, i_q, cos, sin)
+    return _dq(np.sign(a), np.sign(b), np.sign(c), cos, sin)
+
+
+def path_vector(
+    start: tuple[Number, Number, Number, Number], end: tuple[Number, Number, Number, Number]
+) -> tuple[Number, Number]:
+    """:func:`path_signs` of one sample (floats) or of many (arrays of one shape).
+
+    A phase current moving linearly from ``p0`` to ``p1`` is positive over the fraction
+    ``p0 / (p0 - p1)`` of the sample where it changes sign, so its mean sign is
+    ``(p0 + p1) / (|p0| + |p1|)`` (its sign where it does not change; 0 where both are 0).
+
+    Parameters
+    ----------
+    start, end : (i_d, i_q, cos, sin)
+        The dq currents, A, and the angle's cosine and sine at the sample's start and end.
+
+    Returns
+    -------
+    (d, q)
+        The mean signs' vector in the dq frame of the start.
+    """
+    means = []
+    for p0, p1 in zip(_phases(*start), _phases(*end), strict=True):
+        total = np.abs(p0) + np.abs(p1)
+        means.append(np.divide(p0 + p1, total, out=np.zeros_like(total), where=total > 0.0))
+    return _dq(means[0], means[1], means[2], start[2], start[3])
 
 
 def direction_signs(x: Array, floor: float) -> Array:
@@ -257,10 +321,48 @@ def angle_offset(episode: Trajectory, electrical_speed: float, shift: int) -> fl
     return float(fine[int(np.argmin([cost(float(offset)) for offset in fine]))] % (np.pi / 3))
 
 
+#: When the inverter's error switches: with the current's sign at each sample, held over
+#: the sample (a drive that samples once per period), or along the current's path within
+#: the sample (each leg switching with its current's own sign, as a real inverter does).
+Switching = Literal["sample", "path"]
+
+#: The signs' channels of each way of switching.
+SWITCHING_SIGNS: dict[Switching, Callable[[Array, Array], Array]] = {
+    "sample": phase_signs,
+    "path": path_signs,
+}
+
+
+@dataclass(frozen=True)
+class DeadTimeChannels:
+    """The logs with the dead time's channels, and how they were computed.
+
+    Attributes
+    ----------
+    episodes : list of Trajectory
+        The logs with the two channels appended to ``w``.
+    model : str
+        ``"phase signs"``, ``"speed"`` or ``"current direction"`` (the module docstring).
+    angles : list of ndarray or None
+        The electrical angle of each log's rows, rad (None for the current's direction).
+    switching : {"sample", "path"} or None
+        The way of switching the data preferred (:data:`Switching`; None for the current's
+        direction).
+    """
+
+    episodes: list[Trajectory]
+    model: DeadTimeModel
+    angles: list[Array] | None = None
+    switching: Switching | None = None
+
+
 def with_dead_time(
     episodes: Sequence[Trajectory], electrical_speed: float | None, shift: int
-) -> tuple[list[Trajectory], DeadTimeModel, list[Array] | None]:
+) -> DeadTimeChannels:
     """The logs with the dq vector of the phase signs appended to ``w`` (two channels).
+
+    With an angle, both ways of switching (:data:`Switching`) are tried and the one with
+    the smaller one-step residual is kept.
 
     Parameters
     ----------
@@ -273,28 +375,33 @@ def with_dead_time(
 
     Returns
     -------
-    episodes : list of Trajectory
-        With the two channels appended.
-    model : str
-        How the signs were computed: ``"phase signs"``, ``"speed"`` or ``"current
-        direction"`` (see the module docstring).
-    angles : list of ndarray or None
-        The electrical angle of each log's rows, rad (None for the current's direction).
+    DeadTimeChannels
     """
     angles = [episode.angle for episode in episodes if episode.angle is not None]
     if len(angles) == len(episodes):
         for episode, angle in zip(episodes, angles, strict=True):
             check_angle(angle, episode.t, electrical_speed)
-        signs = [phase_signs(e.x, a) for e, a in zip(episodes, angles, strict=True)]
-        _check_angle_explains(episodes, signs, shift)
-        appended = [_appended(e, s) for e, s in zip(episodes, signs, strict=True)]
-        return appended, "phase signs", angles
-    if electrical_speed is not None:
+        model: DeadTimeModel = "phase signs"
+    elif electrical_speed is not None:
         angles = [
             electrical_speed * (e.t - e.t[0]) + angle_offset(e, electrical_speed, shift)
             for e in episodes
         ]
-        signs = [phase_signs(e.x, a) for e, a in zip(episodes, angles, strict=True)]
-        return [_appended(e, s) for e, s in zip(episodes, signs, strict=True)], "speed", angles
-    floor = _direction_floor([e.x for e in episodes])
-    return [_appended(e, direction_signs(e.x, floor)) for e in episodes], "current direction", None
+        model = "speed"
+    else:
+        floor = _direction_floor([e.x for e in episodes])
+        appended = [_appended(e, direction_signs(e.x, floor)) for e in episodes]
+        return DeadTimeChannels(appended, "current direction")
+    candidates = {
+        switching: [signs(e.x, a) for e, a in zip(episodes, angles, strict=True)]
+        for switching, signs in SWITCHING_SIGNS.items()
+    }
+    residuals = {
+        switching: sum(_residual(e, s, shift) for e, s in zip(episodes, signs, strict=True))
+        for switching, signs in candidates.items()
+    }
+    switching = min(residuals, key=residuals.__getitem__)
+    if model == "phase signs":
+        _check_angle_explains(episodes, candidates[switching], shift)
+    appended = [_appended(e, s) for e, s in zip(episodes, candidates[switching], strict=True)]
+    return DeadTimeChannels(appended, model, angles, switching)

@@ -50,7 +50,7 @@ from ...errors import (
 from .._problem import LearningOptions, LearningProblem
 from ..data._trajectory import Trajectory
 from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
-from ._dead_time import DeadTimeModel, with_dead_time
+from ._dead_time import DeadTimeChannels, DeadTimeModel, Switching, with_dead_time
 from ._discrete_model import DiscreteModel, lack_of_rank, regressor_names
 from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error, resolution_floor
 from ._sign_bias import without_sign_bias
@@ -137,6 +137,9 @@ class Evidence:
     sign_correction : ndarray or None
         The correction of the fit's parameters for the bias of the measured signs
         (:mod:`._sign_bias`); None where none was made.
+    switching : {"sample", "path"} or None
+        When the dead time's error switches, as the data preferred
+        (:data:`~._dead_time.Switching`); None without phase signs.
     """
 
     episodes: list[Trajectory] = field(repr=False)
@@ -147,6 +150,7 @@ class Evidence:
     precision: str = "float64"
     dead_time_model: DeadTimeModel | None = None
     sign_correction: Array | None = field(default=None, repr=False)
+    switching: Switching | None = None
 
     @property
     def model(self) -> DiscreteModel:
@@ -268,7 +272,8 @@ def gather_evidence(
         If the structure the options state explains the data worse than none (a
         ConsistencyError).
     """
-    fitted, dead_time_model, angles = _fitted(episodes, options)
+    channels = _fitted(episodes, options)
+    fitted = channels.episodes
     try:
         alignment = check_alignment(fitted, options.logged_input, options.input_delay)
     except NotExciting as error:
@@ -322,13 +327,16 @@ def gather_evidence(
             causes=causes,
         )
     correction = None
-    if angles is not None and fit is not None and not test.exact:
+    if channels.angles is not None and fit is not None and not test.exact:
         floor = resolution_floor(np.concatenate([e.x for e in episodes]), relative)
-        corrected = without_sign_bias(fit, fitted, alignment.shift, angles, floor)
+        corrected = without_sign_bias(fit, channels, alignment.shift, floor)
         if corrected is not None:
             fit, correction = corrected
     extra = problem.n if options.dead_time else 0
-    return Evidence(fitted, alignment, fit, test, extra, precision, dead_time_model, correction)
+    return Evidence(
+        fitted, alignment, fit, test, extra, precision, channels.model, correction,
+        channels.switching,
+    )  # fmt: skip
 
 
 def _untied_dead_time(
@@ -424,13 +432,20 @@ def _check_structure(
         )
 
 
-def _fitted(
-    episodes: Sequence[Trajectory], options: LearningOptions
-) -> tuple[list[Trajectory], DeadTimeModel | None, list[Array] | None]:
-    """The logs as the model sees them: with the dead time's channels if asked for, and
-    the electrical angle of each log's rows where the phase signs use one."""
+@dataclass(frozen=True)
+class _Fitted:
+    """The logs without dead-time channels (the fields :class:`DeadTimeChannels` has)."""
+
+    episodes: list[Trajectory]
+    model: None = None
+    angles: None = None
+    switching: None = None
+
+
+def _fitted(episodes: Sequence[Trajectory], options: LearningOptions) -> _Fitted | DeadTimeChannels:
+    """The logs as the model sees them: with the dead time's channels if asked for."""
     if not options.dead_time:
-        return list(episodes), None, None
+        return _Fitted(list(episodes))
     if episodes[0].n != 2 or episodes[0].m != 2:
         raise InputError(
             f"dead_time: the dead-time model is for a three-phase machine's dq currents "
@@ -438,7 +453,7 @@ def _fitted(
         )
     shift = stated_shift(options.logged_input, options.input_delay)
     if shift is None:  # "auto": the alignment of the simpler model decides the offset's fit
-        rough, _, _ = with_dead_time(episodes, None, 0)
+        rough = with_dead_time(episodes, None, 0).episodes
         shift = check_alignment(rough, "auto", options.input_delay).shift
     return with_dead_time(episodes, options.electrical_speed, shift)
 
