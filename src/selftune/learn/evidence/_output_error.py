@@ -242,7 +242,11 @@ def fit_output_error(
     from ._bootstrap import SHORT_LOG, bootstrapped, slowest_time_constant  # no cycle
 
     duration = start.h * sum(log.a.shape[0] for log in logs)
-    if duration < SHORT_LOG * slowest_time_constant(fit.model.Ad, start.h):
+    short = duration < SHORT_LOG * slowest_time_constant(fit.model.Ad, start.h)
+    # output errors at the log's rounding (noise-free data) leave the linearization exact
+    # to rounding: the fit's nonlinearity enters with the noise squared, and the refits
+    # would only resample rounding
+    if short and not _at_rounding(list(fit.residuals), floor):
         fit = bootstrapped(fit, logs, matrices, structure is not None, floor)
     return fit
 
@@ -430,15 +434,20 @@ def _robust_covariance(parts: list[tuple[Array, Array]]) -> tuple[Array, Array]:
     fisher = np.zeros((size, size))
     long_run = np.zeros((size, size))
     for r, J in parts:
-        fisher += np.einsum("kil,kim->lm", J, J)
-        scores = np.einsum("kil,ki->kl", J, r)
+        rows = J.reshape(-1, size)
+        fisher += rows.T @ rows
+        scores = np.matmul(r[:, np.newaxis, :], J)[:, 0, :]  # (T, size)
         count = scores.shape[0]
         lags = int(min(count // 10, 4 * count ** (1 / 3)))
-        long_run += scores.T @ scores
-        for lag in range(1, lags + 1):
-            weight = 1.0 - lag / (lags + 1)
-            cross = scores[lag:].T @ scores[:-lag]
-            long_run += weight * (cross + cross.T)
+        # Bartlett's weights 1 - |j| / (L + 1) are a box of L + 1 samples correlated with
+        # itself, so sum_j w_j sum_k s_(k+j) s_k' = W'W / (L + 1), W the scores summed
+        # over every window of L + 1 samples (the log padded with zeros), the differences
+        # of their running sum: one product instead of one per lag
+        running = np.zeros((count + lags + 1, size))
+        np.cumsum(scores, axis=0, out=running[1 : count + 1])
+        running[count + 1 :] = running[count]
+        windows = running[1:] - np.vstack([np.zeros((lags + 1, size)), running[1:count]])
+        long_run += windows.T @ windows / (lags + 1)
     inverse = np.linalg.pinv(fisher)
     return inverse @ long_run @ inverse, fisher
 
