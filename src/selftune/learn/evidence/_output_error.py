@@ -334,10 +334,13 @@ def _gauss_newton(
     n, p = logs[0].x.shape[1], theta.shape[0]
     x0s = [log.x[0].copy() for log in logs]
     iterations = 0
+    # the residuals, Jacobians and simulations at (theta, x0s) when known (None: stale)
+    current: tuple[list[Array], list[Array], list[Array]] | None = None
     for _ in range(WEIGHT_ROUNDS):
-        mats = matrices(theta)
-        chain = _jacobian_map(matrices, theta, structured)
-        residuals, jacobians, _ = _residuals_and_jacobian(logs, mats, x0s, chain)
+        if current is None:
+            chain = _jacobian_map(matrices, theta, structured)
+            current = _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
+        residuals, jacobians, _ = current
         root = _noise_root(np.concatenate(residuals), floor)  # W = root' root
         weight, damping = root.T @ root, 1e-4
         cost = _cost(logs, matrices, (theta, x0s), weight)
@@ -354,15 +357,17 @@ def _gauss_newton(
                 continue
             improvement = (cost - trial_cost) / max(cost, 1e-300)
             theta, x0s, cost, damping = trial, trial_x0s, trial_cost, max(damping / 10, 1e-12)
+            current = None
             if improvement < 1e-12:
                 break
             chain = _jacobian_map(matrices, theta, structured)
-            residuals, jacobians, _ = _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
+            current = _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
+            residuals, jacobians, _ = current
             if _at_rounding(residuals, floor):
                 break
         if _at_rounding(residuals, floor):
             break
-    return _finish(logs, theta, matrices, structured, x0s, h, iterations, floor)
+    return _finish(logs, theta, matrices, structured, x0s, h, iterations, floor, current=current)
 
 
 def _at_rounding(residuals: list[Array], floor: Array) -> bool:
@@ -461,10 +466,15 @@ def _finish(
     h: float,
     iterations: int,
     floor: Array,
+    current: tuple[list[Array], list[Array], list[Array]] | None = None,
 ) -> OutputErrorFit:
+    """The fit at ``(theta, x0s)``; ``current``: the residuals, Jacobians and simulations
+    there, if the search has them (they are computed otherwise)."""
     mats = matrices(theta)
-    chain = _jacobian_map(matrices, theta, structured)
-    residuals, jacobians, simulated = _residuals_and_jacobian(logs, mats, x0s, chain)
+    if current is None:
+        chain = _jacobian_map(matrices, theta, structured)
+        current = _residuals_and_jacobian(logs, mats, x0s, chain)
+    residuals, jacobians, simulated = current
     stacked = np.concatenate(residuals)
     noise = np.atleast_2d(np.cov(stacked.T))
     noise = noise + np.diag(np.maximum(floor**2 - np.diag(noise), 0.0))
