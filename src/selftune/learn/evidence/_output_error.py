@@ -242,7 +242,11 @@ def fit_output_error(
     from ._bootstrap import SHORT_LOG, bootstrapped, slowest_time_constant  # no cycle
 
     duration = start.h * sum(log.a.shape[0] for log in logs)
-    if duration < SHORT_LOG * slowest_time_constant(fit.model.Ad, start.h):
+    short = duration < SHORT_LOG * slowest_time_constant(fit.model.Ad, start.h)
+    # output errors at the log's rounding (noise-free data) leave the linearization exact
+    # to rounding: the fit's nonlinearity enters with the noise squared, and the refits
+    # would only resample rounding
+    if short and not _at_rounding(list(fit.residuals), floor):
         fit = bootstrapped(fit, logs, matrices, structure is not None, floor)
     return fit
 
@@ -330,10 +334,13 @@ def _gauss_newton(
     n, p = logs[0].x.shape[1], theta.shape[0]
     x0s = [log.x[0].copy() for log in logs]
     iterations = 0
+    # the residuals, Jacobians and simulations at (theta, x0s) when known (None: stale)
+    current: tuple[list[Array], list[Array], list[Array]] | None = None
     for _ in range(WEIGHT_ROUNDS):
-        mats = matrices(theta)
-        chain = _jacobian_map(matrices, theta, structured)
-        residuals, jacobians, _ = _residuals_and_jacobian(logs, mats, x0s, chain)
+        if current is None:
+            chain = _jacobian_map(matrices, theta, structured)
+            current = _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
+        residuals, jacobians, _ = current
         root = _noise_root(np.concatenate(residuals), floor)  # W = root' root
         weight, damping = root.T @ root, 1e-4
         cost = _cost(logs, matrices, (theta, x0s), weight)
@@ -350,15 +357,17 @@ def _gauss_newton(
                 continue
             improvement = (cost - trial_cost) / max(cost, 1e-300)
             theta, x0s, cost, damping = trial, trial_x0s, trial_cost, max(damping / 10, 1e-12)
+            current = None
             if improvement < 1e-12:
                 break
             chain = _jacobian_map(matrices, theta, structured)
-            residuals, jacobians, _ = _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
+            current = _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
+            residuals, jacobians, _ = current
             if _at_rounding(residuals, floor):
                 break
         if _at_rounding(residuals, floor):
             break
-    return _finish(logs, theta, matrices, structured, x0s, h, iterations, floor)
+    return _finish(logs, theta, matrices, structured, x0s, h, iterations, floor, current=current)
 
 
 def _at_rounding(residuals: list[Array], floor: Array) -> bool:
@@ -430,15 +439,20 @@ def _robust_covariance(parts: list[tuple[Array, Array]]) -> tuple[Array, Array]:
     fisher = np.zeros((size, size))
     long_run = np.zeros((size, size))
     for r, J in parts:
-        fisher += np.einsum("kil,kim->lm", J, J)
-        scores = np.einsum("kil,ki->kl", J, r)
+        rows = J.reshape(-1, size)
+        fisher += rows.T @ rows
+        scores = np.matmul(r[:, np.newaxis, :], J)[:, 0, :]  # (T, size)
         count = scores.shape[0]
         lags = int(min(count // 10, 4 * count ** (1 / 3)))
-        long_run += scores.T @ scores
-        for lag in range(1, lags + 1):
-            weight = 1.0 - lag / (lags + 1)
-            cross = scores[lag:].T @ scores[:-lag]
-            long_run += weight * (cross + cross.T)
+        # Bartlett's weights 1 - |j| / (L + 1) are a box of L + 1 samples correlated with
+        # itself, so sum_j w_j sum_k s_(k+j) s_k' = W'W / (L + 1), W the scores summed
+        # over every window of L + 1 samples (the log padded with zeros), the differences
+        # of their running sum: one product instead of one per lag
+        running = np.zeros((count + lags + 1, size))
+        np.cumsum(scores, axis=0, out=running[1 : count + 1])
+        running[count + 1 :] = running[count]
+        windows = running[1:] - np.vstack([np.zeros((lags + 1, size)), running[1:count]])
+        long_run += windows.T @ windows / (lags + 1)
     inverse = np.linalg.pinv(fisher)
     return inverse @ long_run @ inverse, fisher
 
@@ -452,10 +466,15 @@ def _finish(
     h: float,
     iterations: int,
     floor: Array,
+    current: tuple[list[Array], list[Array], list[Array]] | None = None,
 ) -> OutputErrorFit:
+    """The fit at ``(theta, x0s)``; ``current``: the residuals, Jacobians and simulations
+    there, if the search has them (they are computed otherwise)."""
     mats = matrices(theta)
-    chain = _jacobian_map(matrices, theta, structured)
-    residuals, jacobians, simulated = _residuals_and_jacobian(logs, mats, x0s, chain)
+    if current is None:
+        chain = _jacobian_map(matrices, theta, structured)
+        current = _residuals_and_jacobian(logs, mats, x0s, chain)
+    residuals, jacobians, simulated = current
     stacked = np.concatenate(residuals)
     noise = np.atleast_2d(np.cov(stacked.T))
     noise = noise + np.diag(np.maximum(floor**2 - np.diag(noise), 0.0))

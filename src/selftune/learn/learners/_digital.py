@@ -46,7 +46,16 @@ from functools import partial
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ...core import RANK_TOLERANCE, Array, unvec, unvecs, vecs_hat, vecs_hat_from_outer
+from ...core import (
+    RANK_TOLERANCE,
+    Array,
+    unvec,
+    unvecs,
+    vec,
+    vecs,
+    vecs_hat,
+    vecs_hat_from_outer,
+)
 from ...errors import InputError, PolicyIterationFailure, TooShort
 from ...loop import LoopWeights, SampledLoop
 from .._problem import LearningOptions, LearningProblem
@@ -266,14 +275,98 @@ def _blocks(solution: RegressionSolution, data: DigitalTransitions) -> _Blocks:
     )
 
 
+@dataclass(frozen=True)
+class _Coordinates:
+    """The regression's coordinates of the controller's state: ``zeta = T zeta~``, with
+    ``zeta~`` of unit second moment over the data.
+
+    The Bellman identity is the same in any coordinates (``P~ = T'P T``, ``S_K~ = S_K T``,
+    ``S_wz~ = S_wz T``, ``K~ = K T``, ``Qz~ = T'Qz T``; ``S_uu``, ``S_wu``, ``S_ww`` as they
+    are), but its regression is not as well conditioned in all: the columns of the
+    quadratic monomials are scaled one by one, and on a stiff plant the logged states mix
+    modes whose sizes differ by orders of magnitude, so that a slow mode's columns are a
+    difference of much larger ones. Rounding then looks like a lack of rank (six states
+    with poles from 1e-3 to 1e5 rad/s: singular values below 1e-9 of the largest in the
+    states' own coordinates, 1e-7 in these). The identity's rows are built in ``zeta~``
+    and every result is read back in ``zeta``.
+
+    Attributes
+    ----------
+    T : ndarray, shape (nz, nz)
+        ``zeta = T zeta~`` (the identity where the states' second moment is singular).
+    data : DigitalTransitions
+        The transitions in ``zeta~``.
+    weights : LoopWeights
+        The weights over ``zeta~``.
+    """
+
+    T: Array
+    data: DigitalTransitions
+    weights: LoopWeights
+
+
+def _coordinates(data: DigitalTransitions, weights: LoopWeights) -> _Coordinates:
+    """The coordinates of unit second moment (see :class:`_Coordinates`): ``T = R'`` of
+    the triangular factor of the states ``zeta = Q R``."""
+    scale = np.linalg.norm(data.zeta, axis=0)
+    if np.any(scale == 0.0) or not np.all(np.isfinite(data.zeta)):
+        T = np.eye(data.nz)
+    else:
+        factor = np.linalg.qr(data.zeta / scale, mode="r")
+        if np.linalg.cond(factor) * RANK_TOLERANCE >= 1.0:
+            T = np.eye(data.nz)
+        else:
+            T = (factor * scale[None, :] / np.sqrt(data.zeta.shape[0])).T
+    inverse = np.linalg.inv(T)
+
+    def moved(transitions: DigitalTransitions) -> DigitalTransitions:
+        return replace(
+            transitions,
+            zeta=transitions.zeta @ inverse.T,
+            zeta_next=transitions.zeta_next @ inverse.T,
+            instruments=None if transitions.instruments is None else moved(transitions.instruments),
+        )
+
+    moved_weights = LoopWeights(
+        Qz=T.T @ weights.Qz @ T,
+        Rz=weights.Rz,
+        Nz=T.T @ weights.Nz,
+        first_stages=T.T @ weights.first_stages @ T,
+    )
+    return _Coordinates(T=T, data=moved(data), weights=moved_weights)
+
+
+def _theta_back(theta: Array, data: DigitalTransitions, T: Array) -> Array:
+    """The regression's unknowns solved in ``zeta~ = T^-1 zeta``, in ``zeta``'s."""
+    nz, m, q = data.nz, data.m, data.q
+    inverse = np.linalg.inv(T)
+    sizes = [nz * (nz + 1) // 2, m * nz, m * (m + 1) // 2, q * nz, m * q]
+    edges = np.cumsum([0, *sizes])
+    P = inverse.T @ unvecs(theta[edges[0] : edges[1]], nz) @ inverse
+    S_K = unvec(theta[edges[1] : edges[2]], m, nz) @ inverse
+    parts = [vecs(0.5 * (P + P.T)), vec(S_K), theta[edges[2] : edges[3]]]
+    if q:
+        parts.append(vec(unvec(theta[edges[3] : edges[4]], q, nz) @ inverse))
+    parts.append(theta[edges[4 if q else 3] :])
+    return np.concatenate(parts)
+
+
 def _step(
-    data: DigitalTransitions, weights: LoopWeights, gamma: float, K: Array, iteration: int
+    data: DigitalTransitions,
+    weights: LoopWeights,
+    coordinates: _Coordinates,
+    gamma: float,
+    K: Array,
+    iteration: int,
 ) -> IterationRecord:
-    """Evaluate ``K`` (= K_j) on the data and improve it."""
+    """Evaluate ``K`` (= K_j) on the data and improve it (the regression in
+    ``coordinates``, the results in the data's)."""
     # S_ww, the value's part quadratic in w, is a nuisance no policy or feedforward uses:
     # its columns may be collinear (a constant w_1 beside the dead-time channels, whose
     # squares add up to a constant), and its minimum-norm part is then as good as any
-    solution = solve_regression(_regression(data, K, weights, gamma), allow_deficient=("Mw",))
+    regression = _regression(coordinates.data, K @ coordinates.T, coordinates.weights, gamma)
+    solution = solve_regression(regression, allow_deficient=("Mw",))
+    solution = replace(solution, theta=_theta_back(solution.theta, data, coordinates.T))
     blocks = _blocks(solution, data)
     eigenvalues = np.linalg.eigvalsh(blocks.P)
     # P is positive semidefinite: delayed inputs the plant does not feel cost nothing
@@ -294,6 +387,7 @@ def _step(
         theta=solution.theta,
         change=float("inf"),
         regression=solution,
+        coordinates=coordinates.T,
     )
 
 
@@ -406,8 +500,10 @@ def learn_digital_adp(
     weights = loop.weights(problem.Q, problem.R)
     K = problem.initial_policy(K0, extra=data.nz - data.n)
 
+    coordinates = _coordinates(data, weights)
+
     def step_at(gamma: float) -> PolicyStep:
-        return partial(_step, data, weights, gamma)
+        return partial(_step, data, weights, coordinates, gamma)
 
     schedule = DISCOUNTS if r else (1.0,)
     settings = (options.max_iterations, options.tolerance)

@@ -69,6 +69,10 @@ class IterationRecord:
         ``||P_j - P_(j-1)||_F / ||P_j||_F`` (inf at j = 0).
     regression : RegressionSolution
         Rank, residual and conditioning of the step's regression.
+    coordinates : ndarray, shape (n, n), optional
+        ``T`` of the coordinates ``x = T x~`` the regression was solved in (None: x's
+        own). P's rounding is the regression's in them, so P's changes are measured
+        there (:meth:`visited`).
     """
 
     iteration: int
@@ -77,6 +81,24 @@ class IterationRecord:
     theta: Array
     change: float
     regression: RegressionSolution = field(repr=False)
+    coordinates: Array | None = field(default=None, repr=False)
+
+    def visited(self, P: Array) -> Array:
+        """``T'P T``: a value matrix in the regression's coordinates (P itself without).
+
+        Parameters
+        ----------
+        P : ndarray, shape (n, n)
+            A value matrix over the record's state (its own P or another step's).
+        """
+        T = self.coordinates
+        return P if T is None else np.asarray(T.T @ P @ T, dtype=np.float64)
+
+    @property
+    def rounding(self) -> float:
+        """The relative change of P (in the regression's coordinates) that rounding alone
+        causes in this step's solve (:func:`_rounding_floor`)."""
+        return _rounding_floor(self.regression)
 
 
 #: The loosest stopping tolerance accepted (see :func:`check_iteration_settings`).
@@ -142,11 +164,11 @@ def policy_iteration(
     for iteration in range(max_iterations):
         record = step(K, iteration)
         if history:
-            previous = history[-1].P
-            change = float(np.linalg.norm(record.P - previous)) / float(np.linalg.norm(record.P))
+            now, previous = record.visited(record.P), record.visited(history[-1].P)
+            change = float(np.linalg.norm(now - previous)) / float(np.linalg.norm(now))
             record = replace(record, change=change)
         history.append(record)
-        if record.change <= max(tolerance, _rounding_floor(record.regression)):
+        if record.change <= max(tolerance, record.rounding):
             return history
         K = record.K
     raise not_converged(history, tolerance, context)

@@ -291,11 +291,19 @@ def standard_errors(
 def _monotone(history: tuple[IterationRecord, ...]) -> int | None:
     """The first step whose value exceeds the previous one's beyond rounding (policy
     iteration must lower the value matrix at every step), or None. A step numbered 0
-    starts a new iteration (a new discount of the schedule, whose values are larger)."""
+    starts a new iteration (a new discount of the schedule, whose values are larger).
+    The values are compared in the coordinates the step's regression was solved in
+    (:meth:`IterationRecord.visited`), less the step's rounding there
+    (:attr:`IterationRecord.rounding`, relative to the value's norm): a direction that
+    carries little of the value (a fast mode's, beside a slow one's 1e5 times larger) would
+    otherwise show the rounding of the whole as a rise of its own."""
     for index in range(1, len(history)):
-        before, after = history[index - 1].P, history[index].P
-        if before.shape != after.shape or history[index].iteration == 0:
+        record = history[index]
+        if history[index - 1].P.shape != record.P.shape or record.iteration == 0:
             continue
+        before, after = record.visited(history[index - 1].P), record.visited(record.P)
+        allowance = record.rounding * float(np.linalg.norm(after, 2))
+        after = after - allowance * np.eye(after.shape[0])
         # scaled by P's diagonal, so that a large block (an integrator's) does not hide
         # or fake a rise in a small one (the currents')
         diagonal = np.abs(np.diag(before))
