@@ -14,6 +14,7 @@ import math
 import os
 import re
 import struct
+import warnings
 import zipfile
 from collections.abc import Callable
 from io import BytesIO
@@ -703,6 +704,77 @@ def test_number_like_fields_are_read_exactly(workdir: Path, text: str) -> None:
 )
 def test_number_like_noise_after_a_valid_header(workdir: Path, header: str, body: str) -> None:
     check_csv(workdir / "noise.csv", (header + "\n" + body).encode())
+
+
+def read_outcome(path: Path) -> str | Arrays:
+    """What load_csv makes of a file: its message, or the arrays it read (warning nothing)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            loaded = load_csv(path)
+    except DataFileError as exc:
+        return str(exc)
+    return loaded.t, loaded.x, loaded.u, loaded.w, loaded.angle
+
+
+def assert_read_alike_in_blocks(path: Path, block: int) -> str | Arrays:
+    """The rows are parsed a block of whole lines at a time (a block is at least
+    ``block`` bytes, to a line end): blocks give the numbers, or the message, that one
+    block for the whole file gives. Returns that outcome."""
+    whole = read_outcome(path)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(selftune_csv, "_CSV_BLOCK_BYTES", block)
+        in_blocks = read_outcome(path)
+    if isinstance(whole, str) or isinstance(in_blocks, str):
+        assert in_blocks == whole
+    else:
+        assert all(same(a, b) for a, b in zip(in_blocks, whole, strict=True))
+    return whole
+
+
+@pytest.mark.parametrize("block", [1, 9, 64])
+@given(text=number_like_csv(), blank=st.integers(-1, 6), spaces=st.sampled_from(["", " \t"]))
+def test_blocks_of_lines_read_as_the_whole(
+    workdir: Path, block: int, text: str, blank: int, spaces: str
+) -> None:
+    """Blocks of one line or a few read number-like files as the whole file does (and as
+    the format says), a blank line (at line ``blank``) included."""
+    if blank >= 0:
+        lines = text.split("\n")
+        lines.insert(min(blank, len(lines)), spaces)
+        text = "\n".join(lines)
+    path = workdir / "blocks.csv"
+    check_csv(path, text.encode())
+    assert_read_alike_in_blocks(path, block)
+
+
+EDITS: dict[str, Callable[[list[str]], None]] = {
+    "none": lambda lines: None,
+    "blank line": lambda lines: lines.insert(9, ""),
+    "blank lines": lambda lines: lines.__setitem__(slice(9, 9), ["", "", ""]),
+    "spaces line": lambda lines: lines.insert(9, " \t"),
+    "short line": lambda lines: lines.__setitem__(12, lines[12].rsplit(",", 1)[0]),
+    "bad last field": lambda lines: lines.__setitem__(-1, lines[-1] + "x"),
+    "time back": lambda lines: lines.insert(15, lines[14]),
+    "value beyond": lambda lines: lines.__setitem__(17, lines[17] + "e60"),
+    "trailing blanks": lambda lines: lines.extend(["", " ", "\t", ""]),
+}
+
+
+@pytest.mark.parametrize("ending", ["\n", "\r\n"])
+@pytest.mark.parametrize("edit", list(EDITS))
+def test_block_boundaries_change_nothing(tmp_path: Path, edit: str, ending: str) -> None:
+    """Blocks of one line, of a few, or the whole file: the same numbers or message, for
+    a file with an error in one of its lines, or none."""
+    path = tmp_path / "edited.csv"
+    t = np.linspace(0.0, 1.0, 31)
+    save_csv(Trajectory(t=t, x=np.c_[t, t**2], u=t[:-1], w=np.ones(31), angle=3 * t), path)
+    lines = path.read_text().splitlines()
+    EDITS[edit](lines)
+    path.write_bytes(ending.join(lines).encode())
+    for block in (1, 9, 64):
+        outcome = assert_read_alike_in_blocks(path, block)
+        assert isinstance(outcome, str) == (edit not in ("none", "trailing blanks"))
 
 
 def test_reference_accepts_what_save_writes(tmp_path: Path) -> None:

@@ -316,8 +316,8 @@ def _data_end(raw: bytes, start: int) -> int:
 
 def _parse_rows(raw: bytes, start: int, end: int, rows: int, columns: int) -> Array | None:
     """The plain data lines ``raw[start:end]`` as a (rows, columns) table, parsed a block
-    of whole lines at a time; None if a block has a line numpy cannot parse or a line that
-    does not hold ``columns`` numbers (then the slow scan says which)."""
+    of whole lines at a time; None if a line is not ``columns`` numbers numpy can parse
+    (numpy skips an empty line, so there are fewer rows: then the slow scan says where)."""
     table = np.empty((rows, columns))
     row = 0
     at = start
@@ -325,18 +325,19 @@ def _parse_rows(raw: bytes, start: int, end: int, rows: int, columns: int) -> Ar
         newline = raw.find(b"\n", min(at + _CSV_BLOCK_BYTES, end) - 1, end)
         stop = end if newline < 0 else newline + 1
         block = raw[at:stop]
+        if block.isspace():  # blank lines (numpy would warn that it read no data)
+            return None
         if b"\r" in block:
             block = block.replace(b"\r\n", b"\n")
-        count = block.count(b"\n") + (stop == end)  # the last line has no line end
         try:
             values = np.loadtxt(
                 BytesIO(block), delimiter=",", comments=None, dtype=np.float64, ndmin=2
             )
         except ValueError:
             return None
-        if values.shape != (count, columns):
+        if values.shape[1] != columns:
             return None
-        table[row : row + count] = values
-        row += count
+        table[row : row + values.shape[0]] = values  # at most rows lines in all
+        row += values.shape[0]
         at = stop
-    return table
+    return table if row == rows else None
