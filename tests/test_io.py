@@ -14,6 +14,7 @@ import math
 import os
 import re
 import struct
+import tracemalloc
 import warnings
 import zipfile
 from collections.abc import Callable
@@ -775,6 +776,37 @@ def test_block_boundaries_change_nothing(tmp_path: Path, edit: str, ending: str)
     for block in (1, 9, 64):
         outcome = assert_read_alike_in_blocks(path, block)
         assert isinstance(outcome, str) == (edit not in ("none", "trailing blanks"))
+
+
+def test_reading_holds_the_file_and_the_table_not_copies_of_the_text(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Reading needs (as Python and numpy allocate: tracemalloc's count) the file's bytes,
+    the table of float64 values and as much again (the trajectory's copies of its
+    columns) and four blocks of lines (a block's bytes, numpy's numbers and buffers for
+    it); blocks of 64 KiB keep the file and the table the bulk of it for a small file.
+    Decoding the whole text and numpy's 4-byte-per-character copy of it took seven times
+    the file's size (the file is about twice the table)."""
+    block = 1 << 16
+    monkeypatch.setattr(selftune_csv, "_CSV_BLOCK_BYTES", block)
+    rows, columns = 20_000, 8
+    t = np.arange(rows) * 1e-4
+    x, u, w = np.c_[np.sin(t), np.cos(t)], np.c_[t, -t], np.c_[t * 0.5, t * 2.0]
+    path = tmp_path / "large.csv"
+    save_csv(Trajectory(t=t, x=x, u=u, w=w, angle=3 * t), path)
+    bound = path.stat().st_size + 2 * rows * columns * 8 + 4 * block
+    tracing = tracemalloc.is_tracing()
+    tracemalloc.start()
+    tracemalloc.reset_peak()
+    before = tracemalloc.get_traced_memory()[0]
+    try:
+        loaded = load_csv(path)
+        peak = tracemalloc.get_traced_memory()[1] - before
+    finally:
+        if not tracing:
+            tracemalloc.stop()
+    assert loaded.num_samples == rows - 1
+    assert peak < bound, (peak, bound)
 
 
 def test_reference_accepts_what_save_writes(tmp_path: Path) -> None:
