@@ -444,41 +444,27 @@ def _narrower(values: NDArray[np.floating]) -> str:
     return ""
 
 
-#: 10**k for k = 0..22, the powers of ten that float64 holds exactly.
-_EXACT_POWERS_OF_TEN = np.array([float(f"1e{k}") for k in range(23)])
-
-
 def _short_decimals(values: NDArray[np.floating]) -> bool:
-    """Whether every value is a decimal of at most 6 significant digits, that is
-    ``float(f"{value:.6g}") == value``, without formatting a million values.
-
-    A value is one if and only if ``M / 10**j`` (``M * 10**-j`` for j < 0) rounds to it for
-    an integer ``|M| < 10**6``: with M and the power of ten exact in float64, that one
-    division or product is correctly rounded, as ``float`` of the text is. The value's
-    decade, ``floor(log10 |value|)`` give or take one, fixes j, and M is the scaled value
-    rounded (its rounding errors are far below one half). Values for which a j needs a
-    power of ten beyond 10**22, and values not finite, are checked as text.
-    """
+    """``float(f"{v:.6g}") == v`` for every v, not formatting each: v is such a decimal iff
+    ``M / 10**j`` (``M * 10**-j``) rounds to it for an integer ``|M| < 10**6``; with M and
+    ``10**|j| <= 10**22`` exact, that one operation rounds as ``float`` of the text does."""
     if values.dtype.itemsize > 8:  # wider than float64: only its text is exact
         return all(float(f"{value:.6g}") == value for value in values.tolist())
     v = values.astype(np.float64).ravel()
-    pending = v[np.isfinite(v) & (v != 0.0)]  # not yet shown to be a short decimal
+    pending = v[np.isfinite(v) & (v != 0.0)]  # not yet shown to be such a decimal
     decade = np.floor(np.log10(np.abs(pending)))
-    inexact = np.zeros(pending.shape, dtype=bool)  # a j tried had no exact power
-    for digits in (5.0, 4.0, 6.0):  # the decade as computed first, then its neighbours
+    inexact = np.zeros(pending.shape, dtype=bool)  # a j tried was beyond 22: as text
+    for digits in (5.0, 4.0, 6.0):
         j = digits - decade
         inexact |= np.abs(j) > 22
-        power = _EXACT_POWERS_OF_TEN[np.minimum(np.abs(j), 22).astype(np.intp)]
-        up = j >= 0
+        power = np.array([float(f"1e{k}") for k in range(23)])[np.minimum(abs(j), 22).astype(int)]
         with np.errstate(over="ignore"):
-            scaled = np.rint(np.where(up, pending * power, pending / power))
-            back = np.where(up, scaled / power, scaled * power)
-        other = ~((np.abs(scaled) < 1e6) & (back == pending))
+            scaled = np.rint(np.where(j >= 0, pending * power, pending / power))
+            back = np.where(j >= 0, scaled / power, scaled * power)
+        other = (np.abs(scaled) >= 1e6) | (back != pending)  # j from the decade, +-1
         pending, decade, inexact = pending[other], decade[other], inexact[other]
-    if not np.all(inexact):
-        return False
-    as_text = np.concatenate([pending, v[~np.isfinite(v)]])
-    return all(float(f"{value:.6g}") == value for value in as_text.tolist())
+    as_text = np.concatenate([pending, v[~np.isfinite(v)]]).tolist()
+    return bool(np.all(inexact)) and all(float(f"{value:.6g}") == value for value in as_text)
 
 
 def check_weights(Q: ArrayLike, R: ArrayLike, n: int, m: int) -> tuple[Array, Array]:
