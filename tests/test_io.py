@@ -14,6 +14,8 @@ import math
 import os
 import re
 import struct
+import tracemalloc
+import warnings
 import zipfile
 from collections.abc import Callable
 from io import BytesIO
@@ -705,6 +707,108 @@ def test_number_like_noise_after_a_valid_header(workdir: Path, header: str, body
     check_csv(workdir / "noise.csv", (header + "\n" + body).encode())
 
 
+def read_outcome(path: Path) -> str | Arrays:
+    """What load_csv makes of a file: its message, or the arrays it read (warning nothing)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            loaded = load_csv(path)
+    except DataFileError as exc:
+        return str(exc)
+    return loaded.t, loaded.x, loaded.u, loaded.w, loaded.angle
+
+
+def assert_read_alike_in_blocks(path: Path, block: int) -> str | Arrays:
+    """The rows are parsed a block of whole lines at a time (a block is at least
+    ``block`` bytes, to a line end): blocks give the numbers, or the message, that one
+    block for the whole file gives. Returns that outcome."""
+    whole = read_outcome(path)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(selftune_csv, "_CSV_BLOCK_BYTES", block)
+        in_blocks = read_outcome(path)
+    if isinstance(whole, str) or isinstance(in_blocks, str):
+        assert in_blocks == whole
+    else:
+        assert all(same(a, b) for a, b in zip(in_blocks, whole, strict=True))
+    return whole
+
+
+@pytest.mark.parametrize("block", [1, 9, 64])
+@given(text=number_like_csv(), blank=st.integers(-1, 6), spaces=st.sampled_from(["", " \t"]))
+def test_blocks_of_lines_read_as_the_whole(
+    workdir: Path, block: int, text: str, blank: int, spaces: str
+) -> None:
+    """Blocks of one line or a few read number-like files as the whole file does (and as
+    the format says), a blank line (at line ``blank``) included."""
+    if blank >= 0:
+        lines = text.split("\n")
+        lines.insert(min(blank, len(lines)), spaces)
+        text = "\n".join(lines)
+    path = workdir / "blocks.csv"
+    check_csv(path, text.encode())
+    assert_read_alike_in_blocks(path, block)
+
+
+EDITS: dict[str, Callable[[list[str]], None]] = {
+    "none": lambda lines: None,
+    "blank line": lambda lines: lines.insert(9, ""),
+    "blank lines": lambda lines: lines.__setitem__(slice(9, 9), ["", "", ""]),
+    "spaces line": lambda lines: lines.insert(9, " \t"),
+    "short line": lambda lines: lines.__setitem__(12, lines[12].rsplit(",", 1)[0]),
+    "bad last field": lambda lines: lines.__setitem__(-1, lines[-1] + "x"),
+    "time back": lambda lines: lines.insert(15, lines[14]),
+    "value beyond": lambda lines: lines.__setitem__(17, lines[17] + "e60"),
+    "trailing blanks": lambda lines: lines.extend(["", " ", "\t", ""]),
+}
+
+
+@pytest.mark.parametrize("ending", ["\n", "\r\n"])
+@pytest.mark.parametrize("edit", list(EDITS))
+def test_block_boundaries_change_nothing(tmp_path: Path, edit: str, ending: str) -> None:
+    """Blocks of one line, of a few, or the whole file: the same numbers or message, for
+    a file with an error in one of its lines, or none."""
+    path = tmp_path / "edited.csv"
+    t = np.linspace(0.0, 1.0, 31)
+    save_csv(Trajectory(t=t, x=np.c_[t, t**2], u=t[:-1], w=np.ones(31), angle=3 * t), path)
+    lines = path.read_text().splitlines()
+    EDITS[edit](lines)
+    path.write_bytes(ending.join(lines).encode())
+    for block in (1, 9, 64):
+        outcome = assert_read_alike_in_blocks(path, block)
+        assert isinstance(outcome, str) == (edit not in ("none", "trailing blanks"))
+
+
+def test_reading_holds_the_file_and_the_table_not_copies_of_the_text(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Reading needs (as Python and numpy allocate: tracemalloc's count) the file's bytes,
+    the table of float64 values and as much again (the trajectory's copies of its
+    columns) and four blocks of lines (a block's bytes, numpy's numbers and buffers for
+    it); blocks of 64 KiB keep the file and the table the bulk of it for a small file.
+    Decoding the whole text and numpy's 4-byte-per-character copy of it took seven times
+    the file's size (the file is about twice the table)."""
+    block = 1 << 16
+    monkeypatch.setattr(selftune_csv, "_CSV_BLOCK_BYTES", block)
+    rows, columns = 20_000, 8
+    t = np.arange(rows) * 1e-4
+    x, u, w = np.c_[np.sin(t), np.cos(t)], np.c_[t, -t], np.c_[t * 0.5, t * 2.0]
+    path = tmp_path / "large.csv"
+    save_csv(Trajectory(t=t, x=x, u=u, w=w, angle=3 * t), path)
+    bound = path.stat().st_size + 2 * rows * columns * 8 + 4 * block
+    tracing = tracemalloc.is_tracing()
+    tracemalloc.start()
+    tracemalloc.reset_peak()
+    before = tracemalloc.get_traced_memory()[0]
+    try:
+        loaded = load_csv(path)
+        peak = tracemalloc.get_traced_memory()[1] - before
+    finally:
+        if not tracing:
+            tracemalloc.stop()
+    assert loaded.num_samples == rows - 1
+    assert peak < bound, (peak, bound)
+
+
 def test_reference_accepts_what_save_writes(tmp_path: Path) -> None:
     """The reference reader is not vacuous: it accepts valid files and reads them right."""
     path = tmp_path / "ok.csv"
@@ -1103,6 +1207,36 @@ def test_times_that_cannot_resolve_the_steps_are_refused(
     csv = tmp_path / "coarse.csv"
     csv.write_text("t,x1,u1\n" + "".join(f"{t!r},1,2\n" for t in times.astype(float).tolist()))
     expect_error(load_csv, csv, "Trajectory.t", part)
+
+
+def test_short_decimal_times_are_told_as_their_text_tells() -> None:
+    """The time check asks whether every time is a decimal of at most 6 significant digits
+    (then they say nothing of a rounding to float32): it answers without formatting each
+    one, and as ``float(f"{t:.6g}") == t`` does, value by value, in every decade."""
+    from selftune.core._validation import _short_decimals
+
+    def by_text(values: np.ndarray) -> bool:
+        return all(float(f"{value:.6g}") == value for value in values.tolist())
+
+    rng = np.random.default_rng(7)
+    values: list[float] = [0.0, -0.0, 5e-324, 1e-310, 1.7976931348623157e308]
+    for decade in range(-320, 300, 23):
+        for digits in (1, 3, 6, 7, 9):
+            mantissas = rng.integers(10 ** (digits - 1), 10**digits, 3) * rng.choice([-1, 1], 3)
+            values += [float(f"{int(m)}e{decade - digits + 1}") for m in mantissas]
+        power = float(f"1e{decade}")
+        values += [power, np.nextafter(power, 0.0), np.nextafter(power, np.inf)]
+        values += [float(f"9.99999e{decade}"), float(f"9.999995e{decade}")]
+    for kind in (np.float64, np.float32, np.float16):
+        with np.errstate(over="ignore"):
+            typed = np.array(values).astype(kind)
+        for value in typed:
+            one = np.array([value], dtype=kind)
+            assert _short_decimals(one) == by_text(one), value
+    steps = np.array([float(f"{k * 1e-4:.9g}") for k in range(20_000)])  # a 10 kHz log's
+    for times in (steps, steps + 1e-9, steps.astype(np.float32), rng.standard_normal(9)):
+        assert _short_decimals(times) == by_text(times)
+    assert _short_decimals(steps) and not _short_decimals(steps + 1e-9)
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".npz"])

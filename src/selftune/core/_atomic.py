@@ -132,7 +132,11 @@ def read_regular_file(path: str | os.PathLike[str], limit: int, what: str) -> by
     name = os.fspath(path)
     with open_regular_file(path) as stream:
         size = os.fstat(stream.fileno()).st_size
-        data = stream.read(limit + 1) if size <= limit else b""
+        # The size (read(k) allocates k bytes first), then what the file may have grown
+        # by since, up to one byte past the limit.
+        data = stream.read(size + 1) if size <= limit else b""
+        if len(data) > size:
+            data += stream.read(limit - len(data) + 1)
     if size > limit or len(data) > limit:
         raise DataFileError(
             f"{name}: the file is {max(size, len(data))} bytes, more than the {limit} bytes"

@@ -434,7 +434,7 @@ def _narrower(values: NDArray[np.floating]) -> str:
 
     Times that are all short decimals (at most 6 significant digits: 0, 1, 3, 0.25) are
     exact in every type, and say nothing of a rounding: "" for them."""
-    if all(float(f"{value:.6g}") == value for value in values.tolist()):
+    if _short_decimals(values):
         return ""
     for narrow in ("float16", "float32"):
         if np.dtype(narrow).itemsize < values.dtype.itemsize:
@@ -442,6 +442,29 @@ def _narrower(values: NDArray[np.floating]) -> str:
                 if np.array_equal(values.astype(narrow).astype(values.dtype), values):
                     return narrow
     return ""
+
+
+def _short_decimals(values: NDArray[np.floating]) -> bool:
+    """``float(f"{v:.6g}") == v`` for every v, not formatting each: v is such a decimal iff
+    ``M / 10**j`` (``M * 10**-j``) rounds to it for an integer ``|M| < 10**6``; with M and
+    ``10**|j| <= 10**22`` exact, that one operation rounds as ``float`` of the text does."""
+    if values.dtype.itemsize > 8:  # wider than float64: only its text is exact
+        return all(float(f"{value:.6g}") == value for value in values.tolist())
+    v = values.astype(np.float64).ravel()
+    pending = v[np.isfinite(v) & (v != 0.0)]  # not yet shown to be such a decimal
+    decade = np.floor(np.log10(np.abs(pending)))
+    inexact = np.zeros(pending.shape, dtype=bool)  # a j tried was beyond 22: as text
+    for digits in (5.0, 4.0, 6.0):
+        j = digits - decade
+        inexact |= np.abs(j) > 22
+        power = np.array([float(f"1e{k}") for k in range(23)])[np.minimum(abs(j), 22).astype(int)]
+        with np.errstate(over="ignore"):
+            scaled = np.rint(np.where(j >= 0, pending * power, pending / power))
+            back = np.where(j >= 0, scaled / power, scaled * power)
+        other = (np.abs(scaled) >= 1e6) | (back != pending)  # j from the decade, +-1
+        pending, decade, inexact = pending[other], decade[other], inexact[other]
+    as_text = np.concatenate([pending, v[~np.isfinite(v)]]).tolist()
+    return bool(np.all(inexact)) and all(float(f"{value:.6g}") == value for value in as_text)
 
 
 def check_weights(Q: ArrayLike, R: ArrayLike, n: int, m: int) -> tuple[Array, Array]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import re
-from io import StringIO
+from io import BytesIO
 from pathlib import Path
 from typing import NamedTuple
 
@@ -28,6 +28,9 @@ from ._trajectory import Trajectory
 __all__ = ["csv_dimensions", "load_csv", "save_csv"]
 
 _CSV_CHUNK_ROWS = 10_000
+# Bytes of data lines checked and parsed at a time (a block ends at a line end): what
+# reading holds besides the file's bytes and the table is a block and its numbers.
+_CSV_BLOCK_BYTES = 1 << 22
 # Characters a CSV data line may contain. Restricting them first keeps the numeric
 # grammar to plain decimals (no nan, inf, hex, underscores or exotic whitespace),
 # which numpy's parser and Python's float agree on.
@@ -166,13 +169,15 @@ def _parse_header(path: Path, line: str) -> CsvHeader:
     return CsvHeader(names, counts["x"], counts["u"], counts["w"], angle)
 
 
-def _split_header(path: Path, raw: bytes) -> tuple[str, bytes]:
-    """The header line (decoded) and the rest; an empty file is an error."""
-    header_raw, _, body_raw = raw.removeprefix(_UTF8_BOM).partition(b"\n")
-    header = _decode(path, header_raw, 1).removesuffix("\r")
-    if not header.strip(_FIELD_WHITESPACE) and not body_raw.strip():
+def _split_header(path: Path, raw: bytes) -> tuple[str, int]:
+    """The header line (decoded) and where the data lines start; an empty file is an error."""
+    start = len(_UTF8_BOM) if raw.startswith(_UTF8_BOM) else 0
+    newline = raw.find(b"\n", start)
+    header_end, body = (len(raw), len(raw)) if newline < 0 else (newline, newline + 1)
+    header = _decode(path, raw[start:header_end], 1).removesuffix("\r")
+    if not header.strip(_FIELD_WHITESPACE) and not raw[body:].strip():
         raise file_error(path, f"empty file (expected a header {_HEADER} and rows)")
-    return header, body_raw
+    return header, body
 
 
 def csv_dimensions(path: Path) -> tuple[int, int, int]:
@@ -239,22 +244,7 @@ def load_csv(path: PathLike) -> Trajectory:
         increase. The one-line message names the file, the line and the column.
     """
     target = Path(path)
-    raw = read_regular_file(target, LIMITS["csv_bytes"], "a CSV data file")
-    header, body_raw = _split_header(target, raw)
-    names, n, m, q, angle = _parse_header(target, header)
-    body, end, rows, plain = _csv_body(target, body_raw)
-    table: Array | None = None
-    if plain:
-        try:
-            table = np.loadtxt(
-                StringIO(body), delimiter=",", comments=None, dtype=np.float64, ndmin=2
-            )
-        except ValueError:
-            table = None
-    if table is None or table.shape != (rows, len(names)):
-        # Slow path, only for a malformed file: find the first bad line and field.
-        _locate_csv_error(target, body[:end].split("\n"), names)
-        raise file_error(target, "malformed data rows")  # not reached: the scan raises
+    (names, n, m, q, angle), table = _read_table(target)
     beyond = first_beyond(table)
     if beyond is not None:
         (row, column), what = beyond
@@ -273,27 +263,83 @@ def load_csv(path: PathLike) -> Trajectory:
     return build(target, t, x, u, w, table[:, -1] if angle else None)
 
 
-def _csv_body(path: Path, body_raw: bytes) -> tuple[str, int, int, bool]:
-    """The data lines as text (plain ASCII if they are), where they end, and how many."""
-    # Fast check that the data are plain ASCII numbers, commas and line ends; a file that
-    # fails it is decoded in full so that the scan can say what is wrong where.
-    plain = not body_raw.translate(None, _CSV_DATA_BYTES) and (
-        b"\r" not in body_raw or body_raw.count(b"\r") == body_raw.count(b"\r\n")
-    )
-    body = body_raw.decode("ascii") if plain else _decode(path, body_raw, 2)
-    if "\r" in body:
-        body = body.replace("\r\n", "\n")
-    # Blank lines at the end are ignored (numpy skips empty lines; spaces must go).
-    end = len(body)
-    while end and body[end - 1] in " \t\n":
-        end -= 1
-    if body[end:].strip("\n"):
-        body = body[:end]
-    rows = body.count("\n", 0, end) + 1 if end else 0
+def _read_table(path: Path) -> tuple[CsvHeader, Array]:
+    """The header and the data rows (one per line, one column per name) of a CSV file.
+
+    The file's bytes are held while they are read (and let go on return); the rows are
+    parsed a block of lines at a time into the table, so that reading needs about the
+    file's size and the table's, not copies of the text.
+    """
+    raw = read_regular_file(path, LIMITS["csv_bytes"], "a CSV data file")
+    header, start = _split_header(path, raw)
+    parsed = _parse_header(path, header)
+    plain = _is_plain(raw, start)
+    end = _data_end(raw, start)
+    # A file that is not plain is decoded in full so that the scan can say what is
+    # wrong where (and first whether it is UTF-8 text at all; what follows end is ASCII).
+    text = None if plain else _decode(path, raw[start:end], 2)
+    rows = raw.count(b"\n", start, end) + 1 if end > start else 0
     if rows < 2:
         raise file_error(
             path, f"need at least 2 data rows (sample times) after the header, got {rows}"
         )
     if rows > LIMITS["samples"]:
         raise file_error(path, f"{rows} data rows; at most {LIMITS['samples']} are read")
-    return body, end, rows, plain
+    table = _parse_rows(raw, start, end, rows, len(parsed.names)) if plain else None
+    if table is None:
+        # Slow path, only for a malformed file: find the first bad line and field.
+        body = raw[start:end].decode("ascii") if text is None else text
+        _locate_csv_error(path, body.replace("\r\n", "\n").split("\n"), parsed.names)
+        raise file_error(path, "malformed data rows")  # not reached: the scan raises
+    return parsed, table
+
+
+def _is_plain(raw: bytes, start: int) -> bool:
+    """Whether the data lines (from ``start``) hold only plain ASCII numbers, commas, spaces,
+    tabs and line ends, with every carriage return in a ``\\r\\n``."""
+    # What deleting those bytes leaves of the whole file is what it leaves of the header
+    # (one pass, and no copy of the rows: for plain rows it leaves nothing of them).
+    others = len(raw.translate(None, _CSV_DATA_BYTES))
+    if others != len(raw[:start].translate(None, _CSV_DATA_BYTES)):
+        return False
+    return raw.find(b"\r", start) < 0 or raw.count(b"\r", start) == raw.count(b"\r\n", start)
+
+
+def _data_end(raw: bytes, start: int) -> int:
+    """Where the data lines end: blank lines (spaces, tabs, line ends) at the end of the
+    file are ignored. A carriage return counts as a line end only in a ``\\r\\n``."""
+    end = len(raw)
+    while end > start and (
+        raw[end - 1] in b" \t\n" or (raw[end - 1] == ord("\r") and raw[end : end + 1] == b"\n")
+    ):
+        end -= 1
+    return end
+
+
+def _parse_rows(raw: bytes, start: int, end: int, rows: int, columns: int) -> Array | None:
+    """The plain data lines ``raw[start:end]`` as a (rows, columns) table, parsed a block
+    of whole lines at a time; None if a line is not ``columns`` numbers numpy can parse
+    (numpy skips an empty line, so there are fewer rows: then the slow scan says where)."""
+    table = np.empty((rows, columns))
+    row = 0
+    at = start
+    while at < end:
+        newline = raw.find(b"\n", min(at + _CSV_BLOCK_BYTES, end) - 1, end)
+        stop = end if newline < 0 else newline + 1
+        block = raw[at:stop]
+        if block.isspace():  # blank lines (numpy would warn that it read no data)
+            return None
+        if b"\r" in block:
+            block = block.replace(b"\r\n", b"\n")
+        try:
+            values = np.loadtxt(
+                BytesIO(block), delimiter=",", comments=None, dtype=np.float64, ndmin=2
+            )
+        except ValueError:
+            return None
+        if values.shape[1] != columns:
+            return None
+        table[row : row + values.shape[0]] = values  # at most rows lines in all
+        row += values.shape[0]
+        at = stop
+    return table if row == rows else None
