@@ -52,6 +52,11 @@ __all__ = ["BIAS_DRAWS", "measurement_noise", "without_sign_bias"]
 #: Refits that measure the bias, per round.
 BIAS_DRAWS = 6
 
+#: The most transitions the refits see (the first of the logs): the bias, an effect of
+#: the signs near zero current, is the same on a longer log; the refits' cost is not
+#: (a 1,000,000-row log would take hours).
+BIAS_SAMPLES = 20_000
+
 #: Rounds: each measures the bias where the previous one's correction put the model.
 BIAS_ROUNDS = 2
 
@@ -127,6 +132,24 @@ def _simulated(
     return x
 
 
+def _first_samples(
+    logs: Sequence[_Log], rows: Sequence[Array], x0s: Sequence[Array]
+) -> tuple[list[_Log], list[Array], list[Array]]:
+    """The logs' first :data:`BIAS_SAMPLES` transitions in all (with their angles and
+    initial states): the bias does not shrink with the length, the refits' cost grows."""
+    kept: tuple[list[_Log], list[Array], list[Array]] = ([], [], [])
+    left = BIAS_SAMPLES
+    for log, angle, x0 in zip(logs, rows, x0s, strict=True):
+        count = min(log.a.shape[0], left)
+        if count < 1:
+            break
+        kept[0].append(_Log(x=log.x[: count + 1], a=log.a[:count], w=log.w[:count]))
+        kept[1].append(angle[: count + 1])
+        kept[2].append(x0)
+        left -= count
+    return kept
+
+
 def _describes(truths: Sequence[Array], logs: Sequence[_Log]) -> bool:
     """Whether the simulated currents follow the measured ones (:data:`WORLD_FIDELITY`)."""
     measured = np.concatenate([log.x for log in logs])
@@ -183,6 +206,9 @@ def without_sign_bias(
         )
     ]
     x0s = [simulated[0] for simulated in fit.simulated]
+    total = sum(log.a.shape[0] for log in logs)
+    logs, rows, x0s = _first_samples(logs, rows, x0s)
+    share = sum(log.a.shape[0] for log in logs) / total
     q = logs[0].w.shape[1] - 2
     structured = fit.structure is not None
     corrected, steps = fit.parameters, []
@@ -216,10 +242,11 @@ def without_sign_bias(
         if not _stable(fit, corrected):
             return None
     final = _finish(
-        logs, corrected, fit.matrices, structured, x0s, fit.model.h, fit.iterations, floor
-    )
+        _logs(episodes, shift), corrected, fit.matrices, structured,
+        [simulated[0] for simulated in fit.simulated], fit.model.h, fit.iterations, floor,
+    )  # fmt: skip
     # the same kind of parameters; the time correlation is the data's, measured at the fit
     final = replace(final, structure=fit.structure, correlation_inflation=fit.correlation_inflation)
-    spread = np.atleast_2d(np.cov(draws.T))
+    spread = share * np.atleast_2d(np.cov(draws.T))  # the refits saw a share of the log
     extra = np.outer(steps[-1], steps[-1]) + spread / draws.shape[0]
     return with_spread(final, np.diag(spread), extra), corrected - fit.parameters
