@@ -40,6 +40,11 @@ are the field names.
 9. :func:`measure_realistic_drive` (:mod:`._realistic_drive`): selftune on the realistic
    drive against identify-then-design, the industrial PI recipe and nominal designs,
    every controller given the same knowledge and data; Algorithm 3's flux.
+10. :func:`measure_refusals` (:mod:`._refusals`): refusals and calibration on a corpus of
+    five motors logged by the realistic drive and an independent exact dq simulator
+    (noise, ADC, dead time), at several lengths and seeds: destabilizing results, results
+    beyond 3 standard errors, entries within 1 and 3, false refusals, every refusal's
+    message.
 
 The learners never see a model; the model-based optimum and the exact closed-form
 solution are used only to score them.
@@ -70,6 +75,16 @@ from ._realistic_drive import (
     markdown_realistic_drive,
     measure_realistic_drive,
 )
+from ._refusals import (
+    BlockCalibration,
+    BlockSummary,
+    CorpusLog,
+    CorpusMotor,
+    CorpusOutcome,
+    Refusals,
+    RefusalsConfig,
+    measure_refusals,
+)
 from ._report import BenchReport, DriveStudiesConfig, Environment, bench_command, run_bench
 from ._simulation import BatchMeasurement, Simulation, measure_simulation
 from ._targets import TargetOutcome
@@ -86,11 +101,16 @@ __all__ = [
     "BatchMeasurement",
     "BenchConfig",
     "BenchReport",
+    "BlockCalibration",
+    "BlockSummary",
     "Calibration",
     "CalibrationMethod",
     "CalibrationTrial",
     "ConsistencyRatio",
     "ControllerOutcome",
+    "CorpusLog",
+    "CorpusMotor",
+    "CorpusOutcome",
     "DataEfficiency",
     "DelayCost",
     "DriveRates",
@@ -111,6 +131,8 @@ __all__ = [
     "NoiseStudy",
     "RateErrors",
     "RealisticDriveComparison",
+    "Refusals",
+    "RefusalsConfig",
     "SelfTuningValue",
     "Simulation",
     "SimulatorMeasurement",
@@ -124,6 +146,7 @@ __all__ = [
     "measure_learning_cost",
     "measure_noise",
     "measure_realistic_drive",
+    "measure_refusals",
     "measure_self_tuning_value",
     "measure_simulation",
     "run_bench",
