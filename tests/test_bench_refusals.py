@@ -141,3 +141,10 @@ def test_the_quick_studys_counts_add_up() -> None:
     lines = markdown_refusals(refusals)
     assert lines[0] == "## 10. Refusals and calibration"
     assert refusals_target(refusals, quick=True).met is None
+
+
+def test_a_shorter_log_is_a_prefix_of_a_longer_one() -> None:
+    motor = BY_NAME["README"]
+    short, long = (exact_dq_log(motor, n, seed=6, noise=0.01, dead_time=1.0) for n in (50, 120))
+    np.testing.assert_array_equal(short.x, long.x[:51])
+    np.testing.assert_array_equal(short.u, long.u[:50])

@@ -139,6 +139,11 @@ class CorpusMotor:
             1.0 / self.sampling_frequency_hz,
         )  # fmt: skip
 
+    @property
+    def adc_step_amperes(self) -> float:
+        """The ADC's step (one least significant bit), A."""
+        return 2.0 * self.adc_range_amperes / 2**ADC_BITS
+
     def text(self) -> str:
         """The motor in one line."""
         electrical = self.pole_pairs_count * self.speed_rad_per_second
@@ -147,7 +152,7 @@ class CorpusMotor:
             f"phi_pm = {self.phi_pm_weber * 1e3:g} mWb, p = {self.pole_pairs_count}, "
             f"{electrical:g} rad/s electrical, T* = {self.torque_newton_meters:g} N m, "
             f"{self.sampling_frequency_hz / 1e3:g} kHz, {self.dc_voltage_volts:g} V bus, "
-            f"ADC +-{self.adc_range_amperes:g} A)"
+            f"ADC +-{self.adc_range_amperes:g} A: {self.adc_step_amperes * 1e3:.3g} mA steps)"
         )
 
 
@@ -187,9 +192,9 @@ class RefusalsConfig:
 
     @classmethod
     def full(cls) -> RefusalsConfig:
-        """Five motors, both plants, 2 seeds, 0.1, 0.5 and 2 s."""
+        """Five motors, both plants, 3 seeds, 0.1, 0.5 and 2 s (about 20 minutes)."""
         names = tuple(motor.name_text for motor in MOTORS)
-        return cls(names, PLANTS, (160_001, 160_002), (0.1, 0.5, 2.0), "adp")
+        return cls(names, PLANTS, (160_001, 160_002, 160_003), (0.1, 0.5, 2.0), "adp")
 
     @classmethod
     def quick(cls) -> RefusalsConfig:
@@ -341,11 +346,12 @@ def exact_dq_log(
     t = np.asarray(np.arange(samples + 1) * h, dtype=float)
     angle = np.asarray(experiment.electrical_speed * t, dtype=float)
     w = _w(motor, t)
-    rng = np.random.default_rng(seed)
+    # one generator each: a shorter log is a prefix of a longer one of the same seed
+    exploring, sensing = (np.random.default_rng([seed, stream]) for stream in (0, 1))
     amplitude = EXPLORATION_FRACTION * motor.dc_voltage_volts
-    exploration = rng.uniform(-amplitude, amplitude, (samples, 2))
-    measurement_noise = noise * rng.standard_normal((samples + 1, 3))
-    lsb = 2.0 * motor.adc_range_amperes / 2**ADC_BITS
+    exploration = exploring.uniform(-amplitude, amplitude, (samples, 2))
+    measurement_noise = noise * sensing.standard_normal((samples + 1, 3))
+    lsb = motor.adc_step_amperes
     law = _logging_law(experiment)
     no_past = np.zeros((0, 2))
     s = np.zeros(7)
@@ -796,9 +802,12 @@ def markdown_refusals(refusals: Refusals) -> list[str]:
     cells = {(o.log.motor.name_text, o.log.plant_text, o.log.seed, o.data_seconds): o
              for o in outcomes}  # fmt: skip
     lines += table(
-        ["motor", "plant", "seed", "noise, dead time", *(f"{s:g} s" for s in durations)],
+        ["motor", "plant", "seed", "noise (ADC steps), dead time",
+         *(f"{s:g} s" for s in durations)],
         [[motor, plant, str(seed),
-          next(f"{o.log.current_noise_amperes * 1e3:.3g} mA, {o.log.dead_time_volts:.2g} V"
+          next(f"{o.log.current_noise_amperes * 1e3:.3g} mA "
+               f"({o.log.current_noise_amperes / o.log.motor.adc_step_amperes:.2g}), "
+               f"{o.log.dead_time_volts:.2g} V"
                for o in outcomes if (o.log.motor.name_text, o.log.plant_text, o.log.seed)
                == (motor, plant, seed)),
           *(_cell(cells[(motor, plant, seed, s)]) if (motor, plant, seed, s) in cells else "-"
