@@ -83,6 +83,7 @@ from ._refusals import (
     CorpusOutcome,
     Refusals,
     RefusalsConfig,
+    markdown_refusals,
     measure_refusals,
 )
 from ._report import BenchReport, DriveStudiesConfig, Environment, bench_command, run_bench
@@ -139,6 +140,7 @@ __all__ = [
     "TargetOutcome",
     "bench_command",
     "markdown_realistic_drive",
+    "markdown_refusals",
     "measure_calibration",
     "measure_data_efficiency",
     "measure_drive_rates",

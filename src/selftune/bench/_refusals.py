@@ -31,6 +31,11 @@ whose block error exceeds 3 stated relative standard errors (``||K - K*|| / ||K*
 ``K_relative_se``; U, K_i likewise), the results that destabilize the true loop (spectral
 radius >= 1), and every refusal with its cause and message; a refusal is **false** when a
 shorter prefix of the same log, or the same length of a sibling seed, was learned.
+
+The full size alone (about 20 minutes on 2 cores; ``selftune bench`` runs it with the rest)::
+
+    python -c "from selftune.bench import RefusalsConfig, markdown_refusals, measure_refusals;
+    print(*markdown_refusals(measure_refusals(RefusalsConfig.full())), sep='\\n')"
 """
 
 from __future__ import annotations
@@ -77,6 +82,7 @@ __all__ = [
     "markdown_refusals",
     "measure_refusals",
     "refusals_target",
+    "tallied",
 ]
 
 #: Seed of the generator of each log's noise and dead time (no test uses it).
@@ -600,10 +606,12 @@ def _with_false_refusals(outcomes: list[CorpusOutcome]) -> list[CorpusOutcome]:
 
 @dataclass(frozen=True)
 class BlockSummary:
-    """One block over every learned result.
+    """One block over the learned results of one plant, or of both.
 
     Attributes
     ----------
+    plant_text : str
+        ``"all"`` or one of :data:`PLANTS`.
     block_text : str
     results_count : int
     entries_count : int
@@ -619,6 +627,7 @@ class BlockSummary:
         The result with the largest norm ratio, for reproduction.
     """
 
+    plant_text: str
     block_text: str
     results_count: int
     entries_count: int
@@ -631,12 +640,17 @@ class BlockSummary:
     worst_text: str
 
 
-def _summary(name: str, outcomes: Sequence[CorpusOutcome]) -> BlockSummary:
-    pairs = [(o, b) for o in outcomes for b in o.blocks if b.block_text == name]
+def _summary(name: str, plant: str, outcomes: Sequence[CorpusOutcome]) -> BlockSummary:
+    pairs = [
+        (o, b)
+        for o in outcomes
+        for b in o.blocks
+        if b.block_text == name and plant in ("all", o.log.plant_text)
+    ]
     entries = sum(b.entries_count for _, b in pairs)
     worst = max(pairs, key=lambda pair: pair[1].norm_ratio, default=None)
     return BlockSummary(
-        block_text=name, results_count=len(pairs), entries_count=entries,
+        plant_text=plant, block_text=name, results_count=len(pairs), entries_count=entries,
         within_one_ratio=sum(b.within_one_count for _, b in pairs) / entries if entries else None,
         within_three_ratio=(
             sum(b.within_three_count for _, b in pairs) / entries if entries else None),
@@ -665,7 +679,7 @@ class Refusals:
     refusals_text : str
         Refusals by cause.
     blocks : tuple of BlockSummary
-        K, K_i, U.
+        K, K_i, U over both plants, then over each (:data:`PLANTS`).
     outcomes : tuple of CorpusOutcome
     wall_seconds : float
     """
@@ -701,18 +715,35 @@ def measure_refusals(config: RefusalsConfig, progress: bool = False) -> Refusals
     started = time.perf_counter()
     logs = corpus_logs(config)
     each = with_progress(logs, lambda log: _outcomes(log, config), "refusals", progress)
-    outcomes = _with_false_refusals([o for group in each for o in group])
+    outcomes = [o for group in each for o in group]
+    return tallied(config.method_text, outcomes, time.perf_counter() - started)
+
+
+def tallied(method: str, outcomes: Sequence[CorpusOutcome], seconds: float) -> Refusals:
+    """The study's counts of the runs' outcomes (their refusals judged false or not here).
+
+    Parameters
+    ----------
+    method : str
+        The method every run used.
+    outcomes : sequence of CorpusOutcome
+        Every run.
+    seconds : float
+        Wall time of the runs, s.
+    """
+    outcomes = _with_false_refusals(list(outcomes))
     causes = Counter(o.cause_text for o in outcomes if o.refused)
     radii = [o.true_loop_radius_ratio for o in outcomes if o.true_loop_radius_ratio is not None]
     return Refusals(
-        corpus_seed=CORPUS_SEED, method_text=config.method_text, logs_count=len(outcomes),
+        corpus_seed=CORPUS_SEED, method_text=method, logs_count=len(outcomes),
         learned_count=len(radii), refused_count=sum(causes.values()),
         false_refusals_count=sum(bool(o.false_refusal_text) for o in outcomes),
         destabilizing_count=sum(radius >= 1.0 for radius in radii),
         unnamed_refusals_count=causes[UNNAMED],
         refusals_text=", ".join(f"{cause} {count}" for cause, count in causes.most_common()),
-        blocks=tuple(_summary(name, outcomes) for name in BLOCKS),
-        outcomes=tuple(outcomes), wall_seconds=time.perf_counter() - started,
+        blocks=tuple(_summary(name, plant, outcomes) for plant in ("all", *PLANTS)
+                     for name in BLOCKS),
+        outcomes=tuple(outcomes), wall_seconds=seconds,
     )  # fmt: skip
 
 
@@ -779,10 +810,10 @@ def markdown_refusals(refusals: Refusals) -> list[str]:
     )  # fmt: skip
     lines += [""]
     lines += table(
-        ["block", "results", "entries", "within 1 se", "within 3 se",
+        ["plant", "block", "results", "entries", "within 1 se", "within 3 se",
          "results beyond 3 se (norm)", "results with an entry beyond 3 se",
          "largest norm ratio", "largest entry ratio"],
-        [[b.block_text, str(b.results_count), str(b.entries_count),
+        [[b.plant_text, b.block_text, str(b.results_count), str(b.entries_count),
           _percent(b.within_one_ratio), _percent(b.within_three_ratio),
           str(b.outside_three_norm_count), str(b.outside_three_entry_count),
           _number(b.largest_norm_ratio), _number(b.largest_entry_ratio)]
@@ -843,7 +874,7 @@ def refusals_target(refusals: Refusals, quick: bool) -> TargetOutcome:
     quick : bool
         Whether it is the CI-sized run.
     """
-    blocks = refusals.blocks
+    blocks = [b for b in refusals.blocks if b.plant_text == "all"]
     low, high = WITHIN_ONE_RANGE
     calibrated = all(
         b.within_one_ratio is not None and b.within_three_ratio is not None
