@@ -11,14 +11,10 @@ import numpy as np
 import pytest
 
 from selftune.bench import RefusalsConfig, measure_refusals
+from selftune.bench._corpus import ADC_BITS, MOTORS, PLANTS, corpus_logs, exact_dq_log
 from selftune.bench._refusals import (
-    ADC_BITS,
-    MOTORS,
-    PLANTS,
     CorpusOutcome,
     _with_false_refusals,
-    corpus_logs,
-    exact_dq_log,
     markdown_refusals,
     refusals_target,
 )

@@ -40,11 +40,11 @@ are the field names.
 9. :func:`measure_realistic_drive` (:mod:`._realistic_drive`): selftune on the realistic
    drive against identify-then-design, the industrial PI recipe and nominal designs,
    every controller given the same knowledge and data; Algorithm 3's flux.
-10. :func:`measure_refusals` (:mod:`._refusals`): refusals and calibration on a corpus of
-    five motors logged by the realistic drive and an independent exact dq simulator
-    (noise, ADC, dead time), at several lengths and seeds: destabilizing results, results
-    beyond 3 standard errors, entries within 1 and 3, false refusals, every refusal's
-    message.
+10. :func:`measure_refusals` (:mod:`._refusals`): refusals and calibration on a corpus
+    (:mod:`._corpus`) of five motors logged by the realistic drive and an independent
+    exact dq simulator (noise, ADC, dead time), at several lengths and seeds:
+    destabilizing results, results beyond 3 standard errors, entries within 1 and 3,
+    false refusals, every refusal's message.
 
 The learners never see a model; the model-based optimum and the exact closed-form
 solution are used only to score them.
@@ -63,6 +63,7 @@ from ._common import (
     TARGET_SPEEDUP,
     BenchConfig,
 )
+from ._corpus import CorpusLog, CorpusMotor, RefusalsConfig
 from ._data_efficiency import DataEfficiency, ErrorCurve, measure_data_efficiency
 from ._drive_rates import DelayCost, DriveRates, RateErrors, measure_drive_rates
 from ._gem import GymElectricMotor
@@ -78,11 +79,8 @@ from ._realistic_drive import (
 from ._refusals import (
     BlockCalibration,
     BlockSummary,
-    CorpusLog,
-    CorpusMotor,
     CorpusOutcome,
     Refusals,
-    RefusalsConfig,
     markdown_refusals,
     measure_refusals,
 )

@@ -36,6 +36,7 @@ from ._common import (
     BenchConfig,
     table,
 )
+from ._corpus import RefusalsConfig
 from ._data_efficiency import DataEfficiency, markdown_data, measure_data_efficiency
 from ._drive_rates import (
     RATE_FREQUENCIES,
@@ -54,13 +55,7 @@ from ._realistic_drive import (
     markdown_realistic_drive,
     measure_realistic_drive,
 )
-from ._refusals import (
-    Refusals,
-    RefusalsConfig,
-    markdown_refusals,
-    measure_refusals,
-    refusals_target,
-)
+from ._refusals import Refusals, markdown_refusals, measure_refusals, refusals_target
 from ._simulation import Simulation, markdown_simulation, measure_simulation
 from ._targets import TargetOutcome
 from ._value import SelfTuningValue, markdown_value, measure_self_tuning_value
