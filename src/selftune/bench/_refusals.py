@@ -506,6 +506,20 @@ def markdown_refusals(refusals: Refusals) -> list[str]:
     )  # fmt: skip
     used = [motor.text() for motor in MOTORS if any(o.log.motor == motor for o in outcomes)]
     lines += ["", "Motors: " + "; ".join(used) + "."]
+    wrong = [
+        o for o in outcomes
+        if any(b.norm_ratio > 3.0 for b in o.blocks)
+        or (o.true_loop_radius_ratio is not None and o.true_loop_radius_ratio >= 1.0)
+    ]  # fmt: skip
+    lines += ["", f"Results beyond 3 stated standard errors of a block, or destabilizing: "
+              f"{len(wrong)}.", ""]  # fmt: skip
+    lines += [
+        f"- {o.log_text}: {_cell(o)} (largest entry "
+        f"{max(b.largest_entry_ratio for b in o.blocks):.2f} se), true loop radius "
+        f"{o.true_loop_radius_ratio:.4f}, dead time fitted "
+        + ("n/a" if o.fitted_dead_time_volts is None else f"{o.fitted_dead_time_volts:.3g} V")
+        for o in wrong
+    ]
     causes = sorted({o.cause_text for o in outcomes if o.refused})
     if causes:
         lines += ["", "Causes: " + "; ".join(f"{key}: {CAUSE_TITLES[key]}" for key in causes)
