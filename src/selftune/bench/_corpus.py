@@ -19,7 +19,8 @@ Both run the README's experiment: a gentle ``K0`` (:attr:`~._experiment.Experime
 with the back-EMF fed forward, the torque reference stepping through ``+-T*`` and
 ``+-T*/3`` every 10 ms (:func:`~selftune.tuning.reference_perturbation`, ``"steps"``),
 uniform exploration of :data:`~._experiment.EXPLORATION_FRACTION` of the motor's bus on
-each voltage; 1-50 mA of noise and 0.5-2 V of dead time (drawn per log, seeded).
+each voltage; 1-50 mA of noise and 0.5-2 V of dead time (drawn per motor and plant,
+seeded; the seeds of one motor and plant are siblings: another exploration and noise).
 """
 
 from __future__ import annotations
@@ -204,9 +205,10 @@ class CorpusLog:
 
 
 def corpus_logs(config: RefusalsConfig) -> list[CorpusLog]:
-    """The logs of the sizes, with their noise (1-50 mA, log-uniform) and dead time
-    (0.5-2 V) drawn from a generator seeded by :data:`CORPUS_SEED`, the motor's and the
-    plant's places and the seed (a log's draw does not depend on which others are run).
+    """The logs of the sizes. Each motor and plant has its noise (1-50 mA, log-uniform)
+    and dead time (0.5-2 V), drawn from a generator seeded by :data:`CORPUS_SEED` and
+    their places (a draw does not depend on which others are run); its seeds are
+    siblings: the same conditions, another exploration and noise.
 
     Parameters
     ----------
@@ -218,10 +220,9 @@ def corpus_logs(config: RefusalsConfig) -> list[CorpusLog]:
         if motor.name_text not in config.motor_names_text:
             continue
         for plant in config.plants_text:
-            for seed in config.seeds:
-                rng = np.random.default_rng([CORPUS_SEED, index, PLANTS.index(plant), seed])
-                noise = Span(1e-3, 5e-2, log=True).draw(rng)
-                logs.append(CorpusLog(motor, plant, seed, noise, Span(0.5, 2.0).draw(rng)))
+            rng = np.random.default_rng([CORPUS_SEED, index, PLANTS.index(plant)])
+            noise, volts = Span(1e-3, 5e-2, log=True).draw(rng), Span(0.5, 2.0).draw(rng)
+            logs += [CorpusLog(motor, plant, seed, noise, volts) for seed in config.seeds]
     return logs
 
 
