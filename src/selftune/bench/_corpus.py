@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg
 
-from ..core import Array, ControlLaw
+from ..core import PAPER_MOTOR, PAPER_SPEED, PAPER_TORQUE, Array, ControlLaw
 from ..learn import Trajectory
 from ..model import SPMSM
 from ..sim import DriveSettings, RealisticDrive, held, uniform
@@ -121,10 +121,23 @@ class CorpusMotor:
         )
 
 
-#: The motors of the corpus.
+#: The motors of the corpus: the README's; the paper's at its operating point, sampled at
+#: 10 kHz; a 48 V low-inductance one at 20 kHz; one at 1,600 rad/s electrical at 10 kHz;
+#: a large slow one at 5 kHz.
 MOTORS = (
     CorpusMotor("README", 0.6, 8e-3, 0.35, 3, 50.0, 5.0, 1e4, 540.0, 50.0),
-    CorpusMotor("paper", 0.439, 0.0601, 0.46, 2, 10.0, 10.0, 1e4, 540.0, 50.0),
+    CorpusMotor(
+        "paper",
+        PAPER_MOTOR["R_s"],
+        PAPER_MOTOR["L_s"],
+        PAPER_MOTOR["phi_pm"],
+        int(PAPER_MOTOR["p"]),
+        PAPER_SPEED,
+        PAPER_TORQUE,
+        1e4,
+        540.0,
+        50.0,
+    ),
     CorpusMotor("48 V", 0.08, 0.9e-3, 0.01, 4, 300.0, 1.2, 2e4, 48.0, 100.0),
     CorpusMotor("fast", 0.3, 2e-3, 0.05, 4, 400.0, 2.0, 1e4, 540.0, 50.0),
     CorpusMotor("large slow", 0.05, 2e-3, 1.2, 8, 10.0, 500.0, 5e3, 540.0, 200.0),
