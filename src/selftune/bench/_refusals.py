@@ -15,7 +15,7 @@ whose block error exceeds 3 stated relative standard errors (``||K - K*|| / ||K*
 radius >= 1), and every refusal with its cause and message; a refusal is **false** when a
 shorter prefix of the same log, or the same length of a sibling seed, was learned.
 
-The full size alone (about 20 minutes on 2 cores; ``selftune bench`` runs it with the rest)::
+The full size alone (about 11 minutes on 2 cores; ``selftune bench`` runs it with the rest)::
 
     python -c "from selftune.bench import RefusalsConfig, markdown_refusals, measure_refusals;
     print(*markdown_refusals(measure_refusals(RefusalsConfig.full())), sep='\\n')"
