@@ -35,6 +35,7 @@ SECTIONS = (
     "honesty",
     "noise",
     "calibration",
+    "refusals",
 )
 
 #: A numeric key must name its unit (or say it is a ratio, a count, a relative error...).
@@ -269,6 +270,7 @@ def test_markdown_has_every_table_and_says_which_targets_are_met(report: BenchRe
         "## 7. Measurement noise",
         "## 8. Calibration",
         "## 9. On a realistic drive",
+        "## 10. Refusals and calibration",
     ):
         assert heading in text
     section = text.split("## Targets")[1].split("\n## ")[0]

@@ -40,6 +40,11 @@ are the field names.
 9. :func:`measure_realistic_drive` (:mod:`._realistic_drive`): selftune on the realistic
    drive against identify-then-design, the industrial PI recipe and nominal designs,
    every controller given the same knowledge and data; Algorithm 3's flux.
+10. :func:`measure_refusals` (:mod:`._refusals`): refusals and calibration on a corpus
+    (:mod:`._corpus`) of five motors logged by the realistic drive and an independent
+    exact dq simulator (noise, ADC, dead time), at several lengths and seeds:
+    destabilizing results, results beyond 3 standard errors, entries within 1 and 3,
+    false refusals, every refusal's message.
 
 The learners never see a model; the model-based optimum and the exact closed-form
 solution are used only to score them.
@@ -58,6 +63,7 @@ from ._common import (
     TARGET_SPEEDUP,
     BenchConfig,
 )
+from ._corpus import CorpusLog, CorpusMotor, RefusalsConfig
 from ._data_efficiency import DataEfficiency, ErrorCurve, measure_data_efficiency
 from ._drive_rates import DelayCost, DriveRates, RateErrors, measure_drive_rates
 from ._gem import GymElectricMotor
@@ -69,6 +75,14 @@ from ._realistic_drive import (
     RealisticDriveComparison,
     markdown_realistic_drive,
     measure_realistic_drive,
+)
+from ._refusals import (
+    BlockCalibration,
+    BlockSummary,
+    CorpusOutcome,
+    Refusals,
+    markdown_refusals,
+    measure_refusals,
 )
 from ._report import BenchReport, DriveStudiesConfig, Environment, bench_command, run_bench
 from ._simulation import BatchMeasurement, Simulation, measure_simulation
@@ -86,11 +100,16 @@ __all__ = [
     "BatchMeasurement",
     "BenchConfig",
     "BenchReport",
+    "BlockCalibration",
+    "BlockSummary",
     "Calibration",
     "CalibrationMethod",
     "CalibrationTrial",
     "ConsistencyRatio",
     "ControllerOutcome",
+    "CorpusLog",
+    "CorpusMotor",
+    "CorpusOutcome",
     "DataEfficiency",
     "DelayCost",
     "DriveRates",
@@ -111,12 +130,15 @@ __all__ = [
     "NoiseStudy",
     "RateErrors",
     "RealisticDriveComparison",
+    "Refusals",
+    "RefusalsConfig",
     "SelfTuningValue",
     "Simulation",
     "SimulatorMeasurement",
     "TargetOutcome",
     "bench_command",
     "markdown_realistic_drive",
+    "markdown_refusals",
     "measure_calibration",
     "measure_data_efficiency",
     "measure_drive_rates",
@@ -124,6 +146,7 @@ __all__ = [
     "measure_learning_cost",
     "measure_noise",
     "measure_realistic_drive",
+    "measure_refusals",
     "measure_self_tuning_value",
     "measure_simulation",
     "run_bench",

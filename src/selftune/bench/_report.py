@@ -36,6 +36,7 @@ from ._common import (
     BenchConfig,
     table,
 )
+from ._corpus import RefusalsConfig
 from ._data_efficiency import DataEfficiency, markdown_data, measure_data_efficiency
 from ._drive_rates import (
     RATE_FREQUENCIES,
@@ -54,6 +55,7 @@ from ._realistic_drive import (
     markdown_realistic_drive,
     measure_realistic_drive,
 )
+from ._refusals import Refusals, markdown_refusals, measure_refusals, refusals_target
 from ._simulation import Simulation, markdown_simulation, measure_simulation
 from ._targets import TargetOutcome
 from ._value import SelfTuningValue, markdown_value, measure_self_tuning_value
@@ -103,8 +105,8 @@ class Environment:
 
 @dataclass(frozen=True)
 class DriveStudiesConfig:
-    """Sizes of studies 5-8 (drive rates, honesty, noise, calibration): :meth:`full` or
-    :meth:`quick`.
+    """Sizes of studies 5-8 and 10 (drive rates, honesty, noise, calibration, refusals):
+    :meth:`full` or :meth:`quick`.
 
     Attributes
     ----------
@@ -118,6 +120,8 @@ class DriveStudiesConfig:
         Rates, noise levels, lengths and seeds of the noise study.
     calibration_trials_count : int
         Seeded motors of the calibration study.
+    refusals : RefusalsConfig
+        Motors, plants, seeds and lengths of the refusals study's corpus.
     """
 
     rate_frequencies_hz: tuple[float, ...]
@@ -125,16 +129,18 @@ class DriveStudiesConfig:
     honesty_short_logs: bool
     noise: NoiseConfig
     calibration_trials_count: int
+    refusals: RefusalsConfig
 
     @classmethod
     def full(cls) -> DriveStudiesConfig:
-        """The published run: 5-50 kHz, 220 honesty logs, the issue's noise study, 60 motors."""
-        return cls(RATE_FREQUENCIES, 20, False, NoiseConfig.full(), 60)
+        """The published run: 5-50 kHz, 220 honesty logs, the issue's noise study, 60 motors,
+        the refusals corpus of five motors on two plants."""
+        return cls(RATE_FREQUENCIES, 20, False, NoiseConfig.full(), 60, RefusalsConfig.full())
 
     @classmethod
     def quick(cls) -> DriveStudiesConfig:
-        """CI-sized: 10 kHz, one short log per hazard, 2 seeds, 3 motors."""
-        return cls((1e4,), 1, True, NoiseConfig.quick(), 3)
+        """CI-sized: 10 kHz, one short log per hazard, 2 seeds, 3 motors, 2 corpus logs."""
+        return cls((1e4,), 1, True, NoiseConfig.quick(), 3, RefusalsConfig.quick())
 
 
 @dataclass(frozen=True)
@@ -157,6 +163,7 @@ class BenchReport:
     noise : NoiseStudy
     calibration : Calibration
     realistic_drive : RealisticDriveComparison
+    refusals : Refusals
     """
 
     quick: bool
@@ -171,6 +178,7 @@ class BenchReport:
     noise: NoiseStudy
     calibration: Calibration
     realistic_drive: RealisticDriveComparison
+    refusals: Refusals
 
     def targets(self) -> list[TargetOutcome]:
         """The bench's targets, each met or missed, with why."""
@@ -184,6 +192,7 @@ class BenchReport:
             *noise_targets(self.noise),
             calibration_target(self.calibration, self.quick),
             *self.realistic_drive.targets(),
+            refusals_target(self.refusals, self.quick),
         ]
 
     def to_json(self) -> dict[str, Any]:
@@ -322,6 +331,7 @@ def run_bench(quick: bool, progress: bool = True) -> BenchReport:
     noise = measure_noise(sizes.noise, quick, progress)
     calibration = measure_calibration(sizes.calibration_trials_count, progress)
     realistic_drive = measure_realistic_drive(quick, progress)
+    refusals = measure_refusals(sizes.refusals, progress)
     return BenchReport(
         quick=quick,
         wall_seconds=time.perf_counter() - started,
@@ -335,6 +345,7 @@ def run_bench(quick: bool, progress: bool = True) -> BenchReport:
         noise=noise,
         calibration=calibration,
         realistic_drive=realistic_drive,
+        refusals=refusals,
     )
 
 
@@ -384,6 +395,7 @@ def _markdown(report: BenchReport) -> str:
         markdown_noise(report.noise),
         markdown_calibration(report.calibration),
         markdown_realistic_drive(report.realistic_drive),
+        markdown_refusals(report.refusals),
     ):
         lines += ["", *section]
     return "\n".join(lines) + "\n"
