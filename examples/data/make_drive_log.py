@@ -9,8 +9,9 @@ later), the reference w = [p speed phi_pm, T*] and the rotor angle. The drive ru
 gentle initial controller (K0, the back-EMF fed forward from the known flux) with
 exploration on the voltages, while the torque reference steps through +-T* and +-T*/3.
 
-Run:  python examples/data/make_drive_log.py [OUT.csv]
-It rewrites drive_log.csv next to this script (or writes OUT.csv); learn.toml is the
+Run:  python examples/data/make_drive_log.py [OUT.csv [SAMPLES]]
+It rewrites drive_log.csv next to this script (or writes OUT.csv, of SAMPLES samples
+instead of 2,000: 40000 for 4 s); learn.toml is the
 configuration that goes with it:
 selftune learn examples/data/drive_log.csv --config examples/data/learn.toml
 """
@@ -47,7 +48,7 @@ def reference(t: np.ndarray) -> np.ndarray:
 log = drive.run(
     ControlLaw.regulator(K0, -F, U0),
     held(reference),
-    num_samples=2000,
+    num_samples=int(sys.argv[2]) if len(sys.argv) > 2 else 2000,
     exploration=uniform(10.8),  # +-2% of the bus on each voltage, every sample
     seed=2026,
 )
