@@ -325,6 +325,7 @@ def gather_evidence(
         causes = (
             "an input error the log does not show (inverter dead time: set dead_time = true)",
             "a nonlinearity (a saturated sensor or ADC, the voltage limit)",
+            "an ADC whose steps are coarse against the noise",
             "a misaligned voltage log",
         )
         raise ModelMissesEffect(

@@ -450,7 +450,9 @@ def check_precision(
         cause = (
             f"; the model misses part of the data (its output errors are correlated in time,"
             f" {inflation:.3g} times the variance white noise gives): likely {missing} (a "
-            "saturated sensor or ADC, the voltage limit) or a misaligned voltage log"
+            "saturated sensor or ADC, the voltage limit), an ADC whose steps are coarse "
+            "against the noise (its rounding is then no white noise: more data does not "
+            "help, a finer ADC or a larger current does) or a misaligned voltage log"
         )
     raise TooLittleData(
         f"{TOO_LITTLE_DATA}: the standard error of K is {relative.K:.2%} "
