@@ -121,14 +121,7 @@ def test_the_flux_step_is_exact_on_noise_free_data_whatever_the_hold(
 def test_algorithm_3_at_speed_learns_the_optimum_within_its_errors() -> None:
     # 2,500 rad/s at 10 kHz: w_e h = 0.25, where the flux came out 54 standard errors low
     motor, electrical_speed, dc_voltage = MIDDLE, 2500.0, 540.0
-    settings, drive = session(motor, electrical_speed, 10e3, dc_voltage)
-    result = run_algorithm("3", motor, settings, drive=drive)
-    truth = true_motor(motor, drive).phi_pm
-    flux, flux_se = result.identified["phi_pm"], result.identified["phi_pm_se"]
-    assert abs(flux - truth) <= STANDARD_ERRORS * flux_se
-    evaluation = evaluate(result, motor, settings, drive)
-    assert evaluation.K_error <= STANDARD_ERRORS * result.quality.K_relative_se
-    assert evaluation.U_error <= STANDARD_ERRORS * result.quality.U_relative_se
+    _check_algorithm_3(motor, electrical_speed, 10e3, dc_voltage)
 
 
 @pytest.mark.slow  # whole sessions (the paper's motor: 15-30 s each)
@@ -144,6 +137,13 @@ def test_algorithm_3_at_speed_learns_the_optimum_within_its_errors() -> None:
 def test_algorithm_3_over_the_speeds_learns_the_optimum_within_its_errors(
     motor: SPMSM, electrical_speed: float, dc_voltage: float, frequency: float
 ) -> None:
+    _check_algorithm_3(motor, electrical_speed, frequency, dc_voltage)
+
+
+def _check_algorithm_3(
+    motor: SPMSM, electrical_speed: float, frequency: float, dc_voltage: float
+) -> None:
+    """Algorithm 3's flux, K and U each within their stated errors of the true drive's."""
     settings, drive = session(motor, electrical_speed, frequency, dc_voltage)
     result = run_algorithm("3", motor, settings, drive=drive)
     truth = true_motor(motor, drive).phi_pm

@@ -45,7 +45,7 @@ from ...errors import InputError
 from ._alignment import applied_inputs
 from ._bootstrap import refits, with_spread
 from ._dead_time import SWITCHING_SIGNS, DeadTimeChannels, Switching, path_vector, sign_vector
-from ._output_error import OutputErrorFit, _finish, _Log
+from ._output_error import OutputErrorFit, _finish, _Log, _logs
 
 __all__ = ["BIAS_DRAWS", "measurement_noise", "without_sign_bias"]
 
@@ -187,14 +187,12 @@ def without_sign_bias(
     floor : ndarray, shape (2,)
         The states' rounding floor.
     """
-    from ._output_error import _logs  # the fit's own alignment of the logs
-
     episodes, angles, switching = channels.episodes, channels.angles, channels.switching
     assert angles is not None and switching is not None
     signs = SWITCHING_SIGNS[switching]
-    logs = _logs(episodes, shift)
+    whole = _logs(episodes, shift)  # the fit's own alignment of the logs
     matrices = fit.matrices(fit.parameters)
-    R = measurement_noise(logs, matrices)
+    R = measurement_noise(whole, matrices)
     if R is None:
         return None
     R = R + np.diag(np.maximum(floor**2 - np.diag(R), 0.0))
@@ -202,13 +200,12 @@ def without_sign_bias(
     rows = [
         angle[first : first + log.x.shape[0]]
         for angle, log, (_, first) in zip(
-            angles, logs, (applied_inputs(e, shift) for e in episodes), strict=True
+            angles, whole, (applied_inputs(e, shift) for e in episodes), strict=True
         )
     ]
-    x0s = [simulated[0] for simulated in fit.simulated]
-    total = sum(log.a.shape[0] for log in logs)
-    logs, rows, x0s = _first_samples(logs, rows, x0s)
-    share = sum(log.a.shape[0] for log in logs) / total
+    starts = [simulated[0] for simulated in fit.simulated]
+    logs, rows, x0s = _first_samples(whole, rows, starts)
+    share = sum(log.a.shape[0] for log in logs) / sum(log.a.shape[0] for log in whole)
     q = logs[0].w.shape[1] - 2
     structured = fit.structure is not None
     corrected, steps = fit.parameters, []
@@ -242,8 +239,8 @@ def without_sign_bias(
         if not _stable(fit, corrected):
             return None
     final = _finish(
-        _logs(episodes, shift), corrected, fit.matrices, structured,
-        [simulated[0] for simulated in fit.simulated], fit.model.h, fit.iterations, floor,
+        whole, corrected, fit.matrices, structured, starts, fit.model.h, fit.iterations,
+        floor,
     )  # fmt: skip
     # the same kind of parameters; the time correlation is the data's, measured at the fit
     final = replace(final, structure=fit.structure, correlation_inflation=fit.correlation_inflation)
