@@ -46,9 +46,12 @@ __all__ = [
     "angle_offset",
     "check_angle",
     "direction_signs",
+    "line_to_line",
     "path_signs",
     "path_vector",
+    "phase_currents",
     "phase_signs",
+    "phases_to_dq",
     "sign_vector",
     "with_dead_time",
 ]
@@ -213,6 +216,27 @@ def _dq(a: Number, b: Number, c: Number, cos: Number, sin: Number) -> tuple[Numb
     """The dq components of ``(2/3) sum_x v_x exp(j 2 pi x / 3)`` at the angle."""
     v_alpha, v_beta = (2.0 / 3.0) * (a - 0.5 * (b + c)), (2.0 / 3.0) * _HALF_ROOT3 * (b - c)
     return v_alpha * cos + v_beta * sin, v_beta * cos - v_alpha * sin
+
+
+def phase_currents(x: Array, angle: Array) -> Array:
+    """The phase currents ``[i_a, i_b, i_c]`` (T, 3), A, of the dq currents ``x`` (T, 2) at
+    the electrical angles (T,), rad (amplitude-invariant)."""
+    return np.column_stack(_phases(x[:, 0], x[:, 1], np.cos(angle), np.sin(angle)))
+
+
+def phases_to_dq(phases: Array, angle: Array) -> Array:
+    """The dq currents (T, 2) of phase currents (T, 3) at the electrical angles (T,): the
+    inverse of :func:`phase_currents` (a common mode is dropped)."""
+    return np.column_stack(
+        _dq(phases[:, 0], phases[:, 1], phases[:, 2], np.cos(angle), np.sin(angle))
+    )
+
+
+def line_to_line(x: Array, angle: Array) -> Array:
+    """The differences ``[i_a - i_b, i_b - i_c, i_c - i_a]`` (T, 3), A, of the phase
+    currents of the dq currents ``x`` (T, 2) at the electrical angles (T,)."""
+    phases = phase_currents(x, angle)
+    return phases - np.roll(phases, -1, axis=1)
 
 
 def sign_vector(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Number, Number]:

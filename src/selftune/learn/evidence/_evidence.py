@@ -150,6 +150,10 @@ class Evidence:
     switching : {"sample", "path"} or None
         When the dead time's error switches, as the data preferred
         (:data:`~._dead_time.Switching`); None without phase signs.
+    adc_step : float or None
+        The ADC's step the correction's simulations rounded the phase currents to, A (read
+        from the logged currents, :mod:`._adc`); None where they found none (Gaussian
+        noise simulated) or no correction was made.
     """
 
     episodes: list[Trajectory] = field(repr=False)
@@ -161,6 +165,7 @@ class Evidence:
     dead_time_model: DeadTimeModel | None = None
     sign_correction: Array | None = field(default=None, repr=False)
     switching: Switching | None = None
+    adc_step: float | None = None
 
     @property
     def model(self) -> DiscreteModel:
@@ -337,16 +342,16 @@ def gather_evidence(
             threshold=INFLATION_LIMIT,
             causes=causes,
         )
-    correction = None
+    correction, step = None, None
     if channels.angles is not None and fit is not None and not test.exact:
         floor = resolution_floor(np.concatenate([e.x for e in episodes]), relative)
         corrected = without_sign_bias(fit, channels, alignment.shift, floor)
         if corrected is not None:
-            fit, correction = corrected
+            fit, correction, step = corrected
     extra = problem.n if options.dead_time else 0
     return Evidence(
         fitted, alignment, fit, test, extra, precision, channels.model, correction,
-        channels.switching,
+        channels.switching, step,
     )  # fmt: skip
 
 

@@ -138,10 +138,16 @@ def verdict(
     exact = evidence.consistency.exact  # rounding only: no test of the errors applies
     fit = evidence.fit
     if evidence.sign_correction is not None:
+        steps = (
+            ""
+            if evidence.adc_step is None
+            else f" (their phase currents rounded to the ADC's {evidence.adc_step:.3g} A steps "
+            "the log shows)"
+        )
         notes.append(
             "the dead-time model's bias from the currents' signs near zero (where the noise "
-            "decides them) was measured on simulations of the fitted model and removed; the "
-            "standard errors include the correction's own size"
+            f"decides them) was measured on simulations of the fitted model{steps} and "
+            "removed; the standard errors include the correction's own size"
         )
     elif fit is not None and fit.correlation_inflation > INFLATION_LIMIT and not exact:
         notes.append(
