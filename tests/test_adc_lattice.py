@@ -7,13 +7,26 @@ would log them.
 
 from __future__ import annotations
 
+from dataclasses import replace
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+import selftune
 from example_counts import examples
+from selftune.core import ControlLaw
+from selftune.learn import (
+    LearnedController,
+    LearningOptions,
+    LearningProblem,
+    Trajectory,
+    learn_controller,
+)
 from selftune.learn.evidence._adc import LATTICE_TOLERANCE, current_lattice
+from selftune.sim import DriveSettings, RealisticDrive, held, uniform
 
 #: The phases' directions in the complex plane.
 _TURNS = np.exp(2j * np.pi * np.arange(3) / 3)
@@ -113,3 +126,34 @@ def test_simulated_measurement_is_the_drives(phases: int) -> None:
     R = np.cov(error.T)
     # the rms of 20,000 draws is known to ~1%; the uniform rounding taken out amplifies it
     assert lattice.noise_sd(R) == pytest.approx(noise, rel=0.05)
+
+
+def _readme_learned(log: Trajectory) -> LearnedController:
+    """The README's example problem learned from ``log`` (dead time on)."""
+    F = np.array([[0.0, 0.0], [0.0, -2 / (3 * 3 * 0.35)]])
+    problem = LearningProblem(Q=1e3 * np.eye(2), R=np.eye(2), C=np.eye(2), F=F,
+                              integral_action=True)  # fmt: skip
+    options = LearningOptions(target="digital", input_delay=1, logged_input="commanded",
+                              dead_time=True)  # fmt: skip
+    return learn_controller(log, problem, np.eye(2), options)
+
+
+def test_the_readme_logs_steps_are_simulated_and_stated() -> None:
+    """The README's log (a 12-bit ADC over +-50 A: 24.4 mA steps) is learned with its
+    steps simulated, and the quality says so; the same drive without an ADC is not."""
+    root = Path(__file__).resolve().parents[1] / "examples" / "data"
+    learned = _readme_learned(selftune.load_trajectory(root / "drive_log.csv"))
+    assert any("0.0244 A steps" in note for note in learned.quality.notes)
+    motor = selftune.SPMSM(R_s=0.6, L_s=8e-3, phi_pm=0.35, p=3)
+    settings = replace(DriveSettings.hardware_like(h=1e-4), logged_input="commanded",
+                       adc_bits=None, adc_range=None)  # fmt: skip
+    drive = RealisticDrive(motor, 50.0, 1e-4, settings)
+    law = ControlLaw.regulator(np.eye(2), np.array([[0.0, 0.0], [0.0, 2 / (3 * 3 * 0.35)]]),
+                               np.array([[0.0, 0.0], [1.0, 0.0]]))  # fmt: skip
+    reference = held(
+        lambda t: np.column_stack([np.full_like(t, 52.5), 5.0 * np.sign(np.sin(200 * t))])
+    )
+    log = drive.run(law, reference, num_samples=4000, exploration=uniform(10.8), seed=3)
+    notes = _readme_learned(log).quality.notes
+    assert any("signs near zero" in note for note in notes)
+    assert not any("A steps" in note for note in notes)
