@@ -37,6 +37,7 @@ from ..errors import (
     ConsistencyError,
     ExcitationError,
     InputError,
+    PolicyIterationFailure,
     Refusal,
     SelftuneDeprecationWarning,
     SelftuneError,
@@ -210,18 +211,26 @@ def _learned(
             raise
         raise _without_structure(error, data, problem, options) from error
     if options.method == "identify":
-        model = evidence.model
-        law, P, B = design_target(model, known, options)
-        history: tuple[IterationRecord, ...] = ()
-    elif options.target == "digital":
-        law, P, B, history = _digital_adp(
+        law, P, B = design_target(evidence.model, known, options)
+        return _judged((without_extra(law, problem.q), P, B, ()), evidence, errors, options)
+    adp = _digital_adp if options.target == "digital" else _continuous_adp
+    try:
+        law, P, B, history = adp(
             _regression_data(evidence, options), evidence, (known, K0_), options
         )
-    else:
-        law, P, B, history = _continuous_adp(
-            _regression_data(evidence, options), evidence, (known, K0_), options
+        return _judged((without_extra(law, problem.q), P, B, history), evidence, errors, options)
+    except PolicyIterationFailure as failure:
+        if evidence.fit is None:  # no output-error model to design from
+            raise
+        law, P, B = design_target(evidence.model, known, options)
+        note = (
+            f"policy iteration failed on this batch ({failure}); the controller was "
+            "designed from the output-error model instead (method identify), and the "
+            "standard errors are that model's"
         )
-    return _judged((without_extra(law, problem.q), P, B, history), evidence, errors, options)
+        errors = replace(errors, notes=(*errors.notes, note))
+        identify = replace(options, method="identify")
+        return _judged((without_extra(law, problem.q), P, B, ()), evidence, errors, identify)
 
 
 def _initial_policy(

@@ -263,6 +263,10 @@ class LearningOptions:
         (the paper's continuous-time learner for the continuous target, the discrete-time
         one for the digital target). ``"identify"``: identify-then-design (least squares
         for the exact discrete model, then the model-based optimum of the target).
+        Where ADP's policy iteration fails on a noisy batch (a value matrix that is not
+        positive definite, a value that rises) and the output-error model exists, the
+        controller is designed from that model instead: the result's ``method`` is then
+        ``"identify"`` and its quality notes why.
     input_delay : int
         d, the drive's computation delay in samples (0, 1 or 2): the voltage computed at
         sample k acts over ``[t_(k+d), t_(k+d+1))``.

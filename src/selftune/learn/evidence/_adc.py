@@ -5,9 +5,9 @@ number of steps (least significant bits), and the dq currents of the log are tho
 phases turned by the angle. Where the noise before the ADC is small against a step, the
 rounding is no white noise: it is a fixed function of the current, and a simulation of
 the data that adds Gaussian noise instead (:mod:`._sign_bias`) measures the bias of
-another drive (the corpus's 48 V motor, 48.8 mA steps and 2 mA of noise, at 0.5-2 s: K's error 1.1-4.5
-of its stated standard errors with Gaussian noise simulated, 1.0-2.9 with the steps
-simulated; ``selftune bench``, section 10).
+another drive (the corpus's 48 V motor, 48.8 mA steps and 2 mA of noise, at 0.5-2 s:
+K's error 1.1-4.5 of its stated standard errors with Gaussian noise simulated, 1.0-2.9
+with the steps simulated; ``selftune bench``, section 10).
 
 The steps are found without being told: the differences between two phases currents
 (``i_a - i_b`` and its turns, computed from ``i_d``, ``i_q`` and the angle) are whole
