@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 import selftune
 from example_counts import examples
 from selftune.core import ControlLaw
+from selftune.errors import TooLittleData
 from selftune.learn import (
     LearnedController,
     LearningOptions,
@@ -157,3 +158,21 @@ def test_the_readme_logs_steps_are_simulated_and_stated() -> None:
     notes = _readme_learned(log).quality.notes
     assert any("signs near zero" in note for note in notes)
     assert not any("A steps" in note for note in notes)
+
+
+def test_a_refusal_on_coarse_steps_names_the_adc() -> None:
+    """The corpus's 48 V motor (48.8 mA steps, 2 mA of noise) refused at 0.1 s: the
+    message names the ADC's steps and the noise before them, not only the length."""
+    from selftune.bench._corpus import MOTORS, CorpusLog, recorded
+    from selftune.bench._refusals import _known, _options
+
+    motor = next(motor for motor in MOTORS if motor.name_text == "48 V")
+    log = CorpusLog(motor, "realistic drive", 160_002, 2.09e-3, 0.813)
+    problem, K0 = _known(motor.experiment)
+    with pytest.raises(TooLittleData) as refusal:
+        learn_controller(recorded(log, 2000), problem, K0, _options("adp"))
+    message = str(refusal.value)
+    assert "the currents are whole 48.8 mA steps of an ADC with" in message
+    # 2 mA under 48.8 mA steps is below what 2,000 samples resolve: "no noise the errors
+    # show" (the rounding's variance is 50 times the noise's)
+    assert "before it: its rounding is a fixed function of the current" in message

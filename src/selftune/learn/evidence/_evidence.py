@@ -154,6 +154,9 @@ class Evidence:
         The ADC's step the correction's simulations rounded the phase currents to, A (read
         from the logged currents, :mod:`._adc`); None where they found none (Gaussian
         noise simulated) or no correction was made.
+    adc_noise : float or None
+        The noise before that ADC on each phase, A (standard deviation; with
+        ``adc_step``).
     """
 
     episodes: list[Trajectory] = field(repr=False)
@@ -166,6 +169,7 @@ class Evidence:
     sign_correction: Array | None = field(default=None, repr=False)
     switching: Switching | None = None
     adc_step: float | None = None
+    adc_noise: float | None = None
 
     @property
     def model(self) -> DiscreteModel:
@@ -342,16 +346,17 @@ def gather_evidence(
             threshold=INFLATION_LIMIT,
             causes=causes,
         )
-    correction, step = None, None
+    correction = None
+    adc: tuple[float | None, float | None] = (None, None)  # the ADC's step, noise (A)
     if channels.angles is not None and fit is not None and not test.exact:
         floor = resolution_floor(np.concatenate([e.x for e in episodes]), relative)
         corrected = without_sign_bias(fit, channels, alignment.shift, floor)
         if corrected is not None:
-            fit, correction, step = corrected
+            fit, correction, adc = corrected
     extra = problem.n if options.dead_time else 0
     return Evidence(
         fitted, alignment, fit, test, extra, precision, channels.model, correction,
-        channels.switching, step,
+        channels.switching, *adc,
     )  # fmt: skip
 
 

@@ -178,10 +178,11 @@ def _stable(fit: OutputErrorFit, parameters: Array) -> bool:
 
 def without_sign_bias(
     fit: OutputErrorFit, channels: DeadTimeChannels, shift: int, floor: Array
-) -> tuple[OutputErrorFit, Array, float | None] | None:
-    """``fit`` corrected for the signs' bias, the correction and the ADC step simulated
-    (None: Gaussian noise; see the module); None when the bias cannot be measured (no
-    noise estimate, or the refits fail).
+) -> tuple[OutputErrorFit, Array, tuple[float | None, float | None]] | None:
+    """``fit`` corrected for the signs' bias, the correction, and the ADC's step and the
+    noise before it that the simulations used, A (None, None: Gaussian noise; see the
+    module); None when the bias cannot be measured (no noise estimate, or the refits
+    fail).
 
     Parameters
     ----------
@@ -260,5 +261,5 @@ def without_sign_bias(
     final = replace(final, structure=fit.structure, correlation_inflation=fit.correlation_inflation)
     spread = share * np.atleast_2d(np.cov(draws.T))  # the refits saw a share of the log
     extra = np.outer(steps[-1], steps[-1]) + spread / draws.shape[0]
-    step = None if lattice is None else lattice.step
-    return with_spread(final, np.diag(spread), extra), corrected - fit.parameters, step
+    adc = (None, None) if lattice is None else (lattice.step, analog)
+    return with_spread(final, np.diag(spread), extra), corrected - fit.parameters, adc

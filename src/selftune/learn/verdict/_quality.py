@@ -440,7 +440,21 @@ def check_precision(
     needed = duration * worst**2
     inflation = 1.0 if evidence.fit is None else evidence.fit.correlation_inflation
     cause = ""
-    if inflation > INFLATION_LIMIT:
+    if _coarse_adc(evidence):
+        assert evidence.adc_step is not None and evidence.adc_noise is not None
+        noise = (
+            f"about {evidence.adc_noise * 1e3:.2g} mA of noise"
+            if evidence.adc_noise > 0.0
+            else "no noise the errors show"
+        )
+        cause = (
+            f"; the currents are whole {evidence.adc_step * 1e3:.3g} mA steps of an ADC with "
+            f"{noise} before it: its rounding is a "
+            "fixed function of the current, not noise that averages out, so more data helps "
+            "less than that estimate says; a finer ADC (more bits or a smaller range) or "
+            "larger currents help most"
+        )
+    elif inflation > INFLATION_LIMIT:
         missing = (
             "the dead-time model (which is on) near zero current, a nonlinearity"
             if evidence.extra
@@ -466,6 +480,18 @@ def check_precision(
         data_seconds=duration,
         needed_seconds=needed,
     )
+
+
+#: The ADC's step, in standard deviations of the noise before it, beyond which its
+#: rounding leads a refusal's causes (a uniform rounding's rms, step / sqrt(12), is then
+#: over the noise: the rounding follows the current instead of averaging out).
+COARSE_ADC_STEPS = 4.0
+
+
+def _coarse_adc(evidence: Evidence) -> bool:
+    """Whether the log's currents are steps of an ADC coarse against its noise."""
+    step, noise = evidence.adc_step, evidence.adc_noise
+    return step is not None and noise is not None and step > COARSE_ADC_STEPS * noise
 
 
 def _noise_text(evidence: Evidence) -> str:
