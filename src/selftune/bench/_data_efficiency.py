@@ -150,6 +150,8 @@ def _offpolicy_errors(
         result = run_algorithm("offpolicy", motor, settings)
     except (ExcitationError, ConvergenceError):  # too short a batch: a failed run
         return math.inf, math.inf
+    if not result.history:  # policy iteration failed, the model designed it: not ADP's
+        return math.inf, math.inf
     return relative(result.K, optimum.K), relative(result.U, optimum.U)
 
 

@@ -163,10 +163,12 @@ def _history(
 
     For the continuous target each step's feedforward follows from its Theta; the digital
     learner computes U once, from the last step, so every step carries the final U."""
+    if not records:  # designed from the model (policy iteration failed on the batch)
+        return ()
     history: list[TuningIteration] = []
     previous_theta: Array | None = None
     m = learned.law.U.shape[0]
-    K_applied = np.zeros((m, records[0].K.shape[1])) if records else np.zeros((m, 0))
+    K_applied = np.zeros((m, records[0].K.shape[1]))
     K_applied[:, : settings.K0.shape[1]] = settings.K0
     U_applied = np.zeros_like(learned.law.U)
     for record in records:
