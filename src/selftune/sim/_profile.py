@@ -27,9 +27,9 @@ __all__ = ["ParameterFactors", "ParameterProfile", "interpolate"]
 class ParameterFactors(NamedTuple):
     """Factors on the motor's R_s, L_s and phi_pm (floats, or arrays of one shape)."""
 
-    R_s: Array
-    L_s: Array
-    phi_pm: Array
+    R_s: Array | float
+    L_s: Array | float
+    phi_pm: Array | float
 
 
 def _column(values: ArrayLike, name: str, count: int) -> Array:
@@ -110,10 +110,10 @@ class ParameterProfile:
         return interpolate(self.time, ParameterFactors(self.R_s, self.L_s, self.phi_pm), t)
 
 
-def interpolate(times: Array, points: ParameterFactors, t: ArrayLike) -> ParameterFactors:
+def interpolate(times: ArrayLike, points: ParameterFactors, t: ArrayLike) -> ParameterFactors:
     """:meth:`ParameterProfile.factors` of the points ``points`` at ``times`` (sorted; any
     number at one time, the last of them from that time on)."""
-    at = np.asarray(t, dtype=float)
+    at, times = np.asarray(t, dtype=float), np.asarray(times, dtype=float)
     last = times.shape[0] - 1
     index = np.clip(np.searchsorted(times, at, side="right") - 1, 0, last)
     after = np.minimum(index + 1, last)
@@ -121,8 +121,9 @@ def interpolate(times: Array, points: ParameterFactors, t: ArrayLike) -> Paramet
     share = (at - times[index]) / np.where(span > 0.0, span, 1.0)
     share = np.where(span > 0.0, np.clip(share, 0.0, 1.0), 0.0)
 
-    def value(column: Array) -> Array:
-        return column[index] + share * (column[after] - column[index])
+    def value(column: Array | float) -> Array:
+        values = np.asarray(column, dtype=float)
+        return values[index] + share * (values[after] - values[index])
 
     return ParameterFactors(*(value(column) for column in points))
 
@@ -139,11 +140,11 @@ def _check_points(columns: dict[str, Array]) -> None:
                 raise InputError(f"row {row}: {name}: must be positive, got {column[index]!r}")
         now = float(times[index])
         if index == 0 and now != 0.0:
-            raise InputError(f"row 1: time: must be 0 (the profile starts with the drive), got {now!r}")
+            raise InputError(f"row 1: time: must be 0 (the drive's start), got {now!r}")
         if index > 0 and now < times[index - 1]:
             raise InputError(
-                f"row {row}: time: {now!r} s is before row {row - 1}'s {float(times[index - 1])!r} s "
-                "(times must not decrease)"
+                f"row {row}: time: {now!r} s is before row {row - 1}'s "
+                f"{float(times[index - 1])!r} s (times must not decrease)"
             )
         if index > 1 and now == times[index - 2]:
             raise InputError(

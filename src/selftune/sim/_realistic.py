@@ -69,8 +69,8 @@ from ._inverter import (
     random_inputs,
     run_loop,
 )
-from ._signals import ExogenousSignal, check_signal_values, constant
 from ._profile import ParameterProfile
+from ._signals import ExogenousSignal, check_signal_values, constant
 from ._stepper import Feedback, feedback_of
 
 if TYPE_CHECKING:
@@ -234,7 +234,7 @@ class RealisticDrive:
         *,
         seed: int,
         profile: ParameterProfile | None = None,
-        max_hold: float = 1e-3,
+        max_hold: float = 1e-2,
         integrator: ArrayLike | None = None,
     ) -> DriveSession:
         """Start the drive at rest under ``law``, to run chunk by chunk

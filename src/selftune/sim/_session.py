@@ -31,21 +31,30 @@ the limit) sample by sample through the stepper. Timings in the tests' module do
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..core import Array, ControlLaw, positive_finite, positive_integer
+from ..core._propagate import propagate_uniform
 from ..errors import InputError
 from ..learn import Trajectory
 from ..model import SPMSM
 from ._checks import as_float_array, as_generator
-from ._inverter import ComplexArray, LoopOutputs, LoopState, MotorBatch, run_loop
+from ._inverter import (
+    ComplexArray,
+    LoopInputs,
+    LoopOutputs,
+    LoopState,
+    MotorBatch,
+    dq_sample_map,
+    from_phases,
+    run_loop,
+)
 from ._profile import ParameterFactors, ParameterProfile, interpolate
 from ._realistic import (
-    DriveRecord,
     RealisticDrive,
     _as_pairs,
     _check_finite,
@@ -53,23 +62,26 @@ from ._realistic import (
     _loop_inputs,
     _read_only,
 )
-from ._stepper import Feedback, feedback_of
+from ._stepper import Feedback, feedback_of, one_step_map
 
 __all__ = ["MEMORY", "DriveChunk", "DriveSession"]
+
+
+def _real(value: complex) -> Array:
+    """The real 2 x 2 matrix acting on ``[re, im]`` as multiplying by ``value``."""
+    return np.array([[value.real, -value.imag], [value.imag, value.real]])
+
 
 #: Commands a session remembers (the most past inputs a law switched in may feed back).
 MEMORY = 16
 
 
 @dataclass(frozen=True, eq=False)
-class DriveChunk(DriveRecord):
-    """One chunk of a running drive: the log, the truth, and the motor in effect (SI).
+class DriveChunk:
+    """One chunk of a running drive: what it logs, the truth, the motor in effect (SI).
 
-    The fields of :class:`~selftune.sim.DriveRecord` (``trajectory``, ``true_currents``,
-    ``applied_voltages``, ``commanded_voltages``, ``torque``) over samples
-    ``first_sample .. first_sample + N``; the trajectory's times start at 0 (add
-    :attr:`start_time`). Its last sample is the next chunk's first (the same
-    measurement); its ``w`` is this chunk's reference throughout.
+    Samples ``first_sample .. first_sample + N``: the last is the next chunk's first (the
+    same measurement). Arrays are read-only.
 
     Attributes
     ----------
@@ -77,15 +89,45 @@ class DriveChunk(DriveRecord):
         The index of the chunk's first sample since the start.
     h : float
         Sampling period, s.
+    measured : ndarray, shape (N + 1, 2)
+        The measured ``[i_d, i_q]`` (noise, ADC), A: the log's x.
+    logged_input : ndarray, shape (N, 2)
+        The dq command as the settings log it (``"applied"``: the one applied over each
+        sample, from the delay line at first; ``"commanded"``: the one computed), V.
+    reference : ndarray, shape (q,)
+        The law's ``w``, held over the chunk.
+    angle : ndarray, shape (N + 1,)
+        Electrical rotor angle at each sample, rad, in ``(-pi, pi]``.
+    true_currents : ndarray, shape (N + 1, 2)
+        Noise-free ``[i_d, i_q]``, A.
+    applied_voltages : ndarray, shape (N, 2)
+        The true mean dq voltage over each sample (PWM and dead time included), V.
+    commanded_voltages : ndarray, shape (N, 2)
+        The command computed at each sample (probing included, limited), V.
+    torque : ndarray, shape (N + 1,)
+        True torque ``1.5 p phi_pm i_q`` with the flux in effect, N m.
     R_s, L_s, phi_pm : ndarray, shape (N + 1,)
         The true motor's values over ``[t_k, t_(k+1))``, ohm, H, Wb.
     """
 
     first_sample: int
     h: float
+    measured: Array
+    logged_input: Array
+    reference: Array
+    angle: Array
+    true_currents: Array
+    applied_voltages: Array
+    commanded_voltages: Array
+    torque: Array
     R_s: Array
     L_s: Array
     phi_pm: Array
+
+    @property
+    def num_samples(self) -> int:
+        """N, samples in the chunk."""
+        return int(self.logged_input.shape[0])
 
     @property
     def start_time(self) -> float:
@@ -95,8 +137,17 @@ class DriveChunk(DriveRecord):
     @property
     def time(self) -> Array:
         """The sample times since the start, shape (N + 1,), s."""
-        count = self.trajectory.num_samples
-        return self.h * np.arange(self.first_sample, self.first_sample + count + 1, dtype=float)
+        stop = self.first_sample + self.num_samples + 1
+        return self.h * np.arange(self.first_sample, stop, dtype=float)
+
+    @cached_property
+    def trajectory(self) -> Trajectory:
+        """What the drive logs as a :class:`~selftune.learn.Trajectory` (times from 0:
+        add :attr:`start_time`; ``w`` the reference at every sample)."""
+        count = self.num_samples
+        w = np.broadcast_to(self.reference, (count + 1, self.reference.shape[0]))
+        t = self.h * np.arange(count + 1, dtype=float)
+        return Trajectory(t=t, x=self.measured, u=self.logged_input, w=w, angle=self.angle)
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,7 +193,7 @@ class DriveSession:
         *,
         seed: int,
         profile: ParameterProfile | None = None,
-        max_hold: float = 1e-3,
+        max_hold: float = 1e-2,
         integrator: ArrayLike | None = None,
     ) -> None:
         if not isinstance(drive, RealisticDrive):
@@ -156,7 +207,10 @@ class DriveSession:
         self.hold = max(1, round(positive_finite(max_hold, "max_hold") / h))
         # the profile on the sample grid: its times moved to the nearest sample instant
         self._break_samples = np.round(profile.time / h).astype(np.int64)
-        self._points = ParameterFactors(profile.R_s, profile.L_s, profile.phi_pm)
+        columns = (profile.R_s, profile.L_s, profile.phi_pm)
+        self._points = ParameterFactors(*columns)
+        same = all(np.all(column == column[0]) for column in columns)
+        self._constant = ParameterFactors(*(float(c[0]) for c in columns)) if same else None
         self._true = drive.true_motor
         self._speed = np.array([drive.speed])
         self._nameplate = MotorBatch.build([self._true], self._speed, 0.0)
@@ -167,6 +221,12 @@ class DriveSession:
         self._state = LoopState.rest(1, MEMORY, drive.settings.input_delay, law.r)
         self._state = self._with_integrator(self._state, law, integrator)
         self._motors: dict[tuple[float, float, float], MotorBatch] = {}
+        settings = drive.settings
+        self._linear = settings.pwm == "average" and settings.dead_time == 0.0
+        self._linear = self._linear and settings.adc_bits is None
+        self._maps: dict[tuple[float, ...], tuple[Array, Array, Array, Array, complex]] = {}
+        self._law_map: tuple[Array, Array] | None = None
+        self._delay = settings.input_delay
 
     # -- what the caller sees between chunks ---------------------------------------------
 
@@ -200,17 +260,20 @@ class DriveSession:
     def factors(self, sample: int) -> ParameterFactors:
         """The profile's factors the drive holds over sample ``sample`` (an index since
         the start): the profile at the midpoint of the hold interval holding it."""
-        first = max(0, positive_integer(sample, "sample", minimum=0))
-        below = self._break_samples[self._break_samples <= first]
-        above = self._break_samples[self._break_samples > first]
-        start = max(first - first % self.hold, int(below.max()) if below.size else 0)
-        stop = first - first % self.hold + self.hold
-        if above.size:
-            stop = min(stop, int(above.min()))
-        middle = 0.5 * (start + stop) * self.drive.h
-        rounded = self._break_samples * self.drive.h
-        values = interpolate(rounded, self._points, middle)
-        return ParameterFactors(*(float(value) for value in values))
+        index = positive_integer(sample, "sample", minimum=0)
+        values = self._held(np.array([index]))
+        return ParameterFactors(*(float(np.asarray(value)[0]) for value in values))
+
+    def _held(self, samples: Array) -> ParameterFactors:
+        """:meth:`factors` of each of ``samples`` (integers, >= 0), arrays."""
+        breaks, h = self._break_samples, self.drive.h
+        grid = samples - samples % self.hold
+        index = np.searchsorted(breaks, samples, side="right")  # breaks[: index] <= sample
+        below = breaks[np.maximum(index - 1, 0)]
+        above = np.append(breaks, np.iinfo(np.int64).max)[index]
+        start = np.maximum(grid, below)
+        stop = np.minimum(grid + self.hold, above)
+        return interpolate(breaks * h, self._points, 0.5 * (start + stop) * h)
 
     # -- running --------------------------------------------------------------------------
 
@@ -255,6 +318,8 @@ class DriveSession:
             new_law, feedback = self._checked_law(law)
             self._state = self._with_integrator(self._state, new_law, integrator)
             self._law, self._feedback = new_law, feedback
+            self._maps.clear()
+            self._law_map = None
         elif integrator is not None:
             raise InputError("integrator: given without a law to switch to")
         w = self._reference(reference, count)
@@ -264,11 +329,10 @@ class DriveSession:
             noise = np.concatenate([self._noise_row, self._draw_noise(count)])[np.newaxis]
             self._noise_row = noise[0, -1:]
         before, first = self._state, self._sample
-        outputs = []
-        for piece in self._pieces(first, count):
-            outputs.append(self._run_piece(piece, w, rho, noise))
+        pieces, following = self._pieces(first, count)
+        outputs = [self._run_piece(piece, w, rho, noise) for piece in pieces]
         self._sample = first + count
-        return self._chunk(first, count, before, outputs, w)
+        return self._chunk(first, count, before, outputs, w, following)
 
     # -- inside ---------------------------------------------------------------------------
 
@@ -330,19 +394,26 @@ class DriveSession:
             )
         return rho[np.newaxis]
 
-    def _pieces(self, first: int, count: int) -> Iterator[_Piece]:
-        """The chunk cut where the held parameters change, values merged where equal."""
+    def _pieces(self, first: int, count: int) -> tuple[list[_Piece], ParameterFactors]:
+        """The chunk cut where the held parameters change (values merged where equal), and
+        the values held over the sample after it."""
         stop = first + count
+        if self._constant is not None:
+            return [_Piece(0, count, self._constant)], self._constant
         grid = np.arange(first - first % self.hold + self.hold, stop, self.hold)
         steps = self._break_samples[(self._break_samples > first) & (self._break_samples < stop)]
         cuts = np.unique(np.concatenate([[first, stop], grid, steps]))
-        start, held = first, self.factors(first)
-        for cut in cuts[1:-1]:
-            values = self.factors(int(cut))
-            if values != held:
-                yield _Piece(start - first, int(cut) - first, held)
-                start, held = int(cut), values
-        yield _Piece(start - first, stop - first, held)
+        values = np.stack(self._held(cuts), axis=-1)
+        changes = (np.flatnonzero(np.any(values[1:-1] != values[:-2], axis=-1)) + 1).tolist()
+        starts, ends = [0, *changes], [*changes, len(cuts) - 1]
+        pieces = [
+            _Piece(
+                int(cuts[i]) - first, int(cuts[j]) - first,
+                ParameterFactors(*(float(value) for value in values[i])),
+            )
+            for i, j in zip(starts, ends, strict=True)
+        ]  # fmt: skip
+        return pieces, ParameterFactors(*(float(value) for value in values[-1]))
 
     def _motor(self, factors: ParameterFactors) -> MotorBatch:
         key = (float(factors.R_s), float(factors.L_s), float(factors.phi_pm))
@@ -359,7 +430,7 @@ class DriveSession:
 
     def _run_piece(
         self, piece: _Piece, w: Array, rho: Array, noise: Array | None
-    ) -> tuple[_Piece, MotorBatch, Array, LoopOutputs]:
+    ) -> tuple[_Piece, MotorBatch, ComplexArray, LoopOutputs]:
         h, first = self.drive.h, self._sample
         motor = self._motor(piece.factors)
         t = h * np.arange(first + piece.a, first + piece.b + 1, dtype=float)
@@ -369,7 +440,10 @@ class DriveSession:
             None if noise is None else noise[:, piece.a : piece.b + 1],
         )  # fmt: skip
         with np.errstate(over="ignore", invalid="ignore"):
-            outputs = run_loop(inputs, self._state)
+            key = tuple(float(value) for value in piece.factors)
+            outputs = self._linear_piece(inputs, key) if self._linear else None
+            if outputs is None:
+                outputs = run_loop(inputs, self._state)
         new = outputs.commands[:, outputs.pad :]
         state = outputs.state
         self._state = LoopState(
@@ -380,13 +454,83 @@ class DriveSession:
         )
         return piece, motor, inputs.rotor, outputs
 
+    def _loop_maps(
+        self, inputs: LoopInputs, key: tuple[float, ...]
+    ) -> tuple[Array, Array, Array, Array, complex]:
+        """The linear loop over one sample: the step and the command of
+        :func:`one_step_map` on the inverter's rotor-frame map (:func:`dq_sample_map`),
+        the rows of a measurement error, the back-EMF's forcing and the mean voltage's
+        factor ``v``; cached per motor (the law's part per law)."""
+        if self._law_map is None:  # the applied input of each unit: Ad = 0, Bd = I
+            plant = (np.zeros((2, 2)), np.eye(2), np.zeros((2, self._feedback.q)))
+            step, command = (m[0] for m in one_step_map(plant, self._feedback, self._delay))
+            self._law_map = (step, command)
+        if key not in self._maps:
+            base, command = self._law_map
+            a, b, c, v = dq_sample_map(inputs)
+            Ad, Bd = _real(a), _real(b)
+            error = base[:2].copy()  # a measurement error acts through the law only
+            error[:, :2] = base[:2, :2] @ Bd.T
+            step = base.copy()
+            step[:, :2] = base[:, :2] @ Bd.T
+            step[:2, :2] += Ad.T
+            forcing = np.zeros(step.shape[1])
+            forcing[:2] = c.real, c.imag
+            if len(self._maps) > 64:
+                self._maps.clear()
+            self._maps[key] = (step, command, error, forcing, v)
+        return self._maps[key]
+
+    def _linear_piece(self, inputs: LoopInputs, key: tuple[float, ...]) -> LoopOutputs | None:
+        """:func:`run_loop` where the loop is linear, all samples at once; None where a
+        command exceeds the voltage limit (the stepper limits it)."""
+        step, command, error, forcing, v = self._loop_maps(inputs, key)
+        feedback, delay = self._feedback, inputs.modulator.delay
+        count, state = inputs.rho.shape[1], self._state
+        pad, size = max(feedback.history, delay), step.shape[1]
+        rotor = inputs.rotor[0]
+        noise = np.zeros((count + 1, 2))
+        if inputs.sensor.noise is not None:
+            noise = _as_pairs(from_phases(inputs.sensor.noise[0]) * np.conj(rotor))
+        given = np.hstack([inputs.w[0, :count], inputs.rho[0]])
+        start_dq = state.current[0] * np.conj(rotor[0])
+        xi0 = np.concatenate([
+            [start_dq.real, start_dq.imag],
+            state.commands[0, MEMORY - pad :].ravel(),
+            state.integrator[0, : feedback.integrators],
+        ])  # fmt: skip
+        f = given @ step[size:] + noise[:count] @ error + forcing
+        xi = propagate_uniform(step[:size, :, np.newaxis], f[:, :, np.newaxis], xi0[:, np.newaxis])
+        xi = xi[:, :, 0]
+        u = xi[:-1] @ command[:size] + given @ command[size:] + noise[:count] @ command[:2]
+        if np.any(np.hypot(u[:, 0], u[:, 1]) > inputs.modulator.limit):
+            return None
+        x = xi[:, 0] + 1j * xi[:, 1]
+        commands = np.concatenate([state.commands[:, MEMORY - pad :], u[np.newaxis]], axis=1)
+        applied = commands[0, pad - delay : pad - delay + count]
+        after = LoopState(
+            current=x[-1:] * rotor[-1:],
+            commands=commands,
+            extras=np.zeros((1, delay), dtype=complex),
+            integrator=xi[-1:, size - feedback.integrators :],
+        )
+        return LoopOutputs(
+            measured=(x + noise[:, 0] + 1j * noise[:, 1])[np.newaxis],
+            current=(x * rotor)[np.newaxis],
+            commands=commands,
+            applied=(v * (applied[:, 0] + 1j * applied[:, 1]))[np.newaxis],
+            pad=pad,
+            state=after,
+        )
+
     def _chunk(
         self,
         first: int,
         count: int,
         before: LoopState,
-        pieces: list[tuple[_Piece, MotorBatch, Array, LoopOutputs]],
+        pieces: list[tuple[_Piece, MotorBatch, ComplexArray, LoopOutputs]],
         w: Array,
+        following: ParameterFactors,
     ) -> DriveChunk:
         h, settings = self.drive.h, self.drive.settings
 
@@ -399,37 +543,33 @@ class DriveSession:
         measured = joined([piece[3].measured for piece in pieces])[0]
         computed = np.concatenate([p[3].commands[0, p[3].pad :] for p in pieces])
         applied = np.concatenate([piece[3].applied[0] for piece in pieces])
-        t = h * np.arange(first, first + count + 1, dtype=float)
         true_dq = current * np.conj(rotor)
-        _check_finite(true_dq[np.newaxis], t)
+        _check_finite(true_dq[np.newaxis], h * np.arange(first, first + count + 1, dtype=float))
         logged = computed
         if settings.logged_input == "applied":
             delay = settings.input_delay
             earlier = before.commands[0, MEMORY - delay :]
             logged = np.concatenate([earlier, computed])[:count]
         held = [piece[0] for piece in pieces]
-        following = self.factors(first + count)
-        factors = ParameterFactors(
-            *(
-                np.append(np.repeat([p.factors[i] for p in held], [p.b - p.a for p in held]),
-                          following[i])
-                for i in range(3)
-            )
-        )  # fmt: skip
-        true = self._true
-        torque = self._nameplate.torque(true_dq.imag[np.newaxis])[0] * factors.phi_pm
-        trajectory = Trajectory(
-            t=t, x=_as_pairs(measured), u=logged, w=w[0], angle=np.angle(rotor)
+        lengths = [piece.b - piece.a for piece in held]
+        R_s, L_s, phi_pm = (
+            np.append(np.repeat([piece.factors[i] for piece in held], lengths), following[i])
+            for i in range(3)
         )
+        true = self._true
+        torque = self._nameplate.torque(true_dq.imag[np.newaxis])[0] * phi_pm
         return DriveChunk(
-            trajectory=trajectory,
+            first_sample=first,
+            h=h,
+            measured=_read_only(_as_pairs(measured)),
+            logged_input=_read_only(logged.copy()),
+            reference=_read_only(w[0, 0].copy()),
+            angle=_read_only(np.angle(rotor)),
             true_currents=_read_only(_as_pairs(true_dq)),
             applied_voltages=_read_only(_as_pairs(applied)),
             commanded_voltages=_read_only(computed.copy()),
             torque=_read_only(torque),
-            first_sample=first,
-            h=h,
-            R_s=_read_only(true.R_s * factors.R_s),
-            L_s=_read_only(true.L_s * factors.L_s),
-            phi_pm=_read_only(true.phi_pm * factors.phi_pm),
+            R_s=_read_only(true.R_s * R_s),
+            L_s=_read_only(true.L_s * L_s),
+            phi_pm=_read_only(true.phi_pm * phi_pm),
         )
