@@ -61,7 +61,6 @@ __all__ = [
     "PwmSegments",
     "carrier_segments",
     "dead_time_voltage",
-    "dq_sample_map",
     "from_phases",
     "leg_duties",
     "phasor_mean",
@@ -525,35 +524,6 @@ class _Inverter:
         command = self.inputs.modulation[:, k] * (applied[:, 0] + 1j * applied[:, 1])
         extra = self.extras[:, computed_at] if computed_at >= 0 else self.earlier[:, computed_at]
         self.current, self.applied[:, k] = _step(self.inputs, k, self.current, command, extra)
-
-
-def dq_sample_map(inputs: LoopInputs) -> tuple[complex, complex, complex, complex]:
-    """One sample of the inverter and the motors in the rotor frame, where it is linear
-    (average PWM, no dead time), read off :func:`_step` (motor 0 of ``inputs``).
-
-    Returns ``(a, b, c, v)``, complex: ``i_(k+1) = a i_k + b u_k + c`` (``u_k`` the dq
-    command applied over sample k, ``c`` the back-EMF's part, A) and the mean dq voltage
-    over the sample ``v u_k``, V; the same at every rotor angle (here at ``theta = 0``).
-    """
-    mod = inputs.modulator
-    if mod.carrier or mod.dead_time_amplitude > 0.0:
-        raise InputError("dq_sample_map: the inverter is not linear (carrier PWM or dead time)")
-    motor = inputs.motor
-    fields = {name: np.repeat(getattr(motor, name)[:1], 3) for name in motor.__dataclass_fields__}
-    probe = MotorBatch(**fields)
-    speed, h = probe.electrical_speed[:1], mod.period
-    rotor = np.exp(1j * speed[:, np.newaxis] * np.array([0.0, h]))
-    turn = inputs.modulation[:1, :1] / inputs.rotor[:1, :1]  # exp(j eps)
-    one = LoopInputs(
-        motor=probe, modulator=mod, feedback=inputs.feedback, sensor=inputs.sensor,
-        rotor=np.repeat(rotor, 3, axis=0), modulation=np.repeat(turn, 3, axis=0),
-        w=inputs.w, rho=inputs.rho,
-    )  # fmt: skip
-    current = np.array([1.0, 0.0, 0.0], dtype=complex)
-    command = one.modulation[:, 0] * np.array([0.0, 1.0, 0.0])
-    after, mean = _step(one, 0, current, command, np.zeros(3, dtype=complex))
-    dq = after * np.conj(one.rotor[:, 1])
-    return complex(dq[0] - dq[2]), complex(dq[1] - dq[2]), complex(dq[2]), complex(mean[1])
 
 
 def run_loop(inputs: LoopInputs, start: LoopState | None = None) -> LoopOutputs:

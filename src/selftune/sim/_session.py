@@ -38,21 +38,18 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..core import Array, ControlLaw, positive_finite, positive_integer
-from ..core._propagate import propagate_uniform
 from ..errors import InputError
 from ..learn import Trajectory
 from ..model import SPMSM
 from ._checks import as_float_array, as_generator
 from ._inverter import (
     ComplexArray,
-    LoopInputs,
     LoopOutputs,
     LoopState,
     MotorBatch,
-    dq_sample_map,
-    from_phases,
     run_loop,
 )
+from ._linear import LinearLoop
 from ._profile import ParameterFactors, ParameterProfile, interpolate
 from ._realistic import (
     RealisticDrive,
@@ -62,15 +59,9 @@ from ._realistic import (
     _loop_inputs,
     _read_only,
 )
-from ._stepper import Feedback, feedback_of, one_step_map
+from ._stepper import Feedback, feedback_of
 
 __all__ = ["MEMORY", "DriveChunk", "DriveSession"]
-
-
-def _real(value: complex) -> Array:
-    """The real 2 x 2 matrix acting on ``[re, im]`` as multiplying by ``value``."""
-    return np.array([[value.real, -value.imag], [value.imag, value.real]])
-
 
 #: Commands a session remembers (the most past inputs a law switched in may feed back).
 MEMORY = 16
@@ -218,15 +209,12 @@ class DriveSession:
         self._sample = 0
         self._noise_row = self._draw_noise(1)
         self._law, self._feedback = self._checked_law(law)
-        self._state = LoopState.rest(1, MEMORY, drive.settings.input_delay, law.r)
+        delay = drive.settings.input_delay
+        self._state = LoopState.rest(1, MEMORY, delay, law.r)
         self._state = self._with_integrator(self._state, law, integrator)
         self._motors: dict[tuple[float, float, float], MotorBatch] = {}
-        settings = drive.settings
-        self._linear = settings.pwm == "average" and settings.dead_time == 0.0
-        self._linear = self._linear and settings.adc_bits is None
-        self._maps: dict[tuple[float, ...], tuple[Array, Array, Array, Array, complex]] = {}
-        self._law_map: tuple[Array, Array] | None = None
-        self._delay = settings.input_delay
+        linear = LinearLoop.applies(drive.settings)
+        self._loop = LinearLoop(self._feedback, delay) if linear else None
 
     # -- what the caller sees between chunks ---------------------------------------------
 
@@ -318,8 +306,8 @@ class DriveSession:
             new_law, feedback = self._checked_law(law)
             self._state = self._with_integrator(self._state, new_law, integrator)
             self._law, self._feedback = new_law, feedback
-            self._maps.clear()
-            self._law_map = None
+            if self._loop is not None:
+                self._loop = LinearLoop(feedback, self.drive.settings.input_delay)
         elif integrator is not None:
             raise InputError("integrator: given without a law to switch to")
         w = self._reference(reference, count)
@@ -441,7 +429,7 @@ class DriveSession:
         )  # fmt: skip
         with np.errstate(over="ignore", invalid="ignore"):
             key = tuple(float(value) for value in piece.factors)
-            outputs = self._linear_piece(inputs, key) if self._linear else None
+            outputs = None if self._loop is None else self._loop.run(inputs, self._state, key)
             if outputs is None:
                 outputs = run_loop(inputs, self._state)
         new = outputs.commands[:, outputs.pad :]
@@ -453,75 +441,6 @@ class DriveSession:
             integrator=state.integrator,
         )
         return piece, motor, inputs.rotor, outputs
-
-    def _loop_maps(
-        self, inputs: LoopInputs, key: tuple[float, ...]
-    ) -> tuple[Array, Array, Array, Array, complex]:
-        """The linear loop over one sample: the step and the command of
-        :func:`one_step_map` on the inverter's rotor-frame map (:func:`dq_sample_map`),
-        the rows of a measurement error, the back-EMF's forcing and the mean voltage's
-        factor ``v``; cached per motor (the law's part per law)."""
-        if self._law_map is None:  # the applied input of each unit: Ad = 0, Bd = I
-            plant = (np.zeros((2, 2)), np.eye(2), np.zeros((2, self._feedback.q)))
-            step, command = (m[0] for m in one_step_map(plant, self._feedback, self._delay))
-            self._law_map = (step, command)
-        if key not in self._maps:
-            base, command = self._law_map
-            a, b, c, v = dq_sample_map(inputs)
-            Ad, Bd = _real(a), _real(b)
-            error = base[:2].copy()  # a measurement error acts through the law only
-            error[:, :2] = base[:2, :2] @ Bd.T
-            step = base.copy()
-            step[:, :2] = base[:, :2] @ Bd.T
-            step[:2, :2] += Ad.T
-            forcing = np.zeros(step.shape[1])
-            forcing[:2] = c.real, c.imag
-            if len(self._maps) > 64:
-                self._maps.clear()
-            self._maps[key] = (step, command, error, forcing, v)
-        return self._maps[key]
-
-    def _linear_piece(self, inputs: LoopInputs, key: tuple[float, ...]) -> LoopOutputs | None:
-        """:func:`run_loop` where the loop is linear, all samples at once; None where a
-        command exceeds the voltage limit (the stepper limits it)."""
-        step, command, error, forcing, v = self._loop_maps(inputs, key)
-        feedback, delay = self._feedback, inputs.modulator.delay
-        count, state = inputs.rho.shape[1], self._state
-        pad, size = max(feedback.history, delay), step.shape[1]
-        rotor = inputs.rotor[0]
-        noise = np.zeros((count + 1, 2))
-        if inputs.sensor.noise is not None:
-            noise = _as_pairs(from_phases(inputs.sensor.noise[0]) * np.conj(rotor))
-        given = np.hstack([inputs.w[0, :count], inputs.rho[0]])
-        start_dq = state.current[0] * np.conj(rotor[0])
-        xi0 = np.concatenate([
-            [start_dq.real, start_dq.imag],
-            state.commands[0, MEMORY - pad :].ravel(),
-            state.integrator[0, : feedback.integrators],
-        ])  # fmt: skip
-        f = given @ step[size:] + noise[:count] @ error + forcing
-        xi = propagate_uniform(step[:size, :, np.newaxis], f[:, :, np.newaxis], xi0[:, np.newaxis])
-        xi = xi[:, :, 0]
-        u = xi[:-1] @ command[:size] + given @ command[size:] + noise[:count] @ command[:2]
-        if np.any(np.hypot(u[:, 0], u[:, 1]) > inputs.modulator.limit):
-            return None
-        x = xi[:, 0] + 1j * xi[:, 1]
-        commands = np.concatenate([state.commands[:, MEMORY - pad :], u[np.newaxis]], axis=1)
-        applied = commands[0, pad - delay : pad - delay + count]
-        after = LoopState(
-            current=x[-1:] * rotor[-1:],
-            commands=commands,
-            extras=np.zeros((1, delay), dtype=complex),
-            integrator=xi[-1:, size - feedback.integrators :],
-        )
-        return LoopOutputs(
-            measured=(x + noise[:, 0] + 1j * noise[:, 1])[np.newaxis],
-            current=(x * rotor)[np.newaxis],
-            commands=commands,
-            applied=(v * (applied[:, 0] + 1j * applied[:, 1]))[np.newaxis],
-            pad=pad,
-            state=after,
-        )
 
     def _chunk(
         self,
