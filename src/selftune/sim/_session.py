@@ -246,8 +246,14 @@ class DriveSession:
         return _read_only(self._state.commands[0].copy())
 
     def factors(self, sample: int) -> ParameterFactors:
-        """The profile's factors the drive holds over sample ``sample`` (an index since
-        the start): the profile at the midpoint of the hold interval holding it."""
+        """The profile's factors the drive holds over one sample: the profile at the
+        midpoint of the hold interval holding it.
+
+        Parameters
+        ----------
+        sample : int
+            The sample's index since the start.
+        """
         index = positive_integer(sample, "sample", minimum=0)
         values = self._held(np.array([index]))
         return ParameterFactors(*(float(np.asarray(value)[0]) for value in values))
