@@ -44,6 +44,7 @@ from ..model import SPMSM
 from ._checks import as_float_array, as_generator
 from ._inverter import (
     ComplexArray,
+    LoopInputs,
     LoopOutputs,
     LoopState,
     MotorBatch,
@@ -324,9 +325,16 @@ class DriveSession:
             self._noise_row = noise[0, -1:]
         before, first = self._state, self._sample
         pieces, following = self._pieces(first, count)
-        outputs = [self._run_piece(piece, w, rho, noise) for piece in pieces]
+        with np.errstate(over="ignore", invalid="ignore"):
+            run = self._run_linear(pieces, w, rho, noise) if self._loop is not None else None
+            if run is None:
+                runs = [self._run_piece(piece, w, rho, noise) for piece in pieces]
+                rotor = np.concatenate([r[0][0, :-1] for r in runs] + [runs[-1][0][0, -1:]])
+                outputs = [r[1] for r in runs]
+            else:
+                rotor, outputs = run[0][0], [run[1]]
         self._sample = first + count
-        return self._chunk(first, count, before, outputs, w, following)
+        return self._chunk(first, count, before, pieces, rotor, outputs, w, following)
 
     # -- inside ---------------------------------------------------------------------------
 
@@ -422,38 +430,62 @@ class DriveSession:
             self._motors[key] = MotorBatch.build([motor], self._speed, 0.0)
         return self._motors[key]
 
-    def _run_piece(
-        self, piece: _Piece, w: Array, rho: Array, noise: Array | None
-    ) -> tuple[_Piece, MotorBatch, ComplexArray, LoopOutputs]:
+    def _inputs(
+        self, a: int, b: int, motor: MotorBatch, w: Array, rho: Array, noise: Array | None
+    ) -> LoopInputs:
+        """The loop's inputs over the chunk's samples ``[a, b)``."""
         h, first = self.drive.h, self._sample
-        motor = self._motor(piece.factors)
-        t = h * np.arange(first + piece.a, first + piece.b + 1, dtype=float)
-        inputs = _loop_inputs(
-            motor, self.drive.settings, self._feedback, t, h,
-            w[:, piece.a : piece.b + 1], rho[:, piece.a : piece.b],
-            None if noise is None else noise[:, piece.a : piece.b + 1],
+        t = h * np.arange(first + a, first + b + 1, dtype=float)
+        return _loop_inputs(
+            motor, self.drive.settings, self._feedback, t, h, w[:, a : b + 1], rho[:, a:b],
+            None if noise is None else noise[:, a : b + 1],
         )  # fmt: skip
-        with np.errstate(over="ignore", invalid="ignore"):
-            key = tuple(float(value) for value in piece.factors)
-            outputs = None if self._loop is None else self._loop.run(inputs, self._state, key)
-            if outputs is None:
-                outputs = run_loop(inputs, self._state)
-        new = outputs.commands[:, outputs.pad :]
+
+    def _advanced(self, outputs: LoopOutputs) -> None:
+        """The session's state moved to where ``outputs`` stop."""
         state = outputs.state
+        new = outputs.commands[:, outputs.pad :]
         self._state = LoopState(
             current=state.current,
             commands=np.concatenate([self._state.commands, new], axis=1)[:, -MEMORY:],
             extras=state.extras,
             integrator=state.integrator,
         )
-        return piece, motor, inputs.rotor, outputs
+
+    def _run_linear(
+        self, pieces: list[_Piece], w: Array, rho: Array, noise: Array | None
+    ) -> tuple[ComplexArray, LoopOutputs] | None:
+        """The chunk as matrices (:class:`LinearLoop`); None where the limit acts."""
+        assert self._loop is not None
+        motors = [self._motor(piece.factors) for piece in pieces]
+        inputs = self._inputs(0, pieces[-1].b, motors[0], w, rho, noise)
+        given = [
+            (piece.a, piece.b, motor, tuple(float(value) for value in piece.factors))
+            for piece, motor in zip(pieces, motors, strict=True)
+        ]
+        outputs = self._loop.run(inputs, self._state, given)
+        if outputs is None:
+            return None
+        self._advanced(outputs)
+        return inputs.rotor, outputs
+
+    def _run_piece(
+        self, piece: _Piece, w: Array, rho: Array, noise: Array | None
+    ) -> tuple[ComplexArray, LoopOutputs]:
+        """One piece through the stepper (:func:`run_loop`)."""
+        inputs = self._inputs(piece.a, piece.b, self._motor(piece.factors), w, rho, noise)
+        outputs = run_loop(inputs, self._state)
+        self._advanced(outputs)
+        return inputs.rotor, outputs
 
     def _chunk(
         self,
         first: int,
         count: int,
         before: LoopState,
-        pieces: list[tuple[_Piece, MotorBatch, ComplexArray, LoopOutputs]],
+        held: list[_Piece],
+        rotor: ComplexArray,
+        pieces: list[LoopOutputs],
         w: Array,
         following: ParameterFactors,
     ) -> DriveChunk:
@@ -463,11 +495,10 @@ class DriveSession:
             """Per-sample arrays of the pieces (N + 1 each), the shared samples once."""
             return np.concatenate([array[:, :-1] for array in arrays[:-1]] + [arrays[-1]], axis=1)
 
-        rotor = joined([piece[2] for piece in pieces])[0]
-        current = joined([piece[3].current for piece in pieces])[0]
-        measured = joined([piece[3].measured for piece in pieces])[0]
-        computed = np.concatenate([p[3].commands[0, p[3].pad :] for p in pieces])
-        applied = np.concatenate([piece[3].applied[0] for piece in pieces])
+        current = joined([piece.current for piece in pieces])[0]
+        measured = joined([piece.measured for piece in pieces])[0]
+        computed = np.concatenate([piece.commands[0, piece.pad :] for piece in pieces])
+        applied = np.concatenate([piece.applied[0] for piece in pieces])
         true_dq = current * np.conj(rotor)
         _check_finite(true_dq[np.newaxis], h * np.arange(first, first + count + 1, dtype=float))
         logged = computed
@@ -475,7 +506,6 @@ class DriveSession:
             delay = settings.input_delay
             earlier = before.commands[0, MEMORY - delay :]
             logged = np.concatenate([earlier, computed])[:count]
-        held = [piece[0] for piece in pieces]
         lengths = [piece.b - piece.a for piece in held]
         R_s, L_s, phi_pm = (
             np.append(np.repeat([piece.factors[i] for piece in held], lengths), following[i])
