@@ -114,7 +114,9 @@ class DriveRecord:
 class RealisticDrive:
     """A realistic simulated drive (see the module docstring); implements the Drive protocol.
 
-    Episodes start from rest (currents, past commands and integrators zero, ``theta = 0``).
+    Episodes (:meth:`record`, :meth:`run`) start from rest (currents, past commands and
+    integrators zero, ``theta = 0``); :meth:`start` keeps one running, chunk by chunk, its
+    motor heating or failing along a profile (:class:`~selftune.sim.DriveSession`).
 
     Attributes
     ----------
