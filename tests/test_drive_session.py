@@ -48,6 +48,7 @@ from selftune.sim import (
     constant,
     uniform,
 )
+from selftune.sim._linear import LinearLoop
 
 Array = NDArray[np.float64]
 MOTOR = SPMSM.paper()
@@ -175,6 +176,23 @@ def test_chunks_of_any_sizes_equal_one_run(
     assert_chunks_equal_one_run(
         drive, sizes, servo_law(), tolerance, profile=profile, max_hold=1e-3
     )
+
+
+def test_the_matrices_are_the_stepper_through_a_ramp_and_a_step(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The loop as matrices, its motor changing between the intervals of a chunk, against
+    the same session stepped sample by sample (the linear path switched off)."""
+    drive = RealisticDrive(MOTOR, SPEED, H, NOISY)
+    sizes = [1, 613, 1386]  # intervals of 1 ms cut by the step at sample 500
+    matrices = run_in_chunks(drive, sizes, servo_law(), profile=WARMING, max_hold=1e-3)
+    monkeypatch.setattr(LinearLoop, "applies", staticmethod(lambda settings: False))
+    stepped = run_in_chunks(drive, sizes, servo_law(), profile=WARMING, max_hold=1e-3)
+    for name in PER_SAMPLE:
+        np.testing.assert_allclose(
+            joined(matrices, name), joined(stepped, name), rtol=0, atol=ROUNDING
+        )
+    assert np.ptp(joined(stepped, "R_s")) > 0.3 * MOTOR.R_s  # the motor did change
 
 
 @examples(full=60, quick=8)
