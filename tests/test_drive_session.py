@@ -295,6 +295,9 @@ def test_bad_arguments_are_named() -> None:
         session.advance(10, REFERENCE, law=servo_law(), integrator=[1.0])
     with pytest.raises(InputError, match=r"^num_samples"):
         session.advance(0, REFERENCE)
+    with pytest.raises(InputError, match=r"^reference"):  # a refused chunk switches nothing
+        session.advance(10, [np.nan, 0.0], law=proportional_law(), integrator=[])
+    assert session.law.K_i is not None
     with pytest.raises(InputError, match=r"^max_hold"):
         drive.start(servo_law(), seed=0, max_hold=-1.0)
     assert session.sample == 0  # nothing ran

@@ -19,18 +19,15 @@ from ..core._propagate import propagate_uniform
 from ..errors import InputError
 from ._drive_settings import DriveSettings
 from ._inverter import LoopInputs, LoopOutputs, LoopState, MotorBatch, _step, from_phases
+from ._realistic import _as_pairs
 from ._stepper import Feedback, one_step_map
 
-__all__ = ["LinearLoop", "dq_sample_map"]
+__all__ = ["LinearLoop", "dq_sample_map", "stack_motors"]
 
 
 def _real(value: complex) -> Array:
     """The real 2 x 2 matrix acting on ``[re, im]`` as multiplying by ``value``."""
     return np.array([[value.real, -value.imag], [value.imag, value.real]])
-
-
-def _pairs(values: Array) -> Array:
-    return np.stack([values.real, values.imag], axis=-1)
 
 
 def stack_motors(motors: list[MotorBatch]) -> MotorBatch:
@@ -148,7 +145,7 @@ class LinearLoop:
         rotor = inputs.rotor[0]
         noise = np.zeros((count + 1, 2))
         if inputs.sensor.noise is not None:
-            noise = _pairs(from_phases(inputs.sensor.noise[0]) * np.conj(rotor))
+            noise = _as_pairs(from_phases(inputs.sensor.noise[0]) * np.conj(rotor))
         given = np.hstack([inputs.w[0, :count], inputs.rho[0]])
         first = start.current[0] * np.conj(rotor[0])
         xi0 = np.concatenate([

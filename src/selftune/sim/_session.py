@@ -313,16 +313,18 @@ class DriveSession:
             Naming the argument, if a value is invalid or the currents overflow.
         """
         count = positive_integer(num_samples, "num_samples")
+        switch = None
         if law is not None:
             new_law, feedback = self._checked_law(law)
-            self._state = self._with_integrator(self._state, new_law, integrator)
-            self._law, self._feedback = new_law, feedback
-            if self._loop is not None:
-                self._loop = LinearLoop(feedback, self.drive.settings.input_delay)
+            switch = (new_law, feedback, self._with_integrator(self._state, new_law, integrator))
         elif integrator is not None:
             raise InputError("integrator: given without a law to switch to")
         w = self._reference(reference, count)
         rho = self._probing(probing, count)
+        if switch is not None:  # every argument checked: the switch happens
+            self._law, self._feedback, self._state = switch
+            if self._loop is not None:
+                self._loop = LinearLoop(self._feedback, self.drive.settings.input_delay)
         noise = None
         if self._noise_row is not None:
             noise = np.concatenate([self._noise_row, self._draw_noise(count)])[np.newaxis]
