@@ -27,10 +27,11 @@ sample the parameters never move (they move between samples only).
 voltage limit not reached) a chunk runs as matrices read off one step of the inverter
 and of the stepper, propagated all at once (:class:`~selftune.sim._linear.LinearLoop`);
 otherwise (or where a command reaches the limit) sample by sample through the stepper.
-At 10 kHz on this 2-core machine (one BLAS thread, the other core busy; ``python
-tests/test_drive_session.py``): as matrices 7-11x real time in chunks of 100 samples,
-30-60x in chunks of 1,000 (a motor heating along a ramp: 5x and 10-12x); through the
-stepper (``hardware_like``: carrier PWM, dead time, ADC) 0.2-0.4x.
+At 10 kHz on this 2-core machine (one BLAS thread, CPU time, the servo law of the tests;
+``python tests/test_drive_session.py``): as matrices 17x real time in chunks of 100
+samples, 75x in chunks of 1,000; a motor warming along a ramp, held 10 ms: 6x and 17x
+(held 0.1 s: 11x and 47x; 1 ms: 1x and 2x, each interval a new discretization);
+through the stepper (``hardware_like``: carrier PWM, dead time, ADC) 0.2-0.3x.
 """
 
 from __future__ import annotations
