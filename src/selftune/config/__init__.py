@@ -5,24 +5,31 @@
 - :func:`load_motor_config` -> :class:`MotorConfig`: the motor, its operating point and
   the cost weights (:mod:`._motor_file`);
 - :func:`load_learn_config` -> :class:`LearnConfig`: what ``selftune learn`` needs
-  besides the data (:mod:`._learn_file`).
+  besides the data (:mod:`._learn_file`);
+- :func:`load_online_config` -> :class:`OnlineConfig`: an online run's duration and the
+  profile of the motor's R_s, L_s and phi_pm over time (:mod:`._online_file`).
 """
 
 from __future__ import annotations
 
 from ._learn_file import LEARN_TABLES, LearnConfig, load_learn_config
 from ._motor_file import MOTOR_TABLES, MotorConfig, load_motor_config
+from ._online_file import ONLINE_TABLES, PROFILE_KEYS, OnlineConfig, load_online_config
 from ._toml import RENAMED_KEYS, ConfigFile, ConfigTable, read_toml
 
 __all__ = [
     "LEARN_TABLES",
     "MOTOR_TABLES",
+    "ONLINE_TABLES",
+    "PROFILE_KEYS",
     "RENAMED_KEYS",
     "ConfigFile",
     "ConfigTable",
     "LearnConfig",
     "MotorConfig",
+    "OnlineConfig",
     "load_learn_config",
     "load_motor_config",
+    "load_online_config",
     "read_toml",
 ]

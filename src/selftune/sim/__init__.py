@@ -11,6 +11,9 @@
 - :class:`SimulatedDrive`: the ideal drive the self-tuning sessions run on;
 - :class:`RealisticDrive`: a drive that behaves like hardware (computation delay, PWM,
   dead time, noise, ADC, voltage limit, temperature; :mod:`._realistic`);
+  :meth:`RealisticDrive.start` keeps it running chunk by chunk (:class:`DriveSession`,
+  :class:`DriveChunk`), its motor heating or failing along a :class:`ParameterProfile`
+  (:mod:`._session`, :mod:`._profile`);
 - :class:`GemDrive`: gym-electric-motor's PMSM environment as a drive (the ``gem`` extra;
   :mod:`._gem`), so a gym-electric-motor current loop is tuned by the same sessions.
 """
@@ -31,7 +34,9 @@ from ._exploration import (
 )
 from ._gem import GEM_ENVIRONMENT, GEM_SOLVERS, GemDrive
 from ._loop import LoopLogs, simulate_loop
+from ._profile import ParameterFactors, ParameterProfile
 from ._realistic import DriveRecord, DriveSettings, RealisticDrive, run_drive_batch
+from ._session import DriveChunk, DriveSession
 from ._signals import (
     ConstantSignal,
     ExogenousSignal,
@@ -51,7 +56,9 @@ __all__ = [
     "BinaryExploration",
     "ConstantSignal",
     "Discretization",
+    "DriveChunk",
     "DriveRecord",
+    "DriveSession",
     "DriveSettings",
     "ExogenousSignal",
     "Exosystem",
@@ -59,6 +66,8 @@ __all__ = [
     "GemDrive",
     "HeldSignal",
     "LoopLogs",
+    "ParameterFactors",
+    "ParameterProfile",
     "RealisticDrive",
     "Seed",
     "SimulatedDrive",

@@ -55,6 +55,7 @@ __all__ = [
     "CurrentSensor",
     "LoopInputs",
     "LoopOutputs",
+    "LoopState",
     "Modulator",
     "MotorBatch",
     "PwmSegments",
@@ -398,11 +399,13 @@ class LoopOutputs:
     measured, current : ndarray of complex, shape (P, N + 1)
         Measured ``i_dq`` and true ``i_ab``, A.
     commands : ndarray, shape (P, N + pad, 2)
-        The limited commands, V; row ``pad + k`` computed at sample k (zeros before).
+        The limited commands, V; row ``pad + k`` computed at sample k (the start's before).
     applied : ndarray of complex, shape (P, N)
         Mean dq voltage over each sample, V.
     pad : int
-        Rows of zeros before the first command.
+        Rows before the first command (zeros, or the start's commands).
+    state : LoopState
+        Where the loop stands after the last sample (a next run's start).
     """
 
     measured: ComplexArray
@@ -410,6 +413,40 @@ class LoopOutputs:
     commands: Array
     applied: ComplexArray
     pad: int
+    state: LoopState
+
+
+@dataclass(frozen=True, eq=False)
+class LoopState:
+    """Where the time loop stands at a sample: what a run continues from.
+
+    Attributes
+    ----------
+    current : ndarray of complex, shape (P,)
+        True ``i_ab`` at the sample, A.
+    commands : ndarray, shape (P, M, m)
+        The last M limited commands computed before the sample, oldest first, V (M at
+        least the loop's ``max(H, d)``; zeros before the first).
+    extras : ndarray of complex, shape (P, d)
+        The stationary dead-time compensation computed with the last d of them, V.
+    integrator : ndarray, shape (P, R)
+        The laws' integrators at the sample.
+    """
+
+    current: ComplexArray
+    commands: Array
+    extras: ComplexArray
+    integrator: Array
+
+    @classmethod
+    def rest(cls, plants: int, memory: int, delay: int, integrators: int) -> LoopState:
+        """Currents, past commands, compensation and integrators zero (``theta`` aside)."""
+        return cls(
+            current=np.zeros(plants, dtype=complex),
+            commands=np.zeros((plants, memory, 2)),
+            extras=np.zeros((plants, delay), dtype=complex),
+            integrator=np.zeros((plants, integrators)),
+        )
 
 
 def _limit(u: Array, limit: float) -> Array:
@@ -465,14 +502,16 @@ def _measure(
 class _Inverter:
     """The inverter, the motors and the sensor as the stepper's plant (a ``LoopPlant``)."""
 
-    def __init__(self, inputs: LoopInputs) -> None:
+    def __init__(self, inputs: LoopInputs, start: LoopState | None = None) -> None:
         count, plants = inputs.rho.shape[1], inputs.rotor.shape[0]
         self.inputs = inputs
         self.measured = np.empty((plants, count + 1), dtype=complex)
         self.currents = np.empty((plants, count + 1), dtype=complex)
         self.applied = np.empty((plants, count), dtype=complex)
         self.extras = np.zeros((plants, count + 1), dtype=complex)
-        self.current = np.zeros(plants, dtype=complex)
+        delay = inputs.modulator.delay
+        self.current = np.zeros(plants, dtype=complex) if start is None else start.current
+        self.earlier = np.zeros((plants, delay), dtype=complex) if start is None else start.extras
 
     def measure(self, k: int) -> Array:
         """The measured ``i_dq`` (P, 2) at sample k; keeps the compensation it asks for."""
@@ -483,30 +522,43 @@ class _Inverter:
     def advance(self, k: int, applied: Array, computed_at: int) -> None:
         """Modulate the command computed at ``computed_at`` over sample k."""
         command = self.inputs.modulation[:, k] * (applied[:, 0] + 1j * applied[:, 1])
-        extra = self.extras[:, computed_at] if computed_at >= 0 else np.zeros_like(command)
+        extra = self.extras[:, computed_at] if computed_at >= 0 else self.earlier[:, computed_at]
         self.current, self.applied[:, k] = _step(self.inputs, k, self.current, command, extra)
 
 
-def run_loop(inputs: LoopInputs) -> LoopOutputs:
+def run_loop(inputs: LoopInputs, start: LoopState | None = None) -> LoopOutputs:
     """The time loop: measure, compute, limit, modulate, propagate, all motors at once
     (:func:`~selftune.sim._stepper.run_closed_loop` on the inverter).
 
     Parameters
     ----------
     inputs : LoopInputs
-        The motors, the drive and the controllers.
+        The motors, the drive and the controllers (``rotor`` from the start's angle).
+    start : LoopState, optional
+        Where a previous run stopped (default: rest). A run continued from the state
+        another stopped in gives, to the bit, the samples of one run over both.
     """
-    plant = _Inverter(inputs)
-    limit = inputs.modulator.limit
+    plant = _Inverter(inputs, start)
+    limit, delay = inputs.modulator.limit, inputs.modulator.delay
+    pad = max(inputs.feedback.history, delay)
+    given = None
+    if start is not None:
+        memory = start.commands.shape[1]
+        given = (start.commands[:, memory - pad :], start.integrator)
     loop = run_closed_loop(
-        plant,
-        inputs.feedback,
-        inputs.w,
-        inputs.rho,
-        inputs.modulator.delay,
-        limit=lambda u: _limit(u, limit),
+        plant, inputs.feedback, inputs.w, inputs.rho, delay,
+        limit=lambda u: _limit(u, limit), start=given,
+    )  # fmt: skip
+    count = inputs.rho.shape[1]
+    state = LoopState(
+        current=plant.current,
+        commands=loop.commands,
+        extras=np.concatenate([plant.earlier, plant.extras[:, :count]], axis=1)[:, count:],
+        integrator=loop.integrator,
     )
-    return LoopOutputs(plant.measured, plant.currents, loop.commands, plant.applied, loop.pad)
+    return LoopOutputs(
+        plant.measured, plant.currents, loop.commands, plant.applied, loop.pad, state
+    )
 
 
 def _draws(

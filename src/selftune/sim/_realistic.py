@@ -44,6 +44,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -68,8 +69,12 @@ from ._inverter import (
     random_inputs,
     run_loop,
 )
+from ._profile import ParameterProfile
 from ._signals import ExogenousSignal, check_signal_values, constant
-from ._stepper import feedback_of
+from ._stepper import Feedback, feedback_of
+
+if TYPE_CHECKING:
+    from ._session import DriveSession
 
 __all__ = ["DriveRecord", "DriveSettings", "RealisticDrive", "run_drive_batch"]
 
@@ -109,7 +114,9 @@ class DriveRecord:
 class RealisticDrive:
     """A realistic simulated drive (see the module docstring); implements the Drive protocol.
 
-    Episodes start from rest (currents, past commands and integrators zero, ``theta = 0``).
+    Episodes (:meth:`record`, :meth:`run`) start from rest (currents, past commands and
+    integrators zero, ``theta = 0``); :meth:`start` keeps one running, chunk by chunk, its
+    motor heating or failing along a profile (:class:`~selftune.sim.DriveSession`).
 
     Attributes
     ----------
@@ -223,6 +230,37 @@ class RealisticDrive:
             law, reference, num_samples=num_samples, exploration=exploration, seed=seed
         ).trajectory
 
+    def start(
+        self,
+        law: ControlLaw,
+        *,
+        seed: int,
+        profile: ParameterProfile | None = None,
+        max_hold: float = 1e-2,
+        integrator: ArrayLike | None = None,
+    ) -> DriveSession:
+        """Start the drive at rest under ``law``, to run chunk by chunk
+        (:class:`~selftune.sim._session.DriveSession`).
+
+        Parameters
+        ----------
+        law : ControlLaw
+            The law at the start (n = m = 2, q of the references to come).
+        seed : int
+            Seed of the generator of the measurement noise.
+        profile : ParameterProfile, optional
+            Factors on :attr:`true_motor`'s R_s, L_s, phi_pm over time (default: none).
+        max_hold : float
+            The longest interval the parameters are held constant over, s.
+        integrator : array_like, shape (r,), optional
+            The law's integrators at the start (default zeros).
+        """
+        from ._session import DriveSession  # the session builds on this module
+
+        return DriveSession(
+            self, law, seed=seed, profile=profile, max_hold=max_hold, integrator=integrator
+        )
+
     def run_no_load(
         self, law: ControlLaw, *, num_samples: int, exploration: Exploration | None, seed: int
     ) -> Trajectory:
@@ -309,13 +347,13 @@ def _sensor(settings: DriveSettings, noise: Array | None) -> CurrentSensor:
 def _loop_inputs(
     motor: MotorBatch,
     settings: DriveSettings,
-    laws: list[ControlLaw],
+    feedback: Feedback,
     t: Array,
+    h: float,
     w: Array,
     rho: Array,
     noise: Array | None,
 ) -> LoopInputs:
-    h = float(t[1])
     rotor = np.exp(1j * motor.electrical_speed[:, np.newaxis] * t)
     offset = _modulation_offset(settings, motor.electrical_speed, h)[:, np.newaxis]
     modulator = Modulator(
@@ -330,7 +368,7 @@ def _loop_inputs(
     return LoopInputs(
         motor=motor,
         modulator=modulator,
-        feedback=feedback_of(laws),
+        feedback=feedback,
         sensor=_sensor(settings, noise),
         rotor=rotor,
         modulation=rotor[:, :-1] * np.exp(1j * offset),
@@ -445,7 +483,7 @@ def run_drive_batch(
     checked_laws = _laws(laws, len(given), w.shape[-1])
     motor = MotorBatch.build(given, speeds, checked.temperature_rise)
     rho, noise = random_inputs(exploration, t, seed, len(given), checked.current_noise)
-    inputs = _loop_inputs(motor, checked, checked_laws, t, w, rho, noise)
+    inputs = _loop_inputs(motor, checked, feedback_of(checked_laws), t, h, w, rho, noise)
     with np.errstate(over="ignore", invalid="ignore"):
         outputs = run_loop(inputs)
     return _records(inputs, outputs, checked, t)
