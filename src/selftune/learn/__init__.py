@@ -15,6 +15,8 @@ The flow, one subpackage a stage::
                 regulator, servo), discrete-time ADP, identify-then-design
     verdict/    standard errors, stability margin over the plants       how good it is
                 the data allow, refusals
+    online/     the model of a running drive from moments with          while it runs
+                forgetting, a surface PMSM's parameters, a change test
     _pipeline   learn_controller and assess: the stages in order
 
 :class:`LearningProblem` (what is known: C, E, F, Q, R, integral action) and

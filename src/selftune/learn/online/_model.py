@@ -1,0 +1,130 @@
+"""The sampled model of a running drive, estimated chunk by chunk.
+
+``x_(k+1) = Ad x_k + Bd a_k + Ed w_k`` (with the inverter's dead time, the dq vector
+``s_k`` of the phase currents' signs as extra channels of ``w``, :mod:`..evidence._dead_time`),
+from :class:`~._moments.ForgettingMoments`: instruments ``[x_(k-1), a_k, w_k]`` (and the
+signs of ``x_(k-1)`` at row k's angle), so that neither the noise on ``x_k`` nor the signs
+it flips near zero current bias the estimate. A chunk's rows join the previous chunk's:
+any chunking gives the same moments.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...core import Array, positive_finite
+from ...errors import InputError
+from ..evidence._dead_time import phase_signs
+from ..evidence._discrete_model import DiscreteModel
+from ._moments import ForgettingMoments
+
+__all__ = ["OnlineModel"]
+
+#: Rows a transition needs besides its own: the one before (the instrument) and after.
+_TAIL = 2
+
+
+@dataclass
+class OnlineModel:
+    """The drive's sampled model under forgetting (see the module).
+
+    Attributes
+    ----------
+    h : float
+        Sampling period, s.
+    memory : float
+        The forgetting's time constant, s: a sample's weight falls by ``e`` over it.
+    n, m, q : int
+        States, inputs and exogenous channels (the reference's, without the signs).
+    dead_time : bool
+        Model the inverter's dead time (the rows need the electrical angle).
+    """
+
+    h: float
+    memory: float
+    n: int
+    m: int
+    q: int
+    dead_time: bool = False
+    moments: ForgettingMoments = field(init=False, repr=False)
+    _tail: tuple[Array, Array, Array, Array] | None = field(init=False, default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        self.h = positive_finite(self.h, "h")
+        self.memory = positive_finite(self.memory, "memory")
+        size = self.n + self.m + self.q + (2 if self.dead_time else 0)
+        self.moments = ForgettingMoments(math.exp(-self.h / self.memory), size, self.n)
+
+    @property
+    def channels(self) -> int:
+        """Exogenous channels of the model: the reference's and, with dead time, two."""
+        return self.q + (2 if self.dead_time else 0)
+
+    def add(self, x: Array, a: Array, w: Array, angle: Array | None = None) -> None:
+        """Add a chunk of rows (the next after the last chunk's).
+
+        Parameters
+        ----------
+        x : ndarray, shape (T, n)
+            Measured states at the rows.
+        a : ndarray, shape (T, m)
+            Input applied during each row's sample.
+        w : ndarray, shape (T, q)
+            Exogenous signal held during it.
+        angle : ndarray, shape (T,), optional
+            Electrical angle at each row, rad (needed with ``dead_time``).
+        """
+        if self.dead_time and angle is None:
+            raise InputError("angle: the dead-time model needs the electrical angle of each row")
+        angles = np.zeros(x.shape[0]) if angle is None else angle
+        if self._tail is not None:
+            x, a, w, angles = (
+                np.concatenate([old, new])
+                for old, new in zip(self._tail, (x, a, w, angles), strict=True)
+            )
+        self._tail = (x[-_TAIL:], a[-_TAIL:], w[-_TAIL:], angles[-_TAIL:])
+        angle_ = angles
+        if x.shape[0] < _TAIL + 1:
+            return
+        now = slice(1, -1)  # transitions k -> k + 1 with a row k - 1 before
+        z = [x[now], a[now], w[now]]
+        zeta = [x[:-2], a[now], w[now]]
+        if self.dead_time:
+            z.append(phase_signs(x[now], angle_[now]))
+            zeta.append(phase_signs(x[:-2], angle_[now]))
+        self.moments.add(np.hstack(zeta), np.hstack(z), x[2:])
+
+    def model(self) -> DiscreteModel:
+        """The model the moments give now, with the covariance of ``vec([Ad, Bd, Ed])``.
+
+        Raises
+        ------
+        numpy.linalg.LinAlgError
+            If the data so far do not excite every regressor.
+        """
+        Theta, Sigma, covariance = self.moments.estimate()
+        n, m = self.n, self.m
+        M = Theta.T  # (n, p): [Ad, Bd, Ed]
+        return DiscreteModel(
+            Ad=M[:, :n].copy(),
+            Bd=M[:, n : n + m].copy(),
+            Ed=M[:, n + m :].copy(),
+            h=self.h,
+            residual_rms=np.sqrt(np.diag(Sigma)),
+            relative_residual=float("nan"),
+            condition=float(np.linalg.cond(self.moments.cross[:, : Theta.shape[0]])),
+            transitions=self.moments.count,
+            covariance=_row_major_covariance(covariance, Theta.shape),
+        )
+
+
+def _row_major_covariance(covariance: Array, shape: tuple[int, int]) -> Array:
+    """The covariance of ``vec(Theta)`` (Theta (p, n), column-major) as that of
+    ``vec(Theta')`` = ``vec([Ad, Bd, Ed])`` (column-major), the model's order."""
+    p, n = shape
+    # vec(Theta) index j p + i is Theta[i, j] = M[j, i], vec(M) index i n + j
+    order = np.arange(p * n).reshape(n, p).T.ravel()  # position in vec(Theta) of vec(M)
+    return covariance[np.ix_(order, order)]
