@@ -19,6 +19,7 @@ import selftune
 import selftune.learn._pipeline as pipeline
 from selftune.errors import PolicyIterationFailure
 from selftune.learn import LearningOptions, LearningProblem, learn_controller
+from selftune.tuning import run_algorithm
 
 DATA = Path(__file__).resolve().parents[1] / "examples" / "data"
 
@@ -66,3 +67,15 @@ def test_without_a_model_the_failure_is_the_answer(monkeypatch: pytest.MonkeyPat
     monkeypatch.setattr(pipeline, "_digital_adp", _failing)
     with pytest.raises(PolicyIterationFailure, match="step 3"):
         learn_controller(log, PROBLEM, np.eye(2), OPTIONS)
+
+
+def test_a_tuning_session_keeps_the_model_designed_controller(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The off-policy session on the README's motor: the fallback's result has no
+    policy-iteration steps to list (it had crashed reading the first) and says why."""
+    monkeypatch.setattr(pipeline, "_digital_adp", _failing)
+    monkeypatch.setattr(pipeline, "_continuous_adp", _failing)
+    result = run_algorithm("offpolicy", selftune.SPMSM(R_s=0.6, L_s=8e-3, phi_pm=0.35, p=3))
+    assert result.history == ()
+    assert any("policy iteration failed on this batch" in note for note in result.quality.notes)
