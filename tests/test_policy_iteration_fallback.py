@@ -79,3 +79,12 @@ def test_a_tuning_session_keeps_the_model_designed_controller(
     result = run_algorithm("offpolicy", selftune.SPMSM(R_s=0.6, L_s=8e-3, phi_pm=0.35, p=3))
     assert result.history == ()
     assert any("policy iteration failed on this batch" in note for note in result.quality.notes)
+
+
+def test_a_k0_that_does_not_stabilize_the_data_is_named(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Policy iteration fails from a K0 that destabilizes the fitted loop: the cause is
+    K0 (a user's input), so nothing is designed and the refusal says so."""
+    log = selftune.load_trajectory(DATA / "drive_log.csv")
+    monkeypatch.setattr(pipeline, "_digital_adp", _failing)
+    with pytest.raises(PolicyIterationFailure, match="K0 does not stabilize the loop the data"):
+        learn_controller(log, PROBLEM, -100.0 * np.eye(2), OPTIONS)

@@ -44,6 +44,7 @@ from ..errors import (
     TooLittleData,
     UnsolvableError,
 )
+from ..loop import SampledLoop
 from ._problem import LearningOptions, LearningProblem
 from ._result import LearnedController
 from .data._trajectory import Trajectory, as_trajectories
@@ -222,6 +223,15 @@ def _learned(
     except PolicyIterationFailure as failure:
         if evidence.fit is None:  # no output-error model to design from
             raise
+        radius = _initial_radius(K0_, evidence, options)
+        if not radius < 1.0:  # the cause is K0, not the noise: say so, design nothing
+            raise PolicyIterationFailure(
+                f"{failure}; K0 does not stabilize the loop the data show: its spectral "
+                f"radius on the fitted model is {radius:.4g} (at most 1 is stable); give "
+                "the feedback the drive ran while it logged (V/A, u = -K0 x)",
+                step=failure.step,
+                symptom=failure.symptom,
+            ) from failure
         law, P, B = design_target(evidence.model, known, options)
         note = (
             f"policy iteration failed on this batch ({failure}); the controller was "
@@ -231,6 +241,16 @@ def _learned(
         errors = replace(errors, notes=(*errors.notes, note))
         identify = replace(options, method="identify")
         return _judged((without_extra(law, problem.q), P, B, ()), evidence, errors, identify)
+
+
+def _initial_radius(K0: Array, evidence: Evidence, options: LearningOptions) -> float:
+    """The spectral radius of K0's sampled loop on the fitted model (its feedback of the
+    states; the target's delay)."""
+    model = evidence.model
+    n, m = model.n, model.Bd.shape[1]
+    delay = options.input_delay if options.target == "digital" else 0
+    law = ControlLaw.regulator(K0[:, :n], np.zeros((n, 0)), np.zeros((m, 0)))
+    return SampledLoop(model.h, delay).spectral_radius((model.Ad, model.Bd), law)
 
 
 def _initial_policy(
