@@ -52,11 +52,15 @@ def _fed(
 @given(st.lists(st.integers(1, 1999), max_size=30))
 def test_any_chunking_gives_the_same_moments(cuts: list[int]) -> None:
     x, _, a, w = _plant(2000, 1, noise=0.01)
-    whole = _fed(OnlineModel(1e-4, 0.05, 2, 2, 2), x, a, w, [])
-    chunked = _fed(OnlineModel(1e-4, 0.05, 2, 2, 2), x, a, w, cuts)
-    np.testing.assert_allclose(chunked.moments.cross, whole.moments.cross, rtol=1e-10, atol=1e-12)
-    np.testing.assert_allclose(chunked.moments.second, whole.moments.second, rtol=1e-10, atol=1e-12)
-    assert chunked.moments.count == whole.moments.count == 1999
+    whole = _fed(OnlineModel(1e-4, (0.05,), 2, 2, 2), x, a, w, [])
+    chunked = _fed(OnlineModel(1e-4, (0.05,), 2, 2, 2), x, a, w, cuts)
+    np.testing.assert_allclose(
+        chunked.moments[0].cross, whole.moments[0].cross, rtol=1e-10, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        chunked.moments[0].second, whole.moments[0].second, rtol=1e-10, atol=1e-12
+    )
+    assert chunked.moments[0].count == whole.moments[0].count == 1999
 
 
 def test_the_moments_are_weighted_instrumental_variables() -> None:
@@ -74,7 +78,7 @@ def test_the_moments_are_weighted_instrumental_variables() -> None:
 
 def test_noise_free_data_give_the_plant() -> None:
     x, _, a, w = _plant(3000, 3)
-    model = _fed(OnlineModel(1e-4, 1.0, 2, 2, 2), x, a, w, [700, 1500]).model()
+    model = _fed(OnlineModel(1e-4, (1.0,), 2, 2, 2), x, a, w, [700, 1500]).model()
     np.testing.assert_allclose(model.Ad, AD, atol=1e-9)
     np.testing.assert_allclose(model.Bd, BD, atol=1e-9)
     np.testing.assert_allclose(model.Ed, ED, atol=1e-9)
@@ -85,7 +89,7 @@ def test_measurement_noise_does_not_bias_the_estimate() -> None:
     estimate is not: its error is within 4 of its own standard errors, where ordinary
     least squares' is far beyond."""
     x, _, a, w = _plant(200_000, 4, noise=0.05)
-    model = _fed(OnlineModel(1e-4, 1e6, 2, 2, 2), x, a, w, []).model()
+    model = _fed(OnlineModel(1e-4, (1e6,), 2, 2, 2), x, a, w, []).model()
     assert model.covariance is not None
     se = np.sqrt(np.diag(model.covariance))
     truth = np.concatenate([AD, BD, ED], axis=1).ravel(order="F")
@@ -103,7 +107,7 @@ def test_the_standard_errors_mean_what_they_say() -> None:
     scores = []
     for seed in range(200):
         x, _, a, w = _plant(1500, 100 + seed, process=0.01)
-        model = _fed(OnlineModel(1e-4, 0.05, 2, 2, 2), x, a, w, [500]).model()
+        model = _fed(OnlineModel(1e-4, (0.05,), 2, 2, 2), x, a, w, [500]).model()
         assert model.covariance is not None
         scores.append((model.parameters - truth) / np.sqrt(np.diag(model.covariance)))
     within = np.mean(np.abs(np.array(scores)) <= 1.0)
@@ -115,7 +119,7 @@ def test_forgetting_follows_a_changed_plant() -> None:
     changed = AD * 0.99
     x1, _, a1, w1 = _plant(4000, 5)
     x2, _, a2, w2 = _plant(4000, 6, Ad=changed)
-    model = OnlineModel(1e-4, 0.02, 2, 2, 2)  # 200 samples of memory
+    model = OnlineModel(1e-4, (0.02,), 2, 2, 2)  # 200 samples of memory
     _fed(model, x1, a1, w1, [])
     np.testing.assert_allclose(model.model().Ad, AD, atol=1e-9)
     _fed(model, x2, a2, w2, [])  # 4000 samples: 20 memories; e^-20 of the old left

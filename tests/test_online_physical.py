@@ -55,7 +55,7 @@ def _fed(model: OnlineModel, log: selftune.Trajectory, chunk: int) -> OnlineMode
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_the_parameters_are_within_their_errors_on_a_realistic_drive(seed: int) -> None:
     """1 s: R_s, L_s, kappa and the dead-time voltage within 3 standard errors."""
-    model = _fed(OnlineModel(H, 10.0, 2, 2, 2, dead_time=True), _drive_log(seed, 10_000), 100)
+    model = _fed(OnlineModel(H, (10.0,), 2, 2, 2, dead_time=True), _drive_log(seed, 10_000), 100)
     structure = SpmsmStructure(MOTOR.p * SPEED, H, dead_time=True, hold="stationary")
     fitted = model.model()
     estimate = physical_estimate(fitted, structure, structure.initial(fitted))
@@ -102,15 +102,14 @@ def _looks(R_s: np.ndarray, seed: int, false_alarm: float) -> list[bool]:
     """The change test every 100 samples from the 2,000th (the fast memory against 1 s)."""
     x, a, w = _dq_motor(R_s.size, seed, R_s, 0.01)
     structure = SpmsmStructure(MOTOR.p * SPEED, H, hold="rotor")
-    fast, slow = OnlineModel(H, FAST, 2, 2, 2), OnlineModel(H, 1.0, 2, 2, 2)
+    models = OnlineModel(H, (FAST, 1.0), 2, 2, 2)
     alarms, start = [], np.array([0.5, 7e-3, 1.0])
     for k in range(0, R_s.size, 100):
-        for model in (fast, slow):
-            model.add(x[k : k + 100], a[k : k + 100], w[k : k + 100])
+        models.add(x[k : k + 100], a[k : k + 100], w[k : k + 100])
         if k < 2000:
             continue
-        steady = physical_estimate(slow.model(), structure, start)
-        quick = physical_estimate(fast.model(), structure, steady.theta)
+        steady = physical_estimate(models.model(1), structure, start)
+        quick = physical_estimate(models.model(0), structure, steady.theta)
         start = steady.theta
         alarms.append(change_test(quick, steady, false_alarm).changed)
     return alarms

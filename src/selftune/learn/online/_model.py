@@ -35,8 +35,9 @@ class OnlineModel:
     ----------
     h : float
         Sampling period, s.
-    memory : float
-        The forgetting's time constant, s: a sample's weight falls by ``e`` over it.
+    memories : tuple of float
+        The forgetting's time constants, s, one model each (a sample's weight falls by
+        ``e`` over one): a fast and a slow model share the rows' work.
     n, m, q : int
         States, inputs and exogenous channels (the reference's, without the signs).
     dead_time : bool
@@ -44,19 +45,23 @@ class OnlineModel:
     """
 
     h: float
-    memory: float
+    memories: tuple[float, ...]
     n: int
     m: int
     q: int
     dead_time: bool = False
-    moments: ForgettingMoments = field(init=False, repr=False)
+    moments: list[ForgettingMoments] = field(init=False, repr=False)
     _tail: tuple[Array, Array, Array, Array] | None = field(init=False, default=None, repr=False)
 
     def __post_init__(self) -> None:
         self.h = positive_finite(self.h, "h")
-        self.memory = positive_finite(self.memory, "memory")
+        if not self.memories:
+            raise InputError("memories: give at least one time constant, s")
+        self.memories = tuple(positive_finite(value, "memories") for value in self.memories)
         size = self.n + self.m + self.q + (2 if self.dead_time else 0)
-        self.moments = ForgettingMoments(math.exp(-self.h / self.memory), size, self.n)
+        self.moments = [
+            ForgettingMoments(math.exp(-self.h / memory), size, self.n) for memory in self.memories
+        ]
 
     @property
     def channels(self) -> int:
@@ -95,17 +100,26 @@ class OnlineModel:
         if self.dead_time:
             z.append(phase_signs(x[now], angle_[now]))
             zeta.append(phase_signs(x[:-2], angle_[now]))
-        self.moments.add(np.hstack(zeta), np.hstack(z), x[2:])
+        rows = (np.hstack(zeta), np.hstack(z), x[2:])
+        for moments in self.moments:
+            moments.add(*rows)
 
-    def model(self) -> DiscreteModel:
-        """The model the moments give now, with the covariance of ``vec([Ad, Bd, Ed])``.
+    def model(self, index: int = 0) -> DiscreteModel:
+        """The model one memory's moments give now, with the covariance of
+        ``vec([Ad, Bd, Ed])``.
+
+        Parameters
+        ----------
+        index : int
+            Which of :attr:`memories`.
 
         Raises
         ------
         numpy.linalg.LinAlgError
             If the data so far do not excite every regressor.
         """
-        Theta, Sigma, covariance = self.moments.estimate()
+        moments = self.moments[index]
+        Theta, Sigma, covariance = moments.estimate()
         n, m = self.n, self.m
         M = Theta.T  # (n, p): [Ad, Bd, Ed]
         return DiscreteModel(
@@ -115,8 +129,8 @@ class OnlineModel:
             h=self.h,
             residual_rms=np.sqrt(np.diag(Sigma)),
             relative_residual=float("nan"),
-            condition=float(np.linalg.cond(self.moments.cross[:, : Theta.shape[0]])),
-            transitions=self.moments.count,
+            condition=float(np.linalg.cond(moments.cross[:, : Theta.shape[0]])),
+            transitions=moments.count,
             covariance=_row_major_covariance(covariance, Theta.shape),
         )
 
