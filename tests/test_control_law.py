@@ -57,3 +57,31 @@ def test_regulator_is_the_continuous_law() -> None:
 def test_bad_shapes_are_named(arguments: dict[str, object], message: str) -> None:
     with pytest.raises(InputError, match=message):
         ControlLaw(**arguments)  # type: ignore[arg-type]
+
+
+@given(st.integers(1, 4), st.integers(1, 3), st.integers(0, 2), st.integers(0, 99))
+def test_a_bumpless_integrator_continues_the_command(
+    n: int, m: int, history: int, seed: int
+) -> None:
+    """With as many integrators as inputs (``K_i`` square, invertible) the switched-in law
+    computes exactly the old command; with fewer, the nearest it can (least squares)."""
+    rng = np.random.default_rng(seed)
+    K = rng.normal(size=(m, n + history * m))
+    X, U = rng.normal(size=(n, 2)), rng.normal(size=(m, 2))
+    C, F = rng.normal(size=(m, n)), rng.normal(size=(m, 2))
+    K_i = rng.normal(size=(m, m)) + 3.0 * np.eye(m)
+    law = ControlLaw(K, X, U, history=history, K_i=K_i, C=C, F=F, h=1e-4)
+    x, w, past = rng.normal(size=n), rng.normal(size=2), rng.normal(size=(history, m))
+    command = rng.normal(size=m)
+    z = law.bumpless_integrator(x, w, past, command)
+    np.testing.assert_allclose(law.command(x, w, past, z), command, rtol=1e-9, atol=1e-9)
+    one = ControlLaw(K, X, U, history=history, K_i=K_i[:, :1], C=C[:1], F=F[:1], h=1e-4)
+    z_one = one.bumpless_integrator(x, w, past, command)
+    residual = one.command(x, w, past, z_one) - command
+    assert abs(float((K_i[:, :1].T @ residual)[0])) <= 1e-9 * (1.0 + float(np.abs(command).max()))
+
+
+def test_a_bumpless_switch_needs_an_integrator() -> None:
+    law = ControlLaw.regulator(np.eye(2), np.zeros((2, 1)), np.zeros((2, 1)))
+    with pytest.raises(InputError, match="bumpless switch sets the integrator"):
+        law.bumpless_integrator(np.zeros(2), np.zeros(1), np.zeros((0, 2)), np.zeros(2))

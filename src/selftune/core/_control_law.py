@@ -209,6 +209,34 @@ class ControlLaw:
             u = u - z @ self.K_i.T
         return np.asarray(u, dtype=float)
 
+    def bumpless_integrator(self, x: Array, w: Array, past: Array, command: Array) -> Array:
+        """The integrator state with which this law computes ``command`` from ``x``, ``w``
+        and ``past`` (least squares where ``K_i`` has fewer rows than columns): switched
+        in with it, the law continues the voltage the drive was applying (a bumpless
+        switch).
+
+        Parameters
+        ----------
+        x : ndarray, shape (n,)
+            The measured state at the switch.
+        w : ndarray, shape (q,)
+            The reference.
+        past : ndarray, shape (history, m)
+            The inputs computed before, oldest first.
+        command : ndarray, shape (m,)
+            The input the old law computes at the switch.
+
+        Raises
+        ------
+        InputError
+            If the law has no integral action.
+        """
+        if self.K_i is None:
+            raise InputError("law: a bumpless switch sets the integrator; this law has none")
+        without = self.command(x, w, past)
+        solution, *_ = np.linalg.lstsq(self.K_i, without - command, rcond=None)
+        return np.asarray(solution, dtype=float)
+
     def document(self) -> dict[str, object]:
         """The law as a drive engineer puts it on a drive: its equations in words and
         symbols, the names of K's columns, and every matrix they name (SI units: V/A on
