@@ -26,6 +26,7 @@ from ..core import (
     positive_integer,
 )
 from ..errors import InputError, SelftuneDeprecationWarning
+from ..loop import SampledLoop
 from .evidence._alignment import LoggedInput, stated_shift
 from .learners._policy_iteration import check_iteration_settings
 
@@ -149,6 +150,21 @@ class LearningProblem:
         )  # fmt: skip
         object.__setattr__(problem, "K0", self.K0)  # the deprecated K0 travels with it
         return problem
+
+    def loop(self, h: float, delay: int) -> SampledLoop:
+        """The loop of the problem's integral action (none without it), sampled at h (0
+        for the continuous loop) with a delay of d samples.
+
+        Parameters
+        ----------
+        h : float
+            Sampling period, s (0: continuous).
+        delay : int
+            d, the drive's computation delay, samples.
+        """
+        if self.integral_weight is None:
+            return SampledLoop(h, delay)
+        return SampledLoop(h, delay, C=self.C, F=self.F, Q_i=self.integral_weight)
 
     def initial_policy(self, K0: ArrayLike, extra: int = 0) -> Array:
         """K0 validated for this problem, over x and ``extra`` more states (a delay's past

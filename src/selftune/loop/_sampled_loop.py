@@ -452,6 +452,23 @@ class SampledLoop:
         A_cl, _ = self.closed_loop(plant, law)
         return float(np.max(np.abs(np.linalg.eigvals(A_cl))))
 
+    def step_from_rest(self, X: ArrayLike, U: ArrayLike, w: ArrayLike) -> Array:
+        """The loop's state ``zeta_0`` at a step of the reference from rest to ``w``: the
+        state, the past inputs (``delay`` of them) and the integrators (zero) as deviations
+        from the new steady state ``(X w, U w)``; the step's cost is ``zeta_0' P zeta_0``.
+
+        Parameters
+        ----------
+        X : array_like, shape (n, q)
+            The steady-state map.
+        U : array_like, shape (m, q)
+            The feedforward map.
+        w : array_like, shape (q,)
+            The reference after the step.
+        """
+        X_, U_, w_ = (np.asarray(value, dtype=float) for value in (X, U, w))
+        return np.concatenate([-X_ @ w_, np.tile(-U_ @ w_, self.input_delay), np.zeros(self.r)])
+
     def value(
         self,
         plant: tuple[ArrayLike, ArrayLike],

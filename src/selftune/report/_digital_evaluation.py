@@ -115,8 +115,7 @@ def feedback_excess_cost(optimum: ModelBasedSolution, law: ControlLaw, w: Array)
     if law.history != loop.input_delay or law.r != loop.r:
         return float("nan")
     weights = loop.weights(optimum.Q, optimum.R, "digital")
-    steady = [-optimum.X @ w, np.tile(-optimum.U @ w, loop.input_delay), np.zeros(loop.r)]
-    zeta0 = np.concatenate(steady)
+    zeta0 = loop.step_from_rest(optimum.X, optimum.U, w)
     try:
         value = loop.value(plant, law, weights)
     except UnsolvableError:

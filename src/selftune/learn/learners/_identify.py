@@ -28,7 +28,7 @@ from ...core import (
     is_positive_definite,
     solve_regulator,
 )
-from ...loop import Cost, SampledLoop
+from ...loop import Cost
 from .._problem import LearningProblem
 from .._result import LearnedController
 from ..evidence._discrete_model import DiscreteModel
@@ -48,14 +48,6 @@ def _regulator(
     if problem.C is None or problem.F is None:
         return np.zeros((n, 0)), np.zeros((m, 0))
     return solve_regulator((A, B, problem.C, D, E, problem.F), _weights_X(problem), problem.R)
-
-
-def _loop(problem: LearningProblem, h: float, delay: int) -> SampledLoop:
-    """The loop of the problem's integral action (none without it), sampled at h (0 for
-    the continuous loop) with a delay of d samples."""
-    if problem.integral_weight is None:
-        return SampledLoop(h, delay)
-    return SampledLoop(h, delay, C=problem.C, F=problem.F, Q_i=problem.integral_weight)
 
 
 def design_digital(
@@ -80,7 +72,7 @@ def design_digital(
     LearnedController
         The law, its value (over the augmented state) and the identified Bd; no verdict.
     """
-    loop = _loop(problem, model.h, delay)
+    loop = problem.loop(model.h, delay)
     plant = (model.Ad, model.Bd)
     K, P = loop.optimum(plant, loop.weights(problem.Q, problem.R, cost, plant=plant))
     held = np.zeros((problem.q, problem.q))
@@ -108,7 +100,7 @@ def design_continuous(model: DiscreteModel, problem: LearningProblem) -> Learned
         integrator run at the sampling period).
     """
     A, B, D = continuous_from_discrete(model.Ad, model.Bd, model.h, model.Ed)
-    loop = _loop(problem, 0.0, 0)
+    loop = problem.loop(0.0, 0)
     K, P = loop.optimum((A, B), loop.weights(problem.Q, problem.R))
     E = np.zeros((problem.q, problem.q)) if problem.E is None else problem.E
     X, U = _regulator(problem, A, B, D, E)

@@ -1,15 +1,19 @@
 """Learning while the drive runs: the sampled model from moments with forgetting, a
-surface PMSM's parameters read off it, and a change in them detected."""
+surface PMSM's parameters read off it, a change in them detected, and a controller
+certified before it is switched in."""
 
+from ._certify import Certificate, certify
 from ._model import OnlineModel
 from ._moments import ForgettingMoments
 from ._physical import ChangeTest, PhysicalEstimate, change_test, physical_estimate
 
 __all__ = [
+    "Certificate",
     "ChangeTest",
     "ForgettingMoments",
     "OnlineModel",
     "PhysicalEstimate",
+    "certify",
     "change_test",
     "physical_estimate",
 ]

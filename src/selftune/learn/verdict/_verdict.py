@@ -4,6 +4,7 @@ and the quality of a learned law (see :mod:`._quality` for what they mean and
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -29,6 +30,7 @@ __all__ = [
     "dead_time_voltage",
     "design_target",
     "model_errors",
+    "plausible_models",
     "relative_size",
     "verdict",
     "without_extra",
@@ -199,20 +201,42 @@ def verdict(
 
 def _radii(law: ControlLaw, evidence: Evidence, options: LearningOptions) -> Array:
     """Spectral radii of the learned loop on the fitted model (first) and on models drawn
-    from the parameters' uncertainty (a fixed seed: the verdict is reproducible)."""
+    from the parameters' uncertainty."""
     fit = evidence.fit
     model = evidence.model
-    radii = [closed_loop_radius(model, law, options.input_delay)]
-    if fit is not None:
-        rng = np.random.default_rng(0)
-        draws = rng.multivariate_normal(
-            fit.parameters, fit.parameter_covariance, size=PLAUSIBLE_MODELS, method="svd"
-        )
-        for theta in draws:
-            Ad, Bd, Ed = fit.matrices(theta)
-            candidate = replace(model, Ad=Ad, Bd=Bd, Ed=Ed)
-            radii.append(closed_loop_radius(candidate, law, options.input_delay))
-    return np.array(radii)
+    if fit is None:
+        return np.array([closed_loop_radius(model, law, options.input_delay)])
+    draws = plausible_models(model, fit.matrices, fit.parameters, fit.parameter_covariance)
+    return np.array([closed_loop_radius(each, law, options.input_delay) for each in draws])
+
+
+def plausible_models(
+    model: DiscreteModel,
+    matrices: Callable[[Array], tuple[Array, Array, Array]],
+    parameters: Array,
+    covariance: Array,
+) -> list[DiscreteModel]:
+    """The model, then :data:`PLAUSIBLE_MODELS` models drawn from its parameters'
+    uncertainty (a fixed seed: a verdict is reproducible).
+
+    Parameters
+    ----------
+    model : DiscreteModel
+        The fitted model (its h and statistics are kept by the draws).
+    matrices : callable
+        The parameters' map to ``(Ad, Bd, Ed)``.
+    parameters : ndarray, shape (p,)
+        The fitted parameters.
+    covariance : ndarray, shape (p, p)
+        Their covariance.
+    """
+    rng = np.random.default_rng(0)
+    draws = rng.multivariate_normal(parameters, covariance, size=PLAUSIBLE_MODELS, method="svd")
+    models = [model]
+    for theta in draws:
+        Ad, Bd, Ed = matrices(theta)
+        models.append(replace(model, Ad=Ad, Bd=Bd, Ed=Ed))
+    return models
 
 
 def dead_time_voltage(evidence: Evidence) -> float | None:

@@ -1,0 +1,129 @@
+"""Certifying a controller before a running drive switches to it.
+
+A candidate (the digital optimum of the model the recent data give) replaces the law in
+force only if, on every plausible plant (the estimate, then models drawn from its
+parameters' covariance, as the batch verdict draws them:
+:func:`~selftune.learn.verdict._verdict.plausible_models`):
+
+- its sampled loop is stable with the batch verdict's margin
+  (:func:`~selftune.learn.verdict._quality.largest_radius`), and
+- its cost is lower than the law in force's by more than the spread of that saving over
+  the plausible plants: the saving ``1 - J_candidate / J_current`` of a step of the
+  reference from rest (``zeta_0' P zeta_0``, :meth:`~selftune.loop.SampledLoop.step_from_rest`),
+  its mean over the plants above its standard deviation. A law in force that some
+  plausible plant makes unstable saves everything there.
+
+Anything else keeps the law in force, and the certificate says why.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...core import Array, ControlLaw
+from ...errors import UnsolvableError
+from ...loop import LoopWeights, SampledLoop
+from ..evidence._discrete_model import DiscreteModel
+from ..verdict._quality import closed_loop_radius, largest_radius
+from ..verdict._verdict import plausible_models
+from ._physical import PhysicalEstimate
+
+__all__ = ["Certificate", "certify"]
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """Whether a candidate law may replace the one in force, and why.
+
+    Attributes
+    ----------
+    certified : bool
+        Stable with margin on every plausible plant and cheaper beyond its uncertainty.
+    reason : str
+        What decided it, in words.
+    radii : ndarray
+        The candidate's loop's spectral radii on the plausible plants (the estimate first).
+    limit : float
+        The largest radius accepted.
+    saving : float
+        The mean over the plausible plants of ``1 - J_candidate / J_current``.
+    saving_spread : float
+        Its standard deviation over them.
+    """
+
+    certified: bool
+    reason: str
+    radii: Array
+    limit: float
+    saving: float
+    saving_spread: float
+
+
+def _step_cost(
+    loop: SampledLoop, model: DiscreteModel, law: ControlLaw, weights: LoopWeights, zeta0: Array
+) -> float:
+    """``zeta_0' P zeta_0`` of the law on the model; inf if it does not stabilize it."""
+    try:
+        P = loop.value((model.Ad, model.Bd), law, weights)
+    except UnsolvableError:
+        return float("inf")
+    return float(zeta0 @ P @ zeta0)
+
+
+def certify(
+    candidate: ControlLaw,
+    current: ControlLaw,
+    estimate: PhysicalEstimate,
+    structure: Callable[[Array], tuple[Array, Array, Array]],
+    loop: SampledLoop,
+    weights: tuple[Array, Array],
+    w: Array,
+) -> Certificate:
+    """The certificate of ``candidate`` against ``current`` (see the module).
+
+    Parameters
+    ----------
+    candidate, current : ControlLaw
+        The proposed law and the law in force (the loop's delay and integrator).
+    estimate : PhysicalEstimate
+        The plant's parameters and their covariance.
+    structure : callable
+        The parameters' map to ``(Ad, Bd, Ed)``.
+    loop : SampledLoop
+        The drive's loop: sampling period, delay, integral action and its weight.
+    weights : (Q, R)
+        The continuous cost's weights (the digital cost of :meth:`SampledLoop.weights`).
+    w : ndarray, shape (q,)
+        The reference whose step from rest the costs compare.
+    """
+    Ad, Bd, Ed = structure(estimate.theta)
+    nominal = DiscreteModel(Ad, Bd, Ed, loop.h, np.zeros(Ad.shape[0]), 0.0, 1.0, 0)
+    models = plausible_models(nominal, structure, estimate.theta, estimate.covariance)
+    radii = np.array([closed_loop_radius(model, candidate, loop.input_delay) for model in models])
+    limit = largest_radius(float(radii[0]))
+    if not np.all(radii <= limit):
+        unstable = int(np.sum(~(radii <= limit)))
+        reason = (
+            f"not stable with margin on {unstable} of {radii.size} plausible plants "
+            f"(spectral radius up to {float(np.max(radii)):.6f}, at most {limit:.6f})"
+        )
+        return Certificate(False, reason, radii, limit, float("nan"), float("nan"))
+    cost = loop.weights(*weights, "digital")
+    zeta0 = loop.step_from_rest(candidate.X, candidate.U, w)
+    savings = []
+    for model in models:
+        new = _step_cost(loop, model, candidate, cost, zeta0)
+        old = _step_cost(loop, model, current, cost, zeta0)
+        savings.append(1.0 if not np.isfinite(old) else 1.0 - new / old)
+    saving, spread = float(np.mean(savings)), float(np.std(savings, ddof=1))
+    certified = saving > spread
+    change = "falls" if saving > 0.0 else "rises" if saving < 0.0 else "changes"
+    reason = (
+        f"stable with margin on all {radii.size} plausible plants; the step's cost "
+        f"{change} by {abs(saving):.3%} (spread {spread:.3%})"
+        f"{'' if certified else ', not beyond its uncertainty: the law in force stays'}"
+    )
+    return Certificate(certified, reason, radii, limit, saving, spread)
