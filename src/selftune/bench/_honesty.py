@@ -409,7 +409,7 @@ def _outcome(case: HonestyCase) -> HonestyOutcome:
     truth = experiment.digital_optimum(case.input_delay_samples, "stationary")
     K_error, U_error = tried.errors((truth.K, truth.U))
     quality = learned.verdict
-    model = DiscreteModel(*truth.sampled_plant, experiment.h, np.zeros(2), 0.0, 1.0, 0)
+    model = DiscreteModel.given(*truth.sampled_plant, experiment.h)
     radius = closed_loop_radius(model, learned.law, case.input_delay_samples)
     if radius >= 1.0:
         outcome = "destabilizing"

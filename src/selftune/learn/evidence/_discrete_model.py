@@ -109,6 +109,19 @@ class DiscreteModel:
     transitions: int
     covariance: Array | None = None
 
+    @classmethod
+    def given(cls, Ad: Array, Bd: Array, Ed: Array, h: float) -> DiscreteModel:
+        """A model given, not fitted (no residual, no transitions, no covariance).
+
+        Parameters
+        ----------
+        Ad, Bd, Ed : ndarray
+            The matrices.
+        h : float
+            Sampling period, s.
+        """
+        return cls(Ad, Bd, Ed, h, np.zeros(Ad.shape[0]), 0.0, 1.0, 0)
+
     def matrices(self, parameters: Array) -> tuple[Array, Array, Array]:
         """``(Ad, Bd, Ed)`` from ``vec([Ad, Bd, Ed])`` of this model's shapes.
 

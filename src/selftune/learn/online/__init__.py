@@ -6,13 +6,17 @@ from ._certify import Certificate, certify
 from ._model import OnlineModel
 from ._moments import ForgettingMoments
 from ._physical import ChangeTest, PhysicalEstimate, change_test, physical_estimate
+from ._tuner import OnlineSettings, OnlineTuner, TunerEvent
 
 __all__ = [
     "Certificate",
     "ChangeTest",
     "ForgettingMoments",
     "OnlineModel",
+    "OnlineSettings",
+    "OnlineTuner",
     "PhysicalEstimate",
+    "TunerEvent",
     "certify",
     "change_test",
     "physical_estimate",

@@ -81,6 +81,7 @@ def certify(
     loop: SampledLoop,
     weights: tuple[Array, Array],
     w: Array,
+    least_saving: float = 0.0,
 ) -> Certificate:
     """The certificate of ``candidate`` against ``current`` (see the module).
 
@@ -98,9 +99,12 @@ def certify(
         The continuous cost's weights (the digital cost of :meth:`SampledLoop.weights`).
     w : ndarray, shape (q,)
         The reference whose step from rest the costs compare.
+    least_saving : float
+        The least mean saving worth a switch (a fraction of the law in force's cost):
+        a switch for less only adds a transient.
     """
     Ad, Bd, Ed = structure(estimate.theta)
-    nominal = DiscreteModel(Ad, Bd, Ed, loop.h, np.zeros(Ad.shape[0]), 0.0, 1.0, 0)
+    nominal = DiscreteModel.given(Ad, Bd, Ed, loop.h)
     models = plausible_models(nominal, structure, estimate.theta, estimate.covariance)
     radii = np.array([closed_loop_radius(model, candidate, loop.input_delay) for model in models])
     limit = largest_radius(float(radii[0]))
@@ -119,11 +123,16 @@ def certify(
         old = _step_cost(loop, model, current, cost, zeta0)
         savings.append(1.0 if not np.isfinite(old) else 1.0 - new / old)
     saving, spread = float(np.mean(savings)), float(np.std(savings, ddof=1))
-    certified = saving > spread
+    certified = saving > max(spread, least_saving)
     change = "falls" if saving > 0.0 else "rises" if saving < 0.0 else "changes"
     reason = (
         f"stable with margin on all {radii.size} plausible plants; the step's cost "
         f"{change} by {abs(saving):.3%} (spread {spread:.3%})"
-        f"{'' if certified else ', not beyond its uncertainty: the law in force stays'}"
+        + (
+            ""
+            if certified
+            else f", not beyond its uncertainty and {least_saving:.3%} (the least worth a "
+            "switch): the law in force stays"
+        )
     )
     return Certificate(certified, reason, radii, limit, saving, spread)

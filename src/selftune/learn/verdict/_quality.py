@@ -268,7 +268,7 @@ def standard_errors(
 
     def outputs(theta: Array) -> list[Array]:
         Ad, Bd, Ed = matrices(theta)
-        model = DiscreteModel(Ad, Bd, Ed, h, np.zeros(Ad.shape[0]), 0.0, 1.0, 0)
+        model = DiscreteModel.given(Ad, Bd, Ed, h)
         return list(design(model))
 
     base = outputs(parameters)
