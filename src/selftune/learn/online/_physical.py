@@ -64,7 +64,7 @@ class PhysicalEstimate:
 
 
 def physical_estimate(
-    model: DiscreteModel, structure: SpmsmStructure, start: Array
+    model: DiscreteModel, structure: SpmsmStructure, start: Array, iterations: int = ITERATIONS
 ) -> PhysicalEstimate:
     """The structure's parameters nearest the model (see the module).
 
@@ -76,6 +76,9 @@ def physical_estimate(
         The motor's structure at its speed and sampling period.
     start : ndarray
         The parameters to start from (the last estimate, or ``structure.initial``).
+    iterations : int
+        Gauss-Newton iterations (one from an estimate close by, as a fast model's from
+        the slow one's).
     """
     if model.covariance is None:
         raise InputError("model: a covariance is needed to weigh its entries")
@@ -87,7 +90,7 @@ def physical_estimate(
     def entries(parameters: Array) -> Array:
         return np.concatenate(structure(parameters), axis=1).ravel(order="F")
 
-    for _ in range(ITERATIONS):
+    for _ in range(iterations):
         value = entries(theta)
         steps = _STEP * np.maximum(np.abs(theta), 1e-6)
         J = np.column_stack(

@@ -78,7 +78,7 @@ class OnlineSettings:
     hold: Literal["stationary", "rotor"] = "stationary"
     dead_time: bool = True
     memories: tuple[float, float] = (0.05, 2.0)
-    look_every: int = 500
+    look_every: int = 1000
     false_alarm: float = 1e-4
     torque_channel: int | None = 1
     least_saving: float = 1e-3
@@ -147,6 +147,7 @@ class OnlineTuner:
         self._sample = 0
         self._next_look = settings.look_every
         self.estimate: PhysicalEstimate | None = None
+        self._designed: PhysicalEstimate | None = None
         self.probing = True
 
     @property
@@ -181,7 +182,7 @@ class OnlineTuner:
     def _estimates(self) -> tuple[PhysicalEstimate, PhysicalEstimate]:
         structure = self.settings.structure
         slow = physical_estimate(self._model.model(1), structure, self._theta)
-        fast = physical_estimate(self._model.model(0), structure, slow.theta)
+        fast = physical_estimate(self._model.model(0), structure, slow.theta, iterations=1)
         return slow, fast
 
     def _look(self, w: Array) -> list[TunerEvent]:
@@ -211,6 +212,12 @@ class OnlineTuner:
             ))  # fmt: skip
         self._theta = estimate.theta
         self.estimate = estimate
+        if not test.changed and self._designed_near(estimate):
+            self.probing = False
+            return [TunerEvent(self._sample, "kept", "the estimate has not moved by half a "
+                               "standard error since the last design", estimate,
+                               change=test)]  # fmt: skip
+        self._designed = estimate
         candidate = self._design(estimate)
         settings = self.settings
         problem = self._scaled_problem(estimate)
@@ -229,6 +236,15 @@ class OnlineTuner:
             events.append(TunerEvent(self._sample, "kept", certificate.reason, estimate,
                                      None, certificate, test))  # fmt: skip
         return events
+
+    def _designed_near(self, estimate: PhysicalEstimate) -> bool:
+        """Whether the last design's estimate is within half a standard error of this
+        one in every parameter and was certified stable (a new design would give the
+        same law)."""
+        last = self._designed
+        if last is None or self.probing:
+            return False
+        return bool(np.all(np.abs(estimate.theta - last.theta) <= 0.5 * estimate.standard_errors))
 
     def _scaled_problem(self, estimate: PhysicalEstimate) -> LearningProblem:
         """The problem with the torque reference's current for the estimated flux."""
