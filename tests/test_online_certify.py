@@ -45,7 +45,7 @@ def _with_gain(law: ControlLaw, factor: float) -> ControlLaw:
 
 
 def _certificate(candidate: ControlLaw, current: ControlLaw, relative_se: float):  # type: ignore[no-untyped-def]
-    estimate = PhysicalEstimate(TRUTH, np.diag((relative_se * TRUTH) ** 2))
+    estimate = PhysicalEstimate(TRUTH, np.diag((relative_se * TRUTH) ** 2), np.zeros((12, 3)))
     loop = _problem().loop(H, 1)
     return certify(candidate, current, estimate, STRUCTURE, loop, (Q, R), W)
 

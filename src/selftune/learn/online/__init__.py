@@ -5,12 +5,13 @@ certified before it is switched in."""
 from ._certify import Certificate, certify
 from ._model import OnlineModel
 from ._moments import ForgettingMoments
-from ._physical import ChangeTest, PhysicalEstimate, change_test, physical_estimate
+from ._physical import ChangeTest, ChangeWatch, PhysicalEstimate, physical_estimate
 from ._tuner import OnlineSettings, OnlineTuner, TunerEvent
 
 __all__ = [
     "Certificate",
     "ChangeTest",
+    "ChangeWatch",
     "ForgettingMoments",
     "OnlineModel",
     "OnlineSettings",
@@ -18,6 +19,5 @@ __all__ = [
     "PhysicalEstimate",
     "TunerEvent",
     "certify",
-    "change_test",
     "physical_estimate",
 ]

@@ -68,8 +68,11 @@ class OnlineModel:
         """Exogenous channels of the model: the reference's and, with dead time, two."""
         return self.q + (2 if self.dead_time else 0)
 
-    def add(self, x: Array, a: Array, w: Array, angle: Array | None = None) -> None:
-        """Add a chunk of rows (the next after the last chunk's).
+    def add(
+        self, x: Array, a: Array, w: Array, angle: Array | None = None
+    ) -> tuple[Array, Array, Array]:
+        """Add a chunk of rows (the next after the last chunk's); returns the transitions
+        it completed: instruments, regressors and next states (none at the very start).
 
         Parameters
         ----------
@@ -93,7 +96,8 @@ class OnlineModel:
         self._tail = (x[-_TAIL:], a[-_TAIL:], w[-_TAIL:], angles[-_TAIL:])
         angle_ = angles
         if x.shape[0] < _TAIL + 1:
-            return
+            size = self.moments[0].regressors
+            return np.zeros((0, size)), np.zeros((0, size)), np.zeros((0, self.n))
         now = slice(1, -1)  # transitions k -> k + 1 with a row k - 1 before
         z = [x[now], a[now], w[now]]
         zeta = [x[:-2], a[now], w[now]]
@@ -103,6 +107,7 @@ class OnlineModel:
         rows = (np.hstack(zeta), np.hstack(z), x[2:])
         for moments in self.moments:
             moments.add(*rows)
+        return rows
 
     def model(self, index: int = 0) -> DiscreteModel:
         """The model one memory's moments give now, with the covariance of

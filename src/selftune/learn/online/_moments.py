@@ -137,6 +137,25 @@ class ForgettingMoments:
         of the weights (1 per recent sample)."""
         return self.weight
 
+    def noise(self, Theta: Array) -> tuple[Array, Array, Array]:
+        """The errors' covariance ``Sigma`` and their two sources: the measurement
+        noise's covariance ``R`` (from the lag-one covariance ``-R Ad'``) and the process
+        noise's ``Q`` (what ``Sigma`` leaves), each positive semidefinite.
+
+        Parameters
+        ----------
+        Theta : ndarray, shape (p, n)
+            The coefficients (the first n rows are ``Ad'``).
+        """
+        n = self.outputs
+        selector = np.vstack([-Theta, np.eye(n)])  # e = [z, y] @ selector
+        dof = max(self.weight - self.regressors, 1.0)
+        Sigma = selector.T @ self.second @ selector / dof
+        lagged = selector.T @ self.second_lagged @ selector / dof  # -R Ad'
+        Ad = Theta[:n].T
+        R = _semidefinite(np.asarray(-np.linalg.solve(Ad, lagged.T)))  # -Ad^-1 (-Ad R)
+        return Sigma, R, _semidefinite(Sigma - R - Ad @ R @ Ad.T)
+
     def estimate(self) -> tuple[Array, Array, Array]:
         """``Theta`` (p, n), the error covariance ``Sigma`` (n, n) and the covariance of
         ``vec(Theta)`` (column-major), from the moments so far.
@@ -149,15 +168,10 @@ class ForgettingMoments:
         """
         p = self.regressors
         G, H = self.cross[:, :p], self.cross[:, p:]
-        Theta = np.linalg.solve(G, H)
+        Theta = np.asarray(np.linalg.solve(G, H), dtype=np.float64)
         n = self.outputs
-        selector = np.vstack([-Theta, np.eye(n)])  # e = [z, y] @ selector
-        dof = max(self.weight - p, 1.0)
-        Sigma = selector.T @ self.second @ selector / dof
-        lagged = selector.T @ self.second_lagged @ selector / dof  # -R Ad'
+        Sigma, R, Q = self.noise(Theta)
         Ad = Theta[:n].T
-        R = _semidefinite(-np.linalg.solve(Ad, lagged.T))  # -Ad^-1 (-Ad R) = R
-        Q = _semidefinite(Sigma - R - Ad @ R @ Ad.T)
         before, after = self.pairs[:p, :p], self.pairs[p:, p:]
         cross = self.pairs[:p, p:]  # sum u_k u_(k+1)'
         V = (
@@ -169,7 +183,7 @@ class ForgettingMoments:
         )
         G_inverse = np.linalg.inv(G)
         spread = np.kron(np.eye(n), G_inverse)
-        return np.asarray(Theta, dtype=float), Sigma, np.asarray(spread @ V @ spread.T)
+        return Theta, Sigma, np.asarray(spread @ V @ spread.T)
 
 
 def _semidefinite(M: Array) -> Array:

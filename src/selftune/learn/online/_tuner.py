@@ -3,14 +3,16 @@
 The drive feeds its log in chunks (:meth:`OnlineTuner.feed`). Every
 :attr:`OnlineSettings.look_every` samples the tuner looks:
 
-1. the slow and the fast model (:class:`~._model.OnlineModel`, two memories) give the
-   motor's parameters (:func:`~._physical.physical_estimate`);
-2. the change test compares them (:func:`~._physical.change_test`); on a change the slow
-   memory restarts from the fast one's (the old plant's samples would mislead it);
-3. the digital optimum of the estimated motor is designed (identify-then-design on the
+1. the slow model (:class:`~._model.OnlineModel`) gives the motor's parameters
+   (:func:`~._physical.physical_estimate`) and becomes the change watch's reference;
+2. the digital optimum of the estimated motor is designed (identify-then-design on the
    structured model, the torque reference's current scaled by the estimated flux) and
    certified against the law in force (:func:`~._certify.certify`); a certified law
    replaces it, and the event carries it for the drive to switch to.
+
+Between looks every chunk is scored against the reference (:class:`~._physical.ChangeWatch`):
+on an alarm the slow memory restarts from the fast one's (the old plant's samples would
+mislead it), and the next look comes a fast memory later, on the new plant's data.
 
 Probing (a small exploration) is wanted while the estimates do not certify any law: at
 the start, after a change, and while the candidate is not stable with margin on every
@@ -33,7 +35,7 @@ from ..evidence._spmsm_structure import SpmsmStructure
 from ..learners._identify import design_digital
 from ._certify import Certificate, certify
 from ._model import OnlineModel
-from ._physical import ChangeTest, PhysicalEstimate, change_test, physical_estimate
+from ._physical import ChangeTest, ChangeWatch, PhysicalEstimate, physical_estimate
 
 __all__ = ["OnlineSettings", "OnlineTuner", "TunerEvent"]
 
@@ -62,7 +64,9 @@ class OnlineSettings:
     look_every : int
         Samples between looks.
     false_alarm : float
-        The change test's false-alarm probability per look.
+        The change watch's false-alarm probability per window of ``window`` samples.
+    window : int
+        The transitions the change watch sums over.
     torque_channel : int or None
         The channel of ``w`` that is the torque reference: its current, ``F``'s column,
         is scaled by the estimated flux ratio (None: F is kept).
@@ -80,6 +84,7 @@ class OnlineSettings:
     memories: tuple[float, float] = (0.05, 2.0)
     look_every: int = 1000
     false_alarm: float = 1e-4
+    window: int = 500
     torque_channel: int | None = 1
     least_saving: float = 1e-3
 
@@ -146,6 +151,7 @@ class OnlineTuner:
         self._pending = np.zeros((settings.input_delay, problem.m))
         self._sample = 0
         self._next_look = settings.look_every
+        self._watch = ChangeWatch(settings.window, settings.false_alarm)
         self.estimate: PhysicalEstimate | None = None
         self._designed: PhysicalEstimate | None = None
         self.probing = True
@@ -171,52 +177,53 @@ class OnlineTuner:
         """
         commands = np.vstack([self._pending, u])  # row k is applied d rows later
         applied, self._pending = commands[: u.shape[0]], commands[u.shape[0] :]
-        self._model.add(x, applied, w, angle)
+        rows = self._model.add(x, applied, w, angle)
         self._sample += x.shape[0]
         events = []
+        test = self._watch.add(*rows)
+        if test is not None and test.changed:
+            events.append(self._changed(test))
         if self._sample >= self._next_look:
             self._next_look = self._sample + self.settings.look_every
-            events = self._look(w[-1])
+            events += self._look(w[-1])
         return events
 
-    def _estimates(self) -> tuple[PhysicalEstimate, PhysicalEstimate]:
-        structure = self.settings.structure
-        slow = physical_estimate(self._model.model(1), structure, self._theta)
-        fast = physical_estimate(self._model.model(0), structure, slow.theta, iterations=1)
-        return slow, fast
+    def _changed(self, test: ChangeTest) -> TunerEvent:
+        """The slow memory restarts from the fast one's; the next look a fast memory on."""
+        moments = self._model.moments
+        restarted = copy.deepcopy(moments[0])
+        restarted.forgetting = moments[1].forgetting
+        moments[1] = restarted
+        self._watch.reference_off()
+        self.probing = True
+        self._designed = None
+        fast_samples = round(self.settings.memories[0] / self.settings.h)
+        self._next_look = self._sample + fast_samples
+        names = self.settings.structure.names(self.settings.dead_time)
+        scores = ", ".join(
+            f"{name} {score:+.2f}" for name, score in zip(names, test.scores, strict=True)
+        )
+        return TunerEvent(
+            self._sample, "change",
+            f"the parameters changed: scores {scores} (threshold {test.threshold:.2f})",
+            change=test,
+        )  # fmt: skip
 
     def _look(self, w: Array) -> list[TunerEvent]:
+        moments = self._model.moments[1]
         try:
-            slow, fast = self._estimates()
+            estimate = physical_estimate(self._model.model(1), self.settings.structure, self._theta)
+            Theta, _, covariance = moments.estimate()
         except (np.linalg.LinAlgError, InputError) as failure:
             self.probing = True
             return [TunerEvent(self._sample, "waiting", f"no estimate yet: {failure}")]
-        events = []
-        test = change_test(fast, slow, self.settings.false_alarm)
-        estimate = slow
-        if test.changed:
-            # the slow memory restarts from the fast one's: the old plant's samples mislead
-            moments = self._model.moments
-            restarted = copy.deepcopy(moments[0])
-            restarted.forgetting = moments[1].forgetting
-            moments[1] = restarted
-            estimate = fast
-            self.probing = True
-            events.append(TunerEvent(
-                self._sample, "change", "the parameters changed: scores "
-                + ", ".join(f"{name} {score:+.2f}" for name, score in
-                            zip(self.settings.structure.names(self.settings.dead_time),
-                                test.scores, strict=True))
-                + f" (threshold {test.threshold:.2f})",
-                estimate=fast, change=test,
-            ))  # fmt: skip
+        self._watch.reference(Theta, moments.noise(Theta), estimate.sensitivities, covariance)
         self._theta = estimate.theta
         self.estimate = estimate
-        if not test.changed and self._designed_near(estimate):
+        if self._designed_near(estimate):
             self.probing = False
             return [TunerEvent(self._sample, "kept", "the estimate has not moved by half a "
-                               "standard error since the last design", estimate,
-                               change=test)]  # fmt: skip
+                               "standard error since the last design", estimate)]  # fmt: skip
         self._designed = estimate
         candidate = self._design(estimate)
         settings = self.settings
@@ -226,16 +233,13 @@ class OnlineTuner:
             problem.loop(settings.h, settings.input_delay), (problem.Q, problem.R), w,
             settings.least_saving,
         )  # fmt: skip
-        stable = bool(np.all(certificate.radii <= certificate.limit))
-        self.probing = not stable or test.changed
+        self.probing = not bool(np.all(certificate.radii <= certificate.limit))
         if certificate.certified:
             self.law = candidate
-            events.append(TunerEvent(self._sample, "switch", certificate.reason, estimate,
-                                     candidate, certificate, test))  # fmt: skip
-        else:
-            events.append(TunerEvent(self._sample, "kept", certificate.reason, estimate,
-                                     None, certificate, test))  # fmt: skip
-        return events
+            return [TunerEvent(self._sample, "switch", certificate.reason, estimate,
+                               candidate, certificate)]  # fmt: skip
+        return [TunerEvent(self._sample, "kept", certificate.reason, estimate, None,
+                           certificate)]  # fmt: skip
 
     def _designed_near(self, estimate: PhysicalEstimate) -> bool:
         """Whether the last design's estimate is within half a standard error of this
