@@ -99,14 +99,15 @@ def _sensitivities(matrices: tuple[Array, Array, Array], log: _Log, xhat: Array)
     n = Ad.shape[0]
     v = np.hstack([xhat[:-1], log.a, log.w])  # (T, n + m + q)
     size = v.shape[1]
-    # d(Ad x + Bd a + Ed w)/d vec(M)[j n + i] = e_i v_j: forcing (T, n, n size)
-    forcing = np.zeros((v.shape[0], n, n * size))
+    # d(Ad x + Bd a + Ed w)/d vec(M)[j n + i] = e_i v_j: forcing (T, n, n size), and none
+    # for the initial state's n columns, which start at the identity instead of zero;
+    # propagated together (the columns are independent: the same numbers as apart)
+    forcing = np.zeros((v.shape[0], n, n * size + n))
     for i in range(n):
-        forcing[:, i, i::n] = v
-    transition = plant_last(Ad[np.newaxis])
-    theta = propagate_uniform(transition, forcing, np.zeros((n, n * size)))
-    initial = propagate_uniform(transition, np.zeros((v.shape[0], n, n)), np.eye(n))
-    return np.concatenate([theta, initial], axis=2)
+        forcing[:, i, i : n * size : n] = v
+    start = np.zeros((n, n * size + n))
+    start[:, n * size :] = np.eye(n)
+    return propagate_uniform(plant_last(Ad[np.newaxis]), forcing, start)
 
 
 @dataclass(frozen=True)
@@ -275,10 +276,13 @@ def _residuals_and_jacobian(
     mats: tuple[Array, Array, Array],
     x0s: list[Array],
     chain: Array | None,
+    known: list[Array] | None = None,
 ) -> tuple[list[Array], list[Array], list[Array]]:
+    """Per log: the output errors, their Jacobian and the simulation at ``(mats, x0s)``;
+    ``known``: the simulations there, when :func:`_cost` has just made them."""
     residuals, jacobians, simulated = [], [], []
-    for log, x0 in zip(logs, x0s, strict=True):
-        xhat = simulate_model(mats, x0, log.a, log.w)
+    for index, (log, x0) in enumerate(zip(logs, x0s, strict=True)):
+        xhat = simulate_model(mats, x0, log.a, log.w) if known is None else known[index]
         S = _sensitivities(mats, log, xhat)
         n = xhat.shape[1]
         theta_part, x0_part = S[:, :, :-n], S[:, :, -n:]
@@ -303,18 +307,26 @@ def _cost(
     matrices: Callable[[Array], tuple[Array, Array, Array]],
     point: tuple[Array, list[Array]],
     weight: Array,
-) -> float:
-    """The weighted output-error cost at ``(theta, x0s)``: infinite where the parameters
-    give no model (a structure's non-physical values, an overflowing discretization), so
-    that the search never steps there."""
+) -> tuple[float, list[Array]]:
+    """The weighted output-error cost at ``(theta, x0s)`` and the simulations of the logs
+    there: infinite (and no simulations) where the parameters give no model (a
+    structure's non-physical values, an overflowing discretization), so that the search
+    never steps there."""
     theta, x0s = point
     try:
         mats = matrices(theta)
     except (InputError, np.linalg.LinAlgError):
-        return float("inf")
+        return float("inf"), []
+    simulated = [simulate_model(mats, x0, log.a, log.w) for log, x0 in zip(logs, x0s, strict=True)]
+    return _weighted([log.x - xhat for log, xhat in zip(logs, simulated, strict=True)], weight), (
+        simulated
+    )
+
+
+def _weighted(residuals: list[Array], weight: Array) -> float:
+    """``sum_k r_k' W r_k`` over the logs' output errors; infinite if not finite."""
     total = 0.0
-    for log, x0 in zip(logs, x0s, strict=True):
-        r = log.x - simulate_model(mats, x0, log.a, log.w)
+    for r in residuals:
         total += float(np.einsum("ki,ij,kj->", r, weight, r))
     return total if np.isfinite(total) else float("inf")
 
@@ -343,13 +355,13 @@ def _gauss_newton(
         residuals, jacobians, _ = current
         root = _noise_root(np.concatenate(residuals), floor)  # W = root' root
         weight, damping = root.T @ root, 1e-4
-        cost = _cost(logs, matrices, (theta, x0s), weight)
+        cost = _weighted(residuals, weight)  # the residuals are those at (theta, x0s)
         while iterations < max_iterations:
             iterations += 1
             step = _step(residuals, jacobians, root, p, damping)
             trial = theta + step[:p]
             trial_x0s = [x0 + step[p + i * n : p + (i + 1) * n] for i, x0 in enumerate(x0s)]
-            trial_cost = _cost(logs, matrices, (trial, trial_x0s), weight)
+            trial_cost, simulated = _cost(logs, matrices, (trial, trial_x0s), weight)
             if trial_cost >= cost:
                 damping *= 10.0
                 if damping > 1e8:
@@ -361,7 +373,7 @@ def _gauss_newton(
             if improvement < 1e-12:
                 break
             chain = _jacobian_map(matrices, theta, structured)
-            current = _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
+            current = _residuals_and_jacobian(logs, matrices(theta), x0s, chain, simulated)
             residuals, jacobians, _ = current
             if _at_rounding(residuals, floor):
                 break
