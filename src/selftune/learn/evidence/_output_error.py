@@ -23,18 +23,19 @@ the whole log); otherwise the least-squares model is kept and the quality says s
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
 
 from ...core import Array
-from ...core._propagate import plant_last, propagate_uniform
 from ...errors import InputError
 from ..data._trajectory import Trajectory
 from ._alignment import applied_inputs
 from ._discrete_model import DiscreteModel
+from ._propagation import _Log as _Log
+from ._propagation import _Request, _run_searches, simulate_model
 from ._spmsm_structure import SpmsmStructure
 
 __all__ = [
@@ -51,16 +52,6 @@ __all__ = [
 Structure = Callable[[Array], tuple[Array, Array, Array]]
 
 
-@dataclass(frozen=True)
-class _Log:
-    """One log's aligned data: measured states ``x~_first .. x~_(last+1)``, the applied
-    inputs and held references of the transitions."""
-
-    x: Array
-    a: Array
-    w: Array
-
-
 def _logs(episodes: Sequence[Trajectory], shift: int) -> list[_Log]:
     logs = []
     for episode in episodes:
@@ -71,43 +62,6 @@ def _logs(episodes: Sequence[Trajectory], shift: int) -> list[_Log]:
             _Log(x=episode.x[first : first + count + 1], a=a[:count], w=w[first : first + count])
         )
     return logs
-
-
-def simulate_model(matrices: tuple[Array, Array, Array], x0: Array, a: Array, w: Array) -> Array:
-    """``xhat`` (T + 1, n) of ``xhat_(k+1) = Ad xhat_k + Bd a_k + Ed w_k`` from ``x0``.
-
-    Parameters
-    ----------
-    matrices : (Ad, Bd, Ed)
-        The discrete model.
-    x0 : ndarray, shape (n,)
-        Initial state.
-    a : ndarray, shape (T, m)
-        Applied inputs.
-    w : ndarray, shape (T, q)
-        Held references.
-    """
-    Ad, Bd, Ed = matrices
-    forcing = a @ Bd.T + w @ Ed.T
-    x = propagate_uniform(plant_last(Ad[np.newaxis]), forcing[:, :, np.newaxis], x0[:, None])
-    return np.asarray(x[:, :, 0])
-
-
-def _sensitivities(matrices: tuple[Array, Array, Array], log: _Log, xhat: Array) -> Array:
-    """``d xhat_k / d vec([Ad, Bd, Ed])`` and ``d xhat_k / d x0``: shape (T + 1, n, p + n)."""
-    Ad = matrices[0]
-    n = Ad.shape[0]
-    v = np.hstack([xhat[:-1], log.a, log.w])  # (T, n + m + q)
-    size = v.shape[1]
-    # d(Ad x + Bd a + Ed w)/d vec(M)[j n + i] = e_i v_j: forcing (T, n, n size), and none
-    # for the initial state's n columns, which start at the identity instead of zero;
-    # propagated together (the columns are independent: the same numbers as apart)
-    forcing = np.zeros((v.shape[0], n, n * size + n))
-    for i in range(n):
-        forcing[:, i, i : n * size : n] = v
-    start = np.zeros((n, n * size + n))
-    start[:, n * size :] = np.eye(n)
-    return propagate_uniform(plant_last(Ad[np.newaxis]), forcing, start)
 
 
 @dataclass(frozen=True)
@@ -271,26 +225,33 @@ def _jacobian_map(
     return np.column_stack(columns)
 
 
+#: The current point's output errors, Jacobians and simulations (one of each per log).
+_Current = tuple[list[Array], list[Array], list[Array]]
+
+#: A search yields requests, is sent their answers and returns the parameters, the
+#: initial states, its iterations and what :func:`_finish` can reuse (None: nothing).
+_Search = Generator[_Request, list[Array], tuple[Array, list[Array], int, _Current | None]]
+
+
 def _residuals_and_jacobian(
     logs: list[_Log],
     mats: tuple[Array, Array, Array],
     x0s: list[Array],
     chain: Array | None,
     known: list[Array] | None = None,
-) -> tuple[list[Array], list[Array], list[Array]]:
+) -> Generator[_Request, list[Array], _Current]:
     """Per log: the output errors, their Jacobian and the simulation at ``(mats, x0s)``;
     ``known``: the simulations there, when :func:`_cost` has just made them."""
-    residuals, jacobians, simulated = [], [], []
-    for index, (log, x0) in enumerate(zip(logs, x0s, strict=True)):
-        xhat = simulate_model(mats, x0, log.a, log.w) if known is None else known[index]
-        S = _sensitivities(mats, log, xhat)
+    simulated = (yield _Request(mats, x0s, False)) if known is None else known
+    sensitivities = yield _Request(mats, simulated, True)
+    residuals, jacobians = [], []
+    for log, xhat, S in zip(logs, simulated, sensitivities, strict=True):
         n = xhat.shape[1]
         theta_part, x0_part = S[:, :, :-n], S[:, :, -n:]
         if chain is not None:
             theta_part = theta_part @ chain
         residuals.append(log.x - xhat)
         jacobians.append(np.concatenate([theta_part, x0_part], axis=2))
-        simulated.append(xhat)
     return residuals, jacobians, simulated
 
 
@@ -307,7 +268,7 @@ def _cost(
     matrices: Callable[[Array], tuple[Array, Array, Array]],
     point: tuple[Array, list[Array]],
     weight: Array,
-) -> tuple[float, list[Array]]:
+) -> Generator[_Request, list[Array], tuple[float, list[Array]]]:
     """The weighted output-error cost at ``(theta, x0s)`` and the simulations of the logs
     there: infinite (and no simulations) where the parameters give no model (a
     structure's non-physical values, an overflowing discretization), so that the search
@@ -317,10 +278,9 @@ def _cost(
         mats = matrices(theta)
     except (InputError, np.linalg.LinAlgError):
         return float("inf"), []
-    simulated = [simulate_model(mats, x0, log.a, log.w) for log, x0 in zip(logs, x0s, strict=True)]
-    return _weighted([log.x - xhat for log, xhat in zip(logs, simulated, strict=True)], weight), (
-        simulated
-    )
+    simulated = yield _Request(mats, x0s, False)
+    residuals = [log.x - xhat for log, xhat in zip(logs, simulated, strict=True)]
+    return _weighted(residuals, weight), simulated
 
 
 def _weighted(residuals: list[Array], weight: Array) -> float:
@@ -331,27 +291,28 @@ def _weighted(residuals: list[Array], weight: Array) -> float:
     return total if np.isfinite(total) else float("inf")
 
 
-def _gauss_newton(
+def _search(
     logs: list[_Log],
     theta: Array,
-    matrices: Callable[[Array], tuple[Array, Array, Array]],
-    structured: bool,
+    kind: tuple[Callable[[Array], tuple[Array, Array, Array]], bool],
     max_iterations: int,
-    h: float,
     floor: Array,
-) -> OutputErrorFit:
+) -> _Search:
     """Levenberg-Marquardt on the parameters and every log's initial state: a step is kept
     only if it lowers the cost (else the damping grows), with the noise weight
-    re-estimated from the output errors between rounds (iteratively reweighted)."""
+    re-estimated from the output errors between rounds (iteratively reweighted). ``kind``:
+    the parameters' map to ``(Ad, Bd, Ed)`` and whether it is a structure's. A generator
+    of what it needs propagated (:func:`_run_searches`)."""
+    matrices, structured = kind
     n, p = logs[0].x.shape[1], theta.shape[0]
     x0s = [log.x[0].copy() for log in logs]
     iterations = 0
     # the residuals, Jacobians and simulations at (theta, x0s) when known (None: stale)
-    current: tuple[list[Array], list[Array], list[Array]] | None = None
+    current: _Current | None = None
     for _ in range(WEIGHT_ROUNDS):
         if current is None:
             chain = _jacobian_map(matrices, theta, structured)
-            current = _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
+            current = yield from _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
         residuals, jacobians, _ = current
         root = _noise_root(np.concatenate(residuals), floor)  # W = root' root
         weight, damping = root.T @ root, 1e-4
@@ -361,7 +322,7 @@ def _gauss_newton(
             step = _step(residuals, jacobians, root, p, damping)
             trial = theta + step[:p]
             trial_x0s = [x0 + step[p + i * n : p + (i + 1) * n] for i, x0 in enumerate(x0s)]
-            trial_cost, simulated = _cost(logs, matrices, (trial, trial_x0s), weight)
+            trial_cost, simulated = yield from _cost(logs, matrices, (trial, trial_x0s), weight)
             if trial_cost >= cost:
                 damping *= 10.0
                 if damping > 1e8:
@@ -373,12 +334,30 @@ def _gauss_newton(
             if improvement < 1e-12:
                 break
             chain = _jacobian_map(matrices, theta, structured)
-            current = _residuals_and_jacobian(logs, matrices(theta), x0s, chain, simulated)
+            current = yield from _residuals_and_jacobian(
+                logs, matrices(theta), x0s, chain, simulated
+            )
             residuals, jacobians, _ = current
             if _at_rounding(residuals, floor):
                 break
         if _at_rounding(residuals, floor):
             break
+    return theta, x0s, iterations, current
+
+
+def _gauss_newton(
+    logs: list[_Log],
+    theta: Array,
+    matrices: Callable[[Array], tuple[Array, Array, Array]],
+    structured: bool,
+    max_iterations: int,
+    h: float,
+    floor: Array,
+) -> OutputErrorFit:
+    """The fit of :func:`_search` from ``theta``."""
+    [(theta, x0s, iterations, current)] = _run_searches(
+        [(_search(logs, theta, (matrices, structured), max_iterations, floor), logs)]
+    )
     return _finish(logs, theta, matrices, structured, x0s, h, iterations, floor, current=current)
 
 
@@ -485,7 +464,7 @@ def _finish(
     mats = matrices(theta)
     if current is None:
         chain = _jacobian_map(matrices, theta, structured)
-        current = _residuals_and_jacobian(logs, mats, x0s, chain)
+        [current] = _run_searches([(_residuals_and_jacobian(logs, mats, x0s, chain), logs)])
     residuals, jacobians, simulated = current
     stacked = np.concatenate(residuals)
     noise = np.atleast_2d(np.cov(stacked.T))
