@@ -135,7 +135,7 @@ def refits(
     searches = []
     for _ in range(count):  # the draws in turn, as one refit after another would make them
         logs = world(rng)
-        searches.append((_search(logs, origin.copy(), kind, iterations, floor), logs))
+        searches.append(_search(logs, origin.copy(), kind, iterations, floor))
     # the refits side by side: each step's propagations of all of them are one
     refitted = [parameters for parameters, *_ in _run_searches(searches)]
     draws = [parameters for parameters in refitted if np.all(np.isfinite(parameters))]

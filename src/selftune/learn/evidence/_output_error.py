@@ -23,8 +23,9 @@ the whole log); otherwise the least-squares model is kept and the quality says s
 
 from __future__ import annotations
 
-from collections.abc import Callable, Generator, Sequence
+from collections.abc import Callable, Generator, Iterator, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import scipy.linalg
@@ -34,8 +35,15 @@ from ...errors import InputError
 from ..data._trajectory import Trajectory
 from ._alignment import applied_inputs
 from ._discrete_model import DiscreteModel
+from ._propagation import (
+    BLOCK_TRANSITIONS,
+    _chained,
+    _Jacobian,
+    _Request,
+    _run_searches,
+    simulate_model,
+)
 from ._propagation import _Log as _Log
-from ._propagation import _Request, _run_searches, simulate_model
 from ._spmsm_structure import SpmsmStructure
 
 __all__ = [
@@ -226,7 +234,7 @@ def _jacobian_map(
 
 
 #: The current point's output errors, Jacobians and simulations (one of each per log).
-_Current = tuple[list[Array], list[Array], list[Array]]
+_Current = tuple[list[Array], list[_Jacobian], list[Array]]
 
 #: A search yields requests, is sent their answers and returns the parameters, the
 #: initial states, its iterations and what :func:`_finish` can reuse (None: nothing).
@@ -242,16 +250,20 @@ def _residuals_and_jacobian(
 ) -> Generator[_Request, list[Array], _Current]:
     """Per log: the output errors, their Jacobian and the simulation at ``(mats, x0s)``;
     ``known``: the simulations there, when :func:`_cost` has just made them."""
-    simulated = (yield _Request(mats, x0s, False)) if known is None else known
-    sensitivities = yield _Request(mats, simulated, True)
+    simulated = (yield _Request(mats, logs, x0s, False)) if known is None else known
+    short = [index for index, log in enumerate(logs) if log.a.shape[0] <= BLOCK_TRANSITIONS]
+    held: dict[int, Array] = {}
+    if short:
+        sensitivities = yield _Request(
+            mats, [logs[index] for index in short], [simulated[index] for index in short], True
+        )
+        held = dict(zip(short, sensitivities, strict=True))
     residuals, jacobians = [], []
-    for log, xhat, S in zip(logs, simulated, sensitivities, strict=True):
-        n = xhat.shape[1]
-        theta_part, x0_part = S[:, :, :-n], S[:, :, -n:]
-        if chain is not None:
-            theta_part = theta_part @ chain
+    for index, (log, xhat) in enumerate(zip(logs, simulated, strict=True)):
+        S = held.get(index)
+        J = None if S is None else _chained(S, chain)
         residuals.append(log.x - xhat)
-        jacobians.append(np.concatenate([theta_part, x0_part], axis=2))
+        jacobians.append(_Jacobian(J, (mats, log, xhat), chain))
     return residuals, jacobians, simulated
 
 
@@ -278,7 +290,7 @@ def _cost(
         mats = matrices(theta)
     except (InputError, np.linalg.LinAlgError):
         return float("inf"), []
-    simulated = yield _Request(mats, x0s, False)
+    simulated = yield _Request(mats, logs, x0s, False)
     residuals = [log.x - xhat for log, xhat in zip(logs, simulated, strict=True)]
     return _weighted(residuals, weight), simulated
 
@@ -356,7 +368,7 @@ def _gauss_newton(
 ) -> OutputErrorFit:
     """The fit of :func:`_search` from ``theta``."""
     [(theta, x0s, iterations, current)] = _run_searches(
-        [(_search(logs, theta, (matrices, structured), max_iterations, floor), logs)]
+        [_search(logs, theta, (matrices, structured), max_iterations, floor)]
     )
     return _finish(logs, theta, matrices, structured, x0s, h, iterations, floor, current=current)
 
@@ -394,56 +406,92 @@ def resolution_floor(x: Array, relative: float) -> Array:
 
 
 def _whitened(
-    residuals: list[Array], jacobians: list[Array], root: Array, p: int
-) -> list[tuple[Array, Array]]:
-    """Per log: the whitened residuals (T, n) and Jacobian (T, n, p + logs n), every log's
-    initial state its own columns."""
+    residuals: list[Array], jacobians: list[_Jacobian], root: Array, p: int
+) -> Iterator[tuple[int, Array, Array]]:
+    """Per log and block of its rows: the log's index, the whitened residuals (B, n) and
+    Jacobian (B, n, p + logs n), every log's initial state its own columns."""
     n, count = residuals[0].shape[1], len(residuals)
-    result = []
-    for index, (r, J) in enumerate(zip(residuals, jacobians, strict=True)):
-        full = np.zeros((J.shape[0], n, p + count * n))
-        full[:, :, :p] = J[:, :, :p]
-        full[:, :, p + index * n : p + (index + 1) * n] = J[:, :, p:]
-        result.append((r @ root.T, np.einsum("ij,kjl->kil", root, full)))
-    return result
+    for index, (r, jacobian) in enumerate(zip(residuals, jacobians, strict=True)):
+        row = 0
+        for J in jacobian.blocks():
+            full = np.zeros((J.shape[0], n, p + count * n))
+            full[:, :, :p] = J[:, :, :p]
+            full[:, :, p + index * n : p + (index + 1) * n] = J[:, :, p:]
+            rows = r[row : row + J.shape[0]]
+            row += J.shape[0]
+            yield index, rows @ root.T, np.einsum("ij,kjl->kil", root, full)
 
 
 def _step(
-    residuals: list[Array], jacobians: list[Array], root: Array, p: int, damping: float
+    residuals: list[Array], jacobians: list[_Jacobian], root: Array, p: int, damping: float
 ) -> Array:
-    """The damped Gauss-Newton step for (theta, x0 of every log)."""
+    """The damped Gauss-Newton step for (theta, x0 of every log): the normal equations
+    summed over groups of blocks of up to :data:`~._propagation.BLOCK_TRANSITIONS` rows
+    (one product over all the logs when they are short)."""
+    normal: Array | None = None
+    gradient: Array | None = None
+    group: list[tuple[Array, Array]] = []
     parts = _whitened(residuals, jacobians, root, p)
-    J_all = np.vstack([J.reshape(-1, J.shape[2]) for _, J in parts])
-    r_all = np.concatenate([r.reshape(-1) for r, _ in parts])
-    normal = J_all.T @ J_all
+    for last, (_, r, J) in _marked_last(parts):
+        group.append((r, J))
+        if last or sum(J.shape[0] for _, J in group) >= BLOCK_TRANSITIONS:
+            J_all = np.vstack([J.reshape(-1, J.shape[2]) for _, J in group])
+            r_all = np.concatenate([r.reshape(-1) for r, _ in group])
+            products = J_all.T @ J_all, J_all.T @ r_all
+            if normal is None or gradient is None:
+                normal, gradient = products
+            else:
+                normal, gradient = normal + products[0], gradient + products[1]
+            group = []
+    assert normal is not None and gradient is not None
     normal += damping * np.diag(np.diag(normal))
-    return np.asarray(np.linalg.solve(normal, J_all.T @ r_all))
+    return np.asarray(np.linalg.solve(normal, gradient))
 
 
-def _robust_covariance(parts: list[tuple[Array, Array]]) -> tuple[Array, Array]:
+def _marked_last(parts: Iterator[tuple[int, Array, Array]]) -> Iterator[tuple[bool, Any]]:
+    """The parts, each with whether it is the last."""
+    previous = next(parts)
+    for part in parts:
+        yield False, previous
+        previous = part
+    yield True, previous
+
+
+def _robust_covariance(
+    parts: Iterator[tuple[int, Array, Array]], counts: list[int]
+) -> tuple[Array, Array]:
     """The parameters' covariance ``H^-1 S H^-1`` (Newey-West): ``H`` the Fisher
     information, ``S`` the long-run covariance of the per-sample scores with Bartlett
     weights. It equals ``H^-1`` for white output errors and stays honest when they are
     not (an effect the model misses, e.g. a voltage ripple): the standard errors then
-    grow instead of lying. Also returns ``H``."""
-    size = parts[0][1].shape[2]
-    fisher = np.zeros((size, size))
-    long_run = np.zeros((size, size))
-    for r, J in parts:
+    grow instead of lying. ``parts``: :func:`_whitened`'s, of logs of ``counts`` rows.
+    Also returns ``H``."""
+    fisher = long_run = np.zeros((0, 0))
+    # per log: its lags L, the running sum of its scores at the block's start and the
+    # L + 1 running sums before it (zero before the log)
+    done, lags, carry, history = 0, 0, np.zeros((1, 0)), np.zeros((1, 0))
+    for index, r, J in parts:
+        size = J.shape[2]
+        if fisher.size == 0:
+            fisher, long_run = np.zeros((size, size)), np.zeros((size, size))
+        if done == 0:
+            lags = int(min(counts[index] // 10, 4 * counts[index] ** (1 / 3)))
+            carry, history = np.zeros((1, size)), np.zeros((lags + 1, size))
         rows = J.reshape(-1, size)
         fisher += rows.T @ rows
-        scores = np.matmul(r[:, np.newaxis, :], J)[:, 0, :]  # (T, size)
-        count = scores.shape[0]
-        lags = int(min(count // 10, 4 * count ** (1 / 3)))
+        scores = np.matmul(r[:, np.newaxis, :], J)[:, 0, :]  # (B, size)
+        done += scores.shape[0]
+        if done == counts[index]:  # the log's end: padded with L zeros
+            scores, done = np.vstack([scores, np.zeros((lags, size))]), 0
         # Bartlett's weights 1 - |j| / (L + 1) are a box of L + 1 samples correlated with
         # itself, so sum_j w_j sum_k s_(k+j) s_k' = W'W / (L + 1), W the scores summed
         # over every window of L + 1 samples (the log padded with zeros), the differences
         # of their running sum: one product instead of one per lag
-        running = np.zeros((count + lags + 1, size))
-        np.cumsum(scores, axis=0, out=running[1 : count + 1])
-        running[count + 1 :] = running[count]
-        windows = running[1:] - np.vstack([np.zeros((lags + 1, size)), running[1:count]])
+        running = np.cumsum(np.vstack([carry, scores]), axis=0)[1:]
+        extended = np.vstack([history, running])
+        windows = extended[lags + 1 :] - extended[: scores.shape[0]]
         long_run += windows.T @ windows / (lags + 1)
+        carry, history = running[-1:], extended[-(lags + 1) :]
     inverse = np.linalg.pinv(fisher)
     return inverse @ long_run @ inverse, fisher
 
@@ -457,21 +505,22 @@ def _finish(
     h: float,
     iterations: int,
     floor: Array,
-    current: tuple[list[Array], list[Array], list[Array]] | None = None,
+    current: _Current | None = None,
 ) -> OutputErrorFit:
     """The fit at ``(theta, x0s)``; ``current``: the residuals, Jacobians and simulations
     there, if the search has them (they are computed otherwise)."""
     mats = matrices(theta)
     if current is None:
         chain = _jacobian_map(matrices, theta, structured)
-        [current] = _run_searches([(_residuals_and_jacobian(logs, mats, x0s, chain), logs)])
+        [current] = _run_searches([_residuals_and_jacobian(logs, mats, x0s, chain)])
     residuals, jacobians, simulated = current
     stacked = np.concatenate(residuals)
     noise = np.atleast_2d(np.cov(stacked.T))
     noise = noise + np.diag(np.maximum(floor**2 - np.diag(noise), 0.0))
     p = theta.shape[0]
     robust, fisher = _robust_covariance(
-        _whitened(residuals, jacobians, _noise_root(stacked, floor), p)
+        _whitened(residuals, jacobians, _noise_root(stacked, floor), p),
+        [r.shape[0] for r in residuals],
     )
     white = np.diag(np.linalg.pinv(fisher))[:p]
     ratios = np.diag(robust)[:p] / np.maximum(white, 1e-300)
