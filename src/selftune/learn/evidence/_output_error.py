@@ -33,10 +33,10 @@ import scipy.linalg
 from ...core import Array
 from ...errors import InputError
 from ..data._trajectory import Trajectory
+from . import _propagation
 from ._alignment import applied_inputs
 from ._discrete_model import DiscreteModel
 from ._propagation import (
-    BLOCK_TRANSITIONS,
     _chained,
     _Jacobian,
     _Request,
@@ -251,7 +251,8 @@ def _residuals_and_jacobian(
     """Per log: the output errors, their Jacobian and the simulation at ``(mats, x0s)``;
     ``known``: the simulations there, when :func:`_cost` has just made them."""
     simulated = (yield _Request(mats, logs, x0s, False)) if known is None else known
-    short = [index for index, log in enumerate(logs) if log.a.shape[0] <= BLOCK_TRANSITIONS]
+    limit = _propagation.BLOCK_TRANSITIONS
+    short = [index for index, log in enumerate(logs) if log.a.shape[0] <= limit]
     held: dict[int, Array] = {}
     if short:
         sensitivities = yield _Request(
@@ -434,7 +435,7 @@ def _step(
     parts = _whitened(residuals, jacobians, root, p)
     for last, (_, r, J) in _marked_last(parts):
         group.append((r, J))
-        if last or sum(J.shape[0] for _, J in group) >= BLOCK_TRANSITIONS:
+        if last or sum(J.shape[0] for _, J in group) >= _propagation.BLOCK_TRANSITIONS:
             J_all = np.vstack([J.reshape(-1, J.shape[2]) for _, J in group])
             r_all = np.concatenate([r.reshape(-1) for r, _ in group])
             products = J_all.T @ J_all, J_all.T @ r_all
