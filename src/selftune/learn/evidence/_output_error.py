@@ -13,7 +13,7 @@ depends on past inputs only, even in closed loop), so the fit is consistent, and
 maximum-likelihood one for Gaussian noise with ``W`` the inverse noise covariance, which
 is estimated from the residuals as the fit iterates. Gauss-Newton with the exact
 sensitivities (one more linear recursion per parameter, propagated together by
-:func:`selftune.core._propagate.propagate_uniform`), damped (Levenberg-Marquardt).
+:mod:`._propagation`; a long log's block by block), damped (Levenberg-Marquardt).
 
 The model may be the unstructured ``[Ad, Bd, Ed]`` or a structured one (a few physical
 parameters mapped to the matrices, e.g. a PMSM's R_s, L_s and flux at a known speed:
@@ -330,9 +330,12 @@ def _search(
         root = _noise_root(np.concatenate(residuals), floor)  # W = root' root
         weight, damping = root.T @ root, 1e-4
         cost = _weighted(residuals, weight)  # the residuals are those at (theta, x0s)
+        equations = None  # the normal equations at (theta, x0s) under this weight
         while iterations < max_iterations:
             iterations += 1
-            step = _step(residuals, jacobians, root, p, damping)
+            if equations is None:  # a retry with more damping has them already
+                equations = _normal_equations(residuals, jacobians, root, p)
+            step = _step(equations, damping)
             trial = theta + step[:p]
             trial_x0s = [x0 + step[p + i * n : p + (i + 1) * n] for i, x0 in enumerate(x0s)]
             trial_cost, simulated = yield from _cost(logs, matrices, (trial, trial_x0s), weight)
@@ -351,6 +354,7 @@ def _search(
                 logs, matrices(theta), x0s, chain, simulated
             )
             residuals, jacobians, _ = current
+            equations = None
             if _at_rounding(residuals, floor):
                 break
         if _at_rounding(residuals, floor):
@@ -423,10 +427,10 @@ def _whitened(
             yield index, rows @ root.T, np.einsum("ij,kjl->kil", root, full)
 
 
-def _step(
-    residuals: list[Array], jacobians: list[_Jacobian], root: Array, p: int, damping: float
-) -> Array:
-    """The damped Gauss-Newton step for (theta, x0 of every log): the normal equations
+def _normal_equations(
+    residuals: list[Array], jacobians: list[_Jacobian], root: Array, p: int
+) -> tuple[Array, Array]:
+    """``J'J`` and ``J'r`` of the whitened output errors for (theta, x0 of every log),
     summed over groups of blocks of up to :data:`~._propagation.BLOCK_TRANSITIONS` rows
     (one product over all the logs when they are short)."""
     normal: Array | None = None
@@ -445,8 +449,14 @@ def _step(
                 normal, gradient = normal + products[0], gradient + products[1]
             group = []
     assert normal is not None and gradient is not None
+    return normal, gradient
+
+
+def _step(equations: tuple[Array, Array], damping: float) -> Array:
+    """The damped Gauss-Newton step from the normal equations ``(J'J, J'r)``."""
+    normal = equations[0].copy()
     normal += damping * np.diag(np.diag(normal))
-    return np.asarray(np.linalg.solve(normal, gradient))
+    return np.asarray(np.linalg.solve(normal, equations[1]))
 
 
 def _marked_last(parts: Iterator[tuple[int, Array, Array]]) -> Iterator[tuple[bool, Any]]:
