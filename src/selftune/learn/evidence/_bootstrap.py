@@ -21,7 +21,8 @@ from dataclasses import replace
 import numpy as np
 
 from ...core import Array
-from ._output_error import OutputErrorFit, _gauss_newton, _Log
+from ._output_error import OutputErrorFit, _Log, _search
+from ._propagation import _run_searches
 
 __all__ = [
     "BOOTSTRAP_DRAWS",
@@ -129,16 +130,15 @@ def refits(
     -------
     ndarray, shape (draws, p), or None
     """
-    matrices, structured = kind
     rng = np.random.default_rng(20261123)
     origin = fit.parameters if start is None else start
-    draws = []
-    for _ in range(count):
-        refit = _gauss_newton(
-            world(rng), origin.copy(), matrices, structured, iterations, fit.model.h, floor
-        )
-        if np.all(np.isfinite(refit.parameters)):
-            draws.append(refit.parameters)
+    searches = []
+    for _ in range(count):  # the draws in turn, as one refit after another would make them
+        logs = world(rng)
+        searches.append(_search(logs, origin.copy(), kind, iterations, floor))
+    # the refits side by side: each step's propagations of all of them are one
+    refitted = [parameters for parameters, *_ in _run_searches(searches)]
+    draws = [parameters for parameters in refitted if np.all(np.isfinite(parameters))]
     return np.array(draws) if len(draws) >= count // 2 and len(draws) >= 2 else None
 
 

@@ -13,7 +13,7 @@ depends on past inputs only, even in closed loop), so the fit is consistent, and
 maximum-likelihood one for Gaussian noise with ``W`` the inverse noise covariance, which
 is estimated from the residuals as the fit iterates. Gauss-Newton with the exact
 sensitivities (one more linear recursion per parameter, propagated together by
-:func:`selftune.core._propagate.propagate_uniform`), damped (Levenberg-Marquardt).
+:mod:`._propagation`; a long log's block by block), damped (Levenberg-Marquardt).
 
 The model may be the unstructured ``[Ad, Bd, Ed]`` or a structured one (a few physical
 parameters mapped to the matrices, e.g. a PMSM's R_s, L_s and flux at a known speed:
@@ -23,18 +23,27 @@ the whole log); otherwise the least-squares model is kept and the quality says s
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Generator, Iterator, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import scipy.linalg
 
 from ...core import Array
-from ...core._propagate import plant_last, propagate_uniform
 from ...errors import InputError
 from ..data._trajectory import Trajectory
+from . import _propagation
 from ._alignment import applied_inputs
 from ._discrete_model import DiscreteModel
+from ._propagation import (
+    _chained,
+    _Jacobian,
+    _Request,
+    _run_searches,
+    simulate_model,
+)
+from ._propagation import _Log as _Log
 from ._spmsm_structure import SpmsmStructure
 
 __all__ = [
@@ -51,16 +60,6 @@ __all__ = [
 Structure = Callable[[Array], tuple[Array, Array, Array]]
 
 
-@dataclass(frozen=True)
-class _Log:
-    """One log's aligned data: measured states ``x~_first .. x~_(last+1)``, the applied
-    inputs and held references of the transitions."""
-
-    x: Array
-    a: Array
-    w: Array
-
-
 def _logs(episodes: Sequence[Trajectory], shift: int) -> list[_Log]:
     logs = []
     for episode in episodes:
@@ -71,42 +70,6 @@ def _logs(episodes: Sequence[Trajectory], shift: int) -> list[_Log]:
             _Log(x=episode.x[first : first + count + 1], a=a[:count], w=w[first : first + count])
         )
     return logs
-
-
-def simulate_model(matrices: tuple[Array, Array, Array], x0: Array, a: Array, w: Array) -> Array:
-    """``xhat`` (T + 1, n) of ``xhat_(k+1) = Ad xhat_k + Bd a_k + Ed w_k`` from ``x0``.
-
-    Parameters
-    ----------
-    matrices : (Ad, Bd, Ed)
-        The discrete model.
-    x0 : ndarray, shape (n,)
-        Initial state.
-    a : ndarray, shape (T, m)
-        Applied inputs.
-    w : ndarray, shape (T, q)
-        Held references.
-    """
-    Ad, Bd, Ed = matrices
-    forcing = a @ Bd.T + w @ Ed.T
-    x = propagate_uniform(plant_last(Ad[np.newaxis]), forcing[:, :, np.newaxis], x0[:, None])
-    return np.asarray(x[:, :, 0])
-
-
-def _sensitivities(matrices: tuple[Array, Array, Array], log: _Log, xhat: Array) -> Array:
-    """``d xhat_k / d vec([Ad, Bd, Ed])`` and ``d xhat_k / d x0``: shape (T + 1, n, p + n)."""
-    Ad = matrices[0]
-    n = Ad.shape[0]
-    v = np.hstack([xhat[:-1], log.a, log.w])  # (T, n + m + q)
-    size = v.shape[1]
-    # d(Ad x + Bd a + Ed w)/d vec(M)[j n + i] = e_i v_j: forcing (T, n, n size)
-    forcing = np.zeros((v.shape[0], n, n * size))
-    for i in range(n):
-        forcing[:, i, i::n] = v
-    transition = plant_last(Ad[np.newaxis])
-    theta = propagate_uniform(transition, forcing, np.zeros((n, n * size)))
-    initial = propagate_uniform(transition, np.zeros((v.shape[0], n, n)), np.eye(n))
-    return np.concatenate([theta, initial], axis=2)
 
 
 @dataclass(frozen=True)
@@ -270,23 +233,38 @@ def _jacobian_map(
     return np.column_stack(columns)
 
 
+#: The current point's output errors, Jacobians and simulations (one of each per log).
+_Current = tuple[list[Array], list[_Jacobian], list[Array]]
+
+#: A search yields requests, is sent their answers and returns the parameters, the
+#: initial states, its iterations and what :func:`_finish` can reuse (None: nothing).
+_Search = Generator[_Request, list[Array], tuple[Array, list[Array], int, _Current | None]]
+
+
 def _residuals_and_jacobian(
     logs: list[_Log],
     mats: tuple[Array, Array, Array],
     x0s: list[Array],
     chain: Array | None,
-) -> tuple[list[Array], list[Array], list[Array]]:
-    residuals, jacobians, simulated = [], [], []
-    for log, x0 in zip(logs, x0s, strict=True):
-        xhat = simulate_model(mats, x0, log.a, log.w)
-        S = _sensitivities(mats, log, xhat)
-        n = xhat.shape[1]
-        theta_part, x0_part = S[:, :, :-n], S[:, :, -n:]
-        if chain is not None:
-            theta_part = theta_part @ chain
+    known: list[Array] | None = None,
+) -> Generator[_Request, list[Array], _Current]:
+    """Per log: the output errors, their Jacobian and the simulation at ``(mats, x0s)``;
+    ``known``: the simulations there, when :func:`_cost` has just made them."""
+    simulated = (yield _Request(mats, logs, x0s, False)) if known is None else known
+    limit = _propagation.BLOCK_TRANSITIONS
+    short = [index for index, log in enumerate(logs) if log.a.shape[0] <= limit]
+    held: dict[int, Array] = {}
+    if short:
+        sensitivities = yield _Request(
+            mats, [logs[index] for index in short], [simulated[index] for index in short], True
+        )
+        held = dict(zip(short, sensitivities, strict=True))
+    residuals, jacobians = [], []
+    for index, (log, xhat) in enumerate(zip(logs, simulated, strict=True)):
+        S = held.get(index)
+        J = None if S is None else _chained(S, chain)
         residuals.append(log.x - xhat)
-        jacobians.append(np.concatenate([theta_part, x0_part], axis=2))
-        simulated.append(xhat)
+        jacobians.append(_Jacobian(J, (mats, log, xhat), chain))
     return residuals, jacobians, simulated
 
 
@@ -303,53 +281,64 @@ def _cost(
     matrices: Callable[[Array], tuple[Array, Array, Array]],
     point: tuple[Array, list[Array]],
     weight: Array,
-) -> float:
-    """The weighted output-error cost at ``(theta, x0s)``: infinite where the parameters
-    give no model (a structure's non-physical values, an overflowing discretization), so
-    that the search never steps there."""
+) -> Generator[_Request, list[Array], tuple[float, list[Array]]]:
+    """The weighted output-error cost at ``(theta, x0s)`` and the simulations of the logs
+    there: infinite (and no simulations) where the parameters give no model (a
+    structure's non-physical values, an overflowing discretization), so that the search
+    never steps there."""
     theta, x0s = point
     try:
         mats = matrices(theta)
     except (InputError, np.linalg.LinAlgError):
-        return float("inf")
+        return float("inf"), []
+    simulated = yield _Request(mats, logs, x0s, False)
+    residuals = [log.x - xhat for log, xhat in zip(logs, simulated, strict=True)]
+    return _weighted(residuals, weight), simulated
+
+
+def _weighted(residuals: list[Array], weight: Array) -> float:
+    """``sum_k r_k' W r_k`` over the logs' output errors; infinite if not finite."""
     total = 0.0
-    for log, x0 in zip(logs, x0s, strict=True):
-        r = log.x - simulate_model(mats, x0, log.a, log.w)
+    for r in residuals:
         total += float(np.einsum("ki,ij,kj->", r, weight, r))
     return total if np.isfinite(total) else float("inf")
 
 
-def _gauss_newton(
+def _search(
     logs: list[_Log],
     theta: Array,
-    matrices: Callable[[Array], tuple[Array, Array, Array]],
-    structured: bool,
+    kind: tuple[Callable[[Array], tuple[Array, Array, Array]], bool],
     max_iterations: int,
-    h: float,
     floor: Array,
-) -> OutputErrorFit:
+) -> _Search:
     """Levenberg-Marquardt on the parameters and every log's initial state: a step is kept
     only if it lowers the cost (else the damping grows), with the noise weight
-    re-estimated from the output errors between rounds (iteratively reweighted)."""
+    re-estimated from the output errors between rounds (iteratively reweighted). ``kind``:
+    the parameters' map to ``(Ad, Bd, Ed)`` and whether it is a structure's. A generator
+    of what it needs propagated (:func:`_run_searches`)."""
+    matrices, structured = kind
     n, p = logs[0].x.shape[1], theta.shape[0]
     x0s = [log.x[0].copy() for log in logs]
     iterations = 0
     # the residuals, Jacobians and simulations at (theta, x0s) when known (None: stale)
-    current: tuple[list[Array], list[Array], list[Array]] | None = None
+    current: _Current | None = None
     for _ in range(WEIGHT_ROUNDS):
         if current is None:
             chain = _jacobian_map(matrices, theta, structured)
-            current = _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
+            current = yield from _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
         residuals, jacobians, _ = current
         root = _noise_root(np.concatenate(residuals), floor)  # W = root' root
         weight, damping = root.T @ root, 1e-4
-        cost = _cost(logs, matrices, (theta, x0s), weight)
+        cost = _weighted(residuals, weight)  # the residuals are those at (theta, x0s)
+        equations = None  # the normal equations at (theta, x0s) under this weight
         while iterations < max_iterations:
             iterations += 1
-            step = _step(residuals, jacobians, root, p, damping)
+            if equations is None:  # a retry with more damping has them already
+                equations = _normal_equations(residuals, jacobians, root, p)
+            step = _step(equations, damping)
             trial = theta + step[:p]
             trial_x0s = [x0 + step[p + i * n : p + (i + 1) * n] for i, x0 in enumerate(x0s)]
-            trial_cost = _cost(logs, matrices, (trial, trial_x0s), weight)
+            trial_cost, simulated = yield from _cost(logs, matrices, (trial, trial_x0s), weight)
             if trial_cost >= cost:
                 damping *= 10.0
                 if damping > 1e8:
@@ -361,12 +350,31 @@ def _gauss_newton(
             if improvement < 1e-12:
                 break
             chain = _jacobian_map(matrices, theta, structured)
-            current = _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
+            current = yield from _residuals_and_jacobian(
+                logs, matrices(theta), x0s, chain, simulated
+            )
             residuals, jacobians, _ = current
+            equations = None
             if _at_rounding(residuals, floor):
                 break
         if _at_rounding(residuals, floor):
             break
+    return theta, x0s, iterations, current
+
+
+def _gauss_newton(
+    logs: list[_Log],
+    theta: Array,
+    matrices: Callable[[Array], tuple[Array, Array, Array]],
+    structured: bool,
+    max_iterations: int,
+    h: float,
+    floor: Array,
+) -> OutputErrorFit:
+    """The fit of :func:`_search` from ``theta``."""
+    [(theta, x0s, iterations, current)] = _run_searches(
+        [_search(logs, theta, (matrices, structured), max_iterations, floor)]
+    )
     return _finish(logs, theta, matrices, structured, x0s, h, iterations, floor, current=current)
 
 
@@ -403,56 +411,98 @@ def resolution_floor(x: Array, relative: float) -> Array:
 
 
 def _whitened(
-    residuals: list[Array], jacobians: list[Array], root: Array, p: int
-) -> list[tuple[Array, Array]]:
-    """Per log: the whitened residuals (T, n) and Jacobian (T, n, p + logs n), every log's
-    initial state its own columns."""
+    residuals: list[Array], jacobians: list[_Jacobian], root: Array, p: int
+) -> Iterator[tuple[int, Array, Array]]:
+    """Per log and block of its rows: the log's index, the whitened residuals (B, n) and
+    Jacobian (B, n, p + logs n), every log's initial state its own columns."""
     n, count = residuals[0].shape[1], len(residuals)
-    result = []
-    for index, (r, J) in enumerate(zip(residuals, jacobians, strict=True)):
-        full = np.zeros((J.shape[0], n, p + count * n))
-        full[:, :, :p] = J[:, :, :p]
-        full[:, :, p + index * n : p + (index + 1) * n] = J[:, :, p:]
-        result.append((r @ root.T, np.einsum("ij,kjl->kil", root, full)))
-    return result
+    for index, (r, jacobian) in enumerate(zip(residuals, jacobians, strict=True)):
+        row = 0
+        for J in jacobian.blocks():
+            full = np.zeros((J.shape[0], n, p + count * n))
+            full[:, :, :p] = J[:, :, :p]
+            full[:, :, p + index * n : p + (index + 1) * n] = J[:, :, p:]
+            rows = r[row : row + J.shape[0]]
+            row += J.shape[0]
+            yield index, rows @ root.T, np.einsum("ij,kjl->kil", root, full)
 
 
-def _step(
-    residuals: list[Array], jacobians: list[Array], root: Array, p: int, damping: float
-) -> Array:
-    """The damped Gauss-Newton step for (theta, x0 of every log)."""
+def _normal_equations(
+    residuals: list[Array], jacobians: list[_Jacobian], root: Array, p: int
+) -> tuple[Array, Array]:
+    """``J'J`` and ``J'r`` of the whitened output errors for (theta, x0 of every log),
+    summed over groups of blocks of up to :data:`~._propagation.BLOCK_TRANSITIONS` rows
+    (one product over all the logs when they are short)."""
+    normal: Array | None = None
+    gradient: Array | None = None
+    group: list[tuple[Array, Array]] = []
     parts = _whitened(residuals, jacobians, root, p)
-    J_all = np.vstack([J.reshape(-1, J.shape[2]) for _, J in parts])
-    r_all = np.concatenate([r.reshape(-1) for r, _ in parts])
-    normal = J_all.T @ J_all
+    for last, (_, r, J) in _marked_last(parts):
+        group.append((r, J))
+        if last or sum(J.shape[0] for _, J in group) >= _propagation.BLOCK_TRANSITIONS:
+            J_all = np.vstack([J.reshape(-1, J.shape[2]) for _, J in group])
+            r_all = np.concatenate([r.reshape(-1) for r, _ in group])
+            products = J_all.T @ J_all, J_all.T @ r_all
+            if normal is None or gradient is None:
+                normal, gradient = products
+            else:
+                normal, gradient = normal + products[0], gradient + products[1]
+            group = []
+    assert normal is not None and gradient is not None
+    return normal, gradient
+
+
+def _step(equations: tuple[Array, Array], damping: float) -> Array:
+    """The damped Gauss-Newton step from the normal equations ``(J'J, J'r)``."""
+    normal = equations[0].copy()
     normal += damping * np.diag(np.diag(normal))
-    return np.asarray(np.linalg.solve(normal, J_all.T @ r_all))
+    return np.asarray(np.linalg.solve(normal, equations[1]))
 
 
-def _robust_covariance(parts: list[tuple[Array, Array]]) -> tuple[Array, Array]:
+def _marked_last(parts: Iterator[tuple[int, Array, Array]]) -> Iterator[tuple[bool, Any]]:
+    """The parts, each with whether it is the last."""
+    previous = next(parts)
+    for part in parts:
+        yield False, previous
+        previous = part
+    yield True, previous
+
+
+def _robust_covariance(
+    parts: Iterator[tuple[int, Array, Array]], counts: list[int]
+) -> tuple[Array, Array]:
     """The parameters' covariance ``H^-1 S H^-1`` (Newey-West): ``H`` the Fisher
     information, ``S`` the long-run covariance of the per-sample scores with Bartlett
     weights. It equals ``H^-1`` for white output errors and stays honest when they are
     not (an effect the model misses, e.g. a voltage ripple): the standard errors then
-    grow instead of lying. Also returns ``H``."""
-    size = parts[0][1].shape[2]
-    fisher = np.zeros((size, size))
-    long_run = np.zeros((size, size))
-    for r, J in parts:
+    grow instead of lying. ``parts``: :func:`_whitened`'s, of logs of ``counts`` rows.
+    Also returns ``H``."""
+    fisher = long_run = np.zeros((0, 0))
+    # per log: its lags L, the running sum of its scores at the block's start and the
+    # L + 1 running sums before it (zero before the log)
+    done, lags, carry, history = 0, 0, np.zeros((1, 0)), np.zeros((1, 0))
+    for index, r, J in parts:
+        size = J.shape[2]
+        if fisher.size == 0:
+            fisher, long_run = np.zeros((size, size)), np.zeros((size, size))
+        if done == 0:
+            lags = int(min(counts[index] // 10, 4 * counts[index] ** (1 / 3)))
+            carry, history = np.zeros((1, size)), np.zeros((lags + 1, size))
         rows = J.reshape(-1, size)
         fisher += rows.T @ rows
-        scores = np.matmul(r[:, np.newaxis, :], J)[:, 0, :]  # (T, size)
-        count = scores.shape[0]
-        lags = int(min(count // 10, 4 * count ** (1 / 3)))
+        scores = np.matmul(r[:, np.newaxis, :], J)[:, 0, :]  # (B, size)
+        done += scores.shape[0]
+        if done == counts[index]:  # the log's end: padded with L zeros
+            scores, done = np.vstack([scores, np.zeros((lags, size))]), 0
         # Bartlett's weights 1 - |j| / (L + 1) are a box of L + 1 samples correlated with
         # itself, so sum_j w_j sum_k s_(k+j) s_k' = W'W / (L + 1), W the scores summed
         # over every window of L + 1 samples (the log padded with zeros), the differences
         # of their running sum: one product instead of one per lag
-        running = np.zeros((count + lags + 1, size))
-        np.cumsum(scores, axis=0, out=running[1 : count + 1])
-        running[count + 1 :] = running[count]
-        windows = running[1:] - np.vstack([np.zeros((lags + 1, size)), running[1:count]])
+        running = np.cumsum(np.vstack([carry, scores]), axis=0)[1:]
+        extended = np.vstack([history, running])
+        windows = extended[lags + 1 :] - extended[: scores.shape[0]]
         long_run += windows.T @ windows / (lags + 1)
+        carry, history = running[-1:], extended[-(lags + 1) :]
     inverse = np.linalg.pinv(fisher)
     return inverse @ long_run @ inverse, fisher
 
@@ -466,21 +516,22 @@ def _finish(
     h: float,
     iterations: int,
     floor: Array,
-    current: tuple[list[Array], list[Array], list[Array]] | None = None,
+    current: _Current | None = None,
 ) -> OutputErrorFit:
     """The fit at ``(theta, x0s)``; ``current``: the residuals, Jacobians and simulations
     there, if the search has them (they are computed otherwise)."""
     mats = matrices(theta)
     if current is None:
         chain = _jacobian_map(matrices, theta, structured)
-        current = _residuals_and_jacobian(logs, mats, x0s, chain)
+        [current] = _run_searches([_residuals_and_jacobian(logs, mats, x0s, chain)])
     residuals, jacobians, simulated = current
     stacked = np.concatenate(residuals)
     noise = np.atleast_2d(np.cov(stacked.T))
     noise = noise + np.diag(np.maximum(floor**2 - np.diag(noise), 0.0))
     p = theta.shape[0]
     robust, fisher = _robust_covariance(
-        _whitened(residuals, jacobians, _noise_root(stacked, floor), p)
+        _whitened(residuals, jacobians, _noise_root(stacked, floor), p),
+        [r.shape[0] for r in residuals],
     )
     white = np.diag(np.linalg.pinv(fisher))[:p]
     ratios = np.diag(robust)[:p] / np.maximum(white, 1e-300)

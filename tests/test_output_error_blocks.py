@@ -1,0 +1,91 @@
+"""The output-error fit's ways of saving time and memory change no result beyond rounding.
+
+A log longer than ``BLOCK_TRANSITIONS`` has its sensitivities made and used block by block
+(normal equations and Newey-West sums carried over the blocks); refits run side by side,
+one propagation a step for all of them. Both must give the fit that holding everything and
+fitting one at a time gives, to the rounding the normal equations' conditioning allows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from selftune.learn.evidence import _propagation
+from selftune.learn.evidence._output_error import (
+    OutputErrorFit,
+    _gauss_newton,
+    _Log,
+    _search,
+    _unstructured,
+    simulate_model,
+)
+from selftune.learn.evidence._propagation import _run_searches
+
+N, M, Q, H = 2, 2, 1, 1e-4
+AD = np.array([[0.95, 0.02], [-0.03, 0.9]])
+BD = np.array([[0.1, 0.0], [0.01, 0.12]])
+ED = np.array([[0.05], [-0.02]])
+NOISE = 0.01
+
+
+def _matrices(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    return _unstructured(theta, N, M, Q)
+
+
+def _noisy_log(samples: int, seed: int) -> _Log:
+    """A log of the model above under white inputs, a stepped reference and white noise."""
+    rng = np.random.default_rng(seed)
+    a = rng.standard_normal((samples, M))
+    w = np.repeat(rng.choice([-1.0, 1.0], size=(samples // 50 + 1, Q)), 50, axis=0)[:samples]
+    x = simulate_model((AD, BD, ED), np.zeros(N), a, w)
+    return _Log(x=x + NOISE * rng.standard_normal(x.shape), a=a, w=w)
+
+
+def _start() -> np.ndarray:
+    theta = np.concatenate([AD, BD, ED], axis=1).ravel(order="F")
+    return theta * (1.0 + 0.02 * np.sin(np.arange(theta.size)))
+
+
+def _fit(logs: list[_Log]) -> OutputErrorFit:
+    return _gauss_newton(logs, _start(), _matrices, False, 20, H, np.full(N, 1e-12))
+
+
+def _close(first: np.ndarray, second: np.ndarray, condition: float) -> None:
+    """Equal up to rounding amplified by the normal equations' condition number."""
+    tolerance = 100 * np.finfo(float).eps * condition
+    assert float(np.max(np.abs(first - second))) <= tolerance * float(np.max(np.abs(first)))
+
+
+def _same_minimum(fit: OutputErrorFit, theta: np.ndarray) -> None:
+    """``theta`` is ``fit``'s minimum as far as the search's stopping rule tells: it stops
+    when a step lowers the cost by less than 1e-12 of it, and the cost (about the number
+    of output errors at the minimum) rises by (dtheta / se)^2 / 2 away from it, so two
+    stops differ by at most sqrt(2e-12 cost) standard errors; rounding can move a stop."""
+    cost = sum(residual.size for residual in fit.residuals)
+    se = np.sqrt(np.diag(fit.parameter_covariance))
+    assert float(np.max(np.abs(theta - fit.parameters) / se)) <= np.sqrt(2e-12 * cost)
+
+
+@pytest.mark.parametrize("block", [97, 1000])
+def test_a_long_log_fitted_block_by_block_gives_the_fit_held_whole(
+    monkeypatch: pytest.MonkeyPatch, block: int
+) -> None:
+    logs = [_noisy_log(3000, 1), _noisy_log(1200, 2)]
+    whole = _fit(logs)
+    assert whole.iterations > 1  # the search moved, with steps from the normal equations
+    monkeypatch.setattr(_propagation, "BLOCK_TRANSITIONS", block)
+    blocks = _fit(logs)
+    _same_minimum(whole, blocks.parameters)
+    condition = whole.model.condition
+    _close(whole.parameter_covariance, blocks.parameter_covariance, condition)
+    _close(whole.noise_covariance, blocks.noise_covariance, condition)
+    assert blocks.correlation_inflation == pytest.approx(whole.correlation_inflation, rel=1e-9)
+
+
+def test_searches_side_by_side_give_the_fits_one_at_a_time() -> None:
+    draws = [[_noisy_log(1500, seed)] for seed in (3, 4, 5, 6)]
+    floor = np.full(N, 1e-12)
+    searches = [_search(logs, _start(), (_matrices, False), 20, floor) for logs in draws]
+    for logs, (theta, *_) in zip(draws, _run_searches(searches), strict=True):
+        _same_minimum(_fit(logs), theta)
