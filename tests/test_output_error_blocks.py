@@ -8,6 +8,8 @@ fitting one at a time gives, to the rounding the normal equations' conditioning 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -89,3 +91,25 @@ def test_searches_side_by_side_give_the_fits_one_at_a_time() -> None:
     searches = [_search(logs, _start(), (_matrices, False), 20, floor) for logs in draws]
     for logs, (theta, *_) in zip(draws, _run_searches(searches), strict=True):
         _same_minimum(_fit(logs), theta)
+
+
+def test_the_adp_rows_summed_block_by_block_are_the_same(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The digital ADP's regression rows made a few intervals at a time (as a long log's
+    are) give the same controller, bit for bit: each interval's sum is over the same
+    rows."""
+    import selftune
+    import selftune.learn.learners._digital as digital
+    from selftune.learn import LearningOptions, LearningProblem, learn_controller
+
+    root = Path(__file__).resolve().parents[1] / "examples" / "data"
+    log = selftune.load_trajectory(root / "drive_log.csv")
+    F = np.array([[0.0, 0.0], [0.0, -2 / (3 * 3 * 0.35)]])
+    problem = LearningProblem(1e3 * np.eye(2), np.eye(2), C=np.eye(2), F=F, integral_action=True)
+    options = LearningOptions(
+        target="digital", input_delay=1, logged_input="commanded", dead_time=True
+    )
+    whole = learn_controller(log, problem, np.eye(2), options)
+    monkeypatch.setattr(digital, "ROW_BLOCK", 97)
+    blocked = learn_controller(log, problem, np.eye(2), options)
+    np.testing.assert_array_equal(blocked.K, whole.K)
+    np.testing.assert_array_equal(blocked.U, whole.U)
