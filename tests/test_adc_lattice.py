@@ -8,7 +8,6 @@ would log them.
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -139,25 +138,33 @@ def _readme_learned(log: Trajectory) -> LearnedController:
     return learn_controller(log, problem, np.eye(2), options)
 
 
-def test_the_readme_logs_steps_are_simulated_and_stated() -> None:
-    """The README's log (a 12-bit ADC over +-50 A: 24.4 mA steps) is learned with its
-    steps simulated, and the quality says so; the same drive without an ADC is not."""
-    root = Path(__file__).resolve().parents[1] / "examples" / "data"
-    learned = _readme_learned(selftune.load_trajectory(root / "drive_log.csv"))
-    assert any("0.0244 A steps" in note for note in learned.quality.notes)
+def _readme_drive_log(noise: float, adc: bool) -> Trajectory:
+    """0.4 s of the README's drive (hardware-like: 2 V of dead time, a 12-bit ADC over
+    +-50 A) with ``noise`` A rms per phase, with or without its ADC."""
     motor = selftune.SPMSM(R_s=0.6, L_s=8e-3, phi_pm=0.35, p=3)
     settings = replace(DriveSettings.hardware_like(h=1e-4), logged_input="commanded",
-                       adc_bits=None, adc_range=None)  # fmt: skip
+                       current_noise=noise)  # fmt: skip
+    if not adc:
+        settings = replace(settings, adc_bits=None, adc_range=None)
     drive = RealisticDrive(motor, 50.0, 1e-4, settings)
     law = ControlLaw.regulator(np.eye(2), np.array([[0.0, 0.0], [0.0, 2 / (3 * 3 * 0.35)]]),
                                np.array([[0.0, 0.0], [1.0, 0.0]]))  # fmt: skip
     reference = held(
         lambda t: np.column_stack([np.full_like(t, 52.5), 5.0 * np.sign(np.sin(200 * t))])
     )
-    log = drive.run(law, reference, num_samples=4000, exploration=uniform(10.8), seed=3)
-    notes = _readme_learned(log).quality.notes
-    assert any("signs near zero" in note for note in notes)
-    assert not any("A steps" in note for note in notes)
+    return drive.run(law, reference, num_samples=4000, exploration=uniform(10.8), seed=3)
+
+
+def test_coarse_steps_are_simulated_and_stated_fine_ones_are_not() -> None:
+    """24.4 mA steps under 2 mA of noise are simulated as rounding and the quality says
+    so; under the README's 10 mA (steps 2.4 noise deviations) Gaussian noise of their
+    variance is simulated, as without an ADC."""
+    coarse = _readme_learned(_readme_drive_log(0.002, adc=True)).quality.notes
+    assert any("0.0244 A steps" in note for note in coarse), coarse
+    for noise, adc in ((0.01, True), (0.01, False)):
+        notes = _readme_learned(_readme_drive_log(noise, adc)).quality.notes
+        assert any("signs near zero" in note for note in notes)
+        assert not any("A steps" in note for note in notes), (noise, adc, notes)
 
 
 def test_a_refusal_on_coarse_steps_names_the_adc() -> None:

@@ -14,7 +14,9 @@ The steps are found without being told: the differences between two phases curre
 steps whether the drive measures two phases (the third their negative sum) or three (the
 common mode the Clarke transform drops cancels in a difference). Where the log's
 currents are not on such a lattice (no ADC, noise before it, a filter after it), none
-is found and the simulation stays Gaussian.
+is found and the simulation stays Gaussian; where the steps are not coarse against the
+noise (:data:`COARSE_ADC_STEPS`), it stays Gaussian too, of the rounding's and the
+noise's variance.
 """
 
 from __future__ import annotations
@@ -38,6 +40,13 @@ LATTICE_TOLERANCE = 1e-2
 #: 7 significant digits moves a code by 5e-7 of the largest; a 16-bit ADC's step over
 #: a range 10 times the currents' is 3e-4 of them).
 MERGED = 1e-5
+
+#: The ADC's step, in standard deviations of the noise before it, beyond which its
+#: rounding is simulated as rounding: a uniform rounding's rms (step / sqrt(12)) is then
+#: over the noise, and the rounding follows the current instead of averaging out. Below
+#: it, noise of the rounding's variance describes it (the README's drive: 24.4 mA steps
+#: under 10 mA of noise).
+COARSE_ADC_STEPS = 4.0
 
 #: The variance of a uniform rounding error, in steps squared.
 _UNIFORM = 1.0 / 12.0
@@ -81,6 +90,16 @@ class CurrentLattice:
         gain = 2.0 / 3.0 if self.measured == "three" else 4.0 / 3.0
         per_phase = 0.5 * float(np.trace(R)) / gain
         return float(np.sqrt(max(per_phase - _UNIFORM * self.step**2, 0.0)))
+
+    def coarse(self, noise: float) -> bool:
+        """Whether the steps are coarse against ``noise`` (:data:`COARSE_ADC_STEPS`).
+
+        Parameters
+        ----------
+        noise : float
+            The noise before the ADC on each phase, A (standard deviation).
+        """
+        return self.step > COARSE_ADC_STEPS * noise
 
     def measure(self, x: Array, angle: Array, noise: Array) -> Array:
         """The dq currents an ADC of this lattice reports for the true ones.

@@ -31,10 +31,11 @@ on each sample's own signs, or along the current's path within it.
 The measurement noise is estimated from the one-step residuals of the fitted model on
 the log (their lag-one covariance is ``-Ad R``: each measured state enters two
 consecutive residuals), not from the output errors, which the signs' errors inflate.
-Where the logged currents are whole steps of an ADC (:mod:`._adc`), the simulation
-rounds its phase currents to those steps after noise of the variance the rounding does
-not explain: rounding finer than the noise is noise, coarser is a fixed function of the
-current, which the bias and the refits' spread must include (the corpus's 48 V motor,
+Where the logged currents are whole steps of an ADC coarse against the noise
+(:mod:`._adc`), the simulation rounds its phase currents to those steps after noise of
+the variance the rounding does not explain: rounding finer than the noise is noise,
+coarser is a fixed function of the current, which the bias and the refits' spread must
+include (the corpus's 48 V motor,
 48.8 mA steps and 2 mA of noise: the norm of K's error from up to 4.5 stated standard
 errors, with Gaussian noise simulated, to at most 2.9).
 """
@@ -216,6 +217,8 @@ def without_sign_bias(
     logs, rows, x0s = _first_samples(whole, rows, starts)
     lattice = current_lattice(np.concatenate([log.x for log in logs]), np.concatenate(rows))
     analog = 0.0 if lattice is None else lattice.noise_sd(R)
+    if lattice is not None and not lattice.coarse(analog):
+        lattice = None  # rounding finer than the noise: Gaussian noise describes it
     share = sum(log.a.shape[0] for log in logs) / sum(log.a.shape[0] for log in whole)
     q = logs[0].w.shape[1] - 2
     structured = fit.structure is not None

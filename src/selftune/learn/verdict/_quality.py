@@ -482,16 +482,10 @@ def check_precision(
     )
 
 
-#: The ADC's step, in standard deviations of the noise before it, beyond which its
-#: rounding leads a refusal's causes (a uniform rounding's rms, step / sqrt(12), is then
-#: over the noise: the rounding follows the current instead of averaging out).
-COARSE_ADC_STEPS = 4.0
-
-
 def _coarse_adc(evidence: Evidence) -> bool:
-    """Whether the log's currents are steps of an ADC coarse against its noise."""
-    step, noise = evidence.adc_step, evidence.adc_noise
-    return step is not None and noise is not None and step > COARSE_ADC_STEPS * noise
+    """Whether the log's currents are steps of an ADC coarse against its noise (the
+    sign-bias correction simulated them only then)."""
+    return evidence.adc_step is not None and evidence.adc_noise is not None
 
 
 def _noise_text(evidence: Evidence) -> str:
