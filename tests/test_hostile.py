@@ -1490,13 +1490,20 @@ def test_ctrl_c_just_as_the_temporary_is_created_leaves_nothing(
         return result
 
     monkeypatch.setattr(os, step, then_interrupted)
-    with pytest.raises(KeyboardInterrupt):
-        if kind == "directory":
-            with output_directory(tmp_path / "out", {"results.json"}, "reproduction"):
-                pass
-        else:
-            with atomic_path(tmp_path / "log.csv"):
-                pass
+    # Python's own SIGINT handler, whatever the process inherited: a shell's background
+    # job (`cmd &` without job control) starts with SIGINT ignored, and the test then
+    # delivered nothing
+    inherited = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            if kind == "directory":
+                with output_directory(tmp_path / "out", {"results.json"}, "reproduction"):
+                    pass
+            else:
+                with atomic_path(tmp_path / "log.csv"):
+                    pass
+    finally:
+        signal.signal(signal.SIGINT, inherited)
     assert snapshot(tmp_path) == {}
 
 
