@@ -193,7 +193,9 @@ class ChangeWatch:
         """
         n = Theta.shape[1]
         directions = [column.reshape((n, -1), order="F") for column in sensitivities.T]
-        self._reference = (Theta, noise, directions, covariance)
+        # each direction's instruments-to-score map, M_j' Sigma^-1, made once per reference
+        weighted = [M.T @ np.linalg.inv(noise[0]) for M in directions]
+        self._reference = (Theta, noise, weighted, covariance)
 
     def reference_off(self) -> None:
         """Stop watching until the next reference (after a change, the old one is wrong)."""
@@ -210,14 +212,13 @@ class ChangeWatch:
         """
         if self._reference is None or z.shape[0] == 0:
             return None
-        Theta, (Sigma, R, Q), directions, covariance = self._reference
+        Theta, (_, R, Q), weighted, covariance = self._reference
         n = Theta.shape[1]
         Ad = Theta[:n].T
         errors = y - z @ Theta
-        inverse = np.linalg.inv(Sigma)
         scores, variances, loads, firsts, lasts = [], [], [], [], []
-        for M in directions:
-            u = zeta @ M.T @ inverse  # (T, n)
+        for map_ in weighted:
+            u = zeta @ map_  # (T, n): u_k = Sigma^-1 M_j zeta_k
             scores.append(float(np.sum(u * errors)))
             paths = u[:-1] - u[1:] @ Ad  # c_j' for the chunk's interior measurements
             spread = np.sum((u @ Q) * u) + np.sum((paths @ R) * paths)
