@@ -237,6 +237,33 @@ class ControlLaw:
         solution, *_ = np.linalg.lstsq(self.K_i, without - command, rcond=None)
         return np.asarray(solution, dtype=float)
 
+    def scaled_reference(self, scales: ArrayLike) -> ControlLaw:
+        """The same feedback with each reference channel scaled: the columns of ``X``,
+        ``U`` and ``F`` multiplied by ``scales`` (the law fed ``scales * w`` for ``w``).
+
+        A torque reference's current for a magnet flux that changed by a factor ``c`` is
+        this law with the torque channel scaled by ``1 / c``: the steady state and the
+        feedforward of a channel that does not drive the plant are linear in its ``F``
+        column, and ``K``, ``K_i`` (so the loop and its cost) stay as they are.
+
+        Parameters
+        ----------
+        scales : array_like, shape (q,)
+            The factor on each channel of ``w``.
+
+        Raises
+        ------
+        InputError
+            If ``scales`` does not have q finite entries.
+        """
+        factors = np.asarray(scales, dtype=float)
+        if factors.shape != (self.q,) or not np.all(np.isfinite(factors)):
+            raise InputError(f"scales: needs {self.q} finite factors, got {factors!r}")
+        return ControlLaw(
+            self.K, self.X * factors, self.U * factors, self.history, self.K_i, self.C,
+            None if self.F is None else self.F * factors, self.h,
+        )  # fmt: skip
+
     def document(self) -> dict[str, object]:
         """The law as a drive engineer puts it on a drive: its equations in words and
         symbols, the names of K's columns, and every matrix they name (SI units: V/A on
