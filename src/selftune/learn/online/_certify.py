@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core import Array, ControlLaw
-from ...errors import UnsolvableError
+from ...errors import InputError, UnsolvableError
 from ...loop import LoopWeights, SampledLoop
 from ..evidence._discrete_model import DiscreteModel
 from ..verdict._quality import closed_loop_radius, largest_radius
@@ -131,7 +131,14 @@ def certify(
             f"{least_saving:.3%} (the least worth a switch): the law in force stays"
         )
         return Certificate(False, reason, np.array([radius]), limit, first, float("nan"))
-    models = plausible_models(nominal, structure, estimate.theta, estimate.covariance)
+    try:
+        models = plausible_models(nominal, structure, estimate.theta, estimate.covariance)
+    except InputError as failure:  # a plant the parameters' spread allows is not a motor
+        reason = (
+            f"the plants the estimate's standard errors allow include no motor ({failure}): "
+            "the data do not pin the plant down; the law in force stays"
+        )
+        return Certificate(False, reason, np.array([radius]), limit, first, float("nan"))
     radii = np.array(
         [radius] + [closed_loop_radius(model, candidate, loop.input_delay) for model in models[1:]]
     )

@@ -125,6 +125,12 @@ class OnlineModel:
         """
         moments = self.moments[index]
         Theta, Sigma, covariance = moments.estimate()
+        return self._discrete(moments, Theta, Sigma, covariance)
+
+    def _discrete(
+        self, moments: ForgettingMoments, Theta: Array, Sigma: Array, covariance: Array
+    ) -> DiscreteModel:
+        """The model of coefficients ``Theta`` from ``moments``' data."""
         n, m = self.n, self.m
         M = Theta.T  # (n, p): [Ad, Bd, Ed]
         return DiscreteModel(
@@ -138,6 +144,52 @@ class OnlineModel:
             transitions=moments.count,
             covariance=_row_major_covariance(covariance, Theta.shape),
         )
+
+    def drift_free(self, recent: int, older: int) -> tuple[DiscreteModel, Array, Array]:
+        """The model now, without the lag a steady drift leaves in a memory's estimate.
+
+        Under forgetting with time constant ``tau`` a parameter that moves at a steady
+        rate is estimated ``tau`` times that rate late (a warming resistance, 0.4%/K,
+        over a 2 s memory). Two memories ``tau_a < tau_b`` are late by different amounts,
+        so ``c_a Theta_a + c_b Theta_b`` with ``c_a = tau_b / (tau_b - tau_a)``,
+        ``c_b = -tau_a / (tau_b - tau_a)`` is not late at all (Brown's double
+        smoothing). Its covariance is the older memory's times
+        ``2 tau_b (c_a^2 / (2 tau_a) + c_b^2 / (2 tau_b) + 2 c_a c_b / (tau_a + tau_b))``
+        (white errors over steady excitation: 3.67 for ``tau_b = 2 tau_a``).
+
+        Parameters
+        ----------
+        recent, older : int
+            The two memories (indices into :attr:`memories`, the first the shorter).
+
+        Returns
+        -------
+        model : DiscreteModel
+            The model now, with the covariance of ``vec([Ad, Bd, Ed])``.
+        Theta : ndarray, shape (p, n)
+            Its coefficients (``[Ad, Bd, Ed]'``).
+        covariance : ndarray
+            The covariance of ``vec(Theta)`` (column-major).
+
+        Raises
+        ------
+        numpy.linalg.LinAlgError
+            If the data so far do not excite every regressor.
+        """
+        tau_a, tau_b = self.memories[recent], self.memories[older]
+        if not tau_a < tau_b:
+            raise InputError(f"memories: {recent} must be shorter than {older}")
+        Theta_a, *_ = self.moments[recent].estimate()
+        Theta_b, Sigma, covariance = self.moments[older].estimate()
+        c_a, c_b = tau_b / (tau_b - tau_a), -tau_a / (tau_b - tau_a)
+        scale = (
+            2
+            * tau_b
+            * (c_a**2 / (2 * tau_a) + c_b**2 / (2 * tau_b) + 2 * c_a * c_b / (tau_a + tau_b))
+        )
+        Theta = c_a * Theta_a + c_b * Theta_b
+        covariance = scale * covariance
+        return self._discrete(self.moments[older], Theta, Sigma, covariance), Theta, covariance
 
 
 def _row_major_covariance(covariance: Array, shape: tuple[int, int]) -> Array:

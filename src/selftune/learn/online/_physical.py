@@ -146,8 +146,11 @@ class ChangeWatch:
       ``C`` the covariance of ``vec(Theta)``. It is coherent over the window: while the
       currents hold still, it is what is left.
 
-    A change moves the mean of ``g_j`` by ``sum_k u_k' M_j zeta_k`` times the change.
-    The alarm is raised when some ``|g_j| / sd_j`` exceeds the two-sided normal quantile
+    A change moves the mean of ``g_j`` by ``s_j = sum_k u_k' M_j z_k`` times the
+    change (``z_k`` the regressors). A drift is not a change: the reference may be
+    behind the plant by up to ``allowance_j`` (the fastest drift heating gives, times
+    the slow memory: the estimate's lag), which adds ``(s_j allowance_j)^2`` to the
+    variance. The alarm is raised when some ``|g_j| / sd_j`` exceeds the two-sided normal quantile
     of ``false_alarm / p``; it is false with probability at most ``false_alarm`` per
     window of transitions.
 
@@ -164,10 +167,12 @@ class ChangeWatch:
             raise InputError(f"false_alarm: expected a probability in (0, 1), got {false_alarm!r}")
         self.window = int(window)
         self.false_alarm = false_alarm
-        self._reference: tuple[Array, tuple[Array, Array, Array], list[Array], Array] | None = None
+        self._reference: (
+            tuple[Array, tuple[Array, Array, Array], list[Array], Array, list[Array], Array] | None
+        ) = None
         # per chunk: transitions, scores, variance within it (interior measurements and
-        # the process noise), loads, and each direction's first and last u
-        self._parts: list[tuple[int, Array, Array, Array, Array, Array]] = []
+        # the process noise), loads, each direction's first and last u, and its shifts
+        self._parts: list[tuple[int, Array, Array, Array, Array, Array, Array]] = []
 
     def reference(
         self,
@@ -175,6 +180,7 @@ class ChangeWatch:
         noise: tuple[Array, Array, Array],
         sensitivities: Array,
         covariance: Array,
+        allowance: Array | None = None,
     ) -> None:
         """Watch from now against a model.
 
@@ -190,12 +196,16 @@ class ChangeWatch:
             ``d vec(Theta') / d theta`` (column-major ``vec`` of ``[Ad, Bd, Ed]``).
         covariance : ndarray, shape (p n, p n)
             The covariance of ``vec(Theta)`` (column-major).
+        allowance : ndarray, shape (parameters,), optional
+            How far behind a drifting plant the reference may be, in each parameter's
+            unit (default: not at all).
         """
         n = Theta.shape[1]
         directions = [column.reshape((n, -1), order="F") for column in sensitivities.T]
         # each direction's instruments-to-score map, M_j' Sigma^-1, made once per reference
         weighted = [M.T @ np.linalg.inv(noise[0]) for M in directions]
-        self._reference = (Theta, noise, weighted, covariance)
+        lag = np.zeros(len(directions)) if allowance is None else np.asarray(allowance, float)
+        self._reference = (Theta, noise, weighted, covariance, directions, lag)
 
     def reference_off(self) -> None:
         """Stop watching until the next reference (after a change, the old one is wrong)."""
@@ -212,14 +222,15 @@ class ChangeWatch:
         """
         if self._reference is None or z.shape[0] == 0:
             return None
-        Theta, (_, R, Q), weighted, covariance = self._reference
+        Theta, (_, R, Q), weighted, covariance, directions, lag = self._reference
         n = Theta.shape[1]
         Ad = Theta[:n].T
         errors = y - z @ Theta
-        scores, variances, loads, firsts, lasts = [], [], [], [], []
-        for map_ in weighted:
+        scores, variances, loads, firsts, lasts, shifts = [], [], [], [], [], []
+        for map_, M in zip(weighted, directions, strict=True):
             u = zeta @ map_  # (T, n): u_k = Sigma^-1 M_j zeta_k
             scores.append(float(np.sum(u * errors)))
+            shifts.append(float(np.sum(u * (z @ M.T))))
             paths = u[:-1] - u[1:] @ Ad  # c_j' for the chunk's interior measurements
             spread = np.sum((u @ Q) * u) + np.sum((paths @ R) * paths)
             variances.append(float(spread))
@@ -228,7 +239,7 @@ class ChangeWatch:
             lasts.append(u[-1])
         self._parts.append((
             z.shape[0], np.array(scores), np.array(variances), np.array(loads),
-            np.array(firsts), np.array(lasts),
+            np.array(firsts), np.array(lasts), np.array(shifts),
         ))  # fmt: skip
         while sum(part[0] for part in self._parts[1:]) >= self.window:
             self._parts.pop(0)
@@ -240,7 +251,8 @@ class ChangeWatch:
         joins = [self._parts[0][4] @ Ad, self._parts[-1][5]]
         joins += [before[5] - after[4] @ Ad for before, after in itertools.pairwise(self._parts)]
         noise_part = noise_part + sum(np.sum((c @ R) * c, axis=1) for c in joins)
-        spread = np.sqrt(np.maximum(noise_part + reference, 1e-300))
+        drift = (np.sum([part[6] for part in self._parts], axis=0) * lag) ** 2
+        spread = np.sqrt(np.maximum(noise_part + reference + drift, 1e-300))
         z_scores = np.asarray(total / spread, dtype=np.float64)
         threshold = float(scipy.stats.norm.isf(0.5 * self.false_alarm / z_scores.size))
         return ChangeTest(z_scores, threshold, bool(np.max(np.abs(z_scores)) > threshold))

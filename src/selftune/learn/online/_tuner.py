@@ -15,6 +15,17 @@ on an alarm the slow memory restarts from a share of the fast one's (the old pla
 samples would mislead it), and the next look comes two fast memories later, on the new
 plant's data.
 
+**The torque reference's current** follows the magnet flux: where a look's flux ratio
+differs from the one the law in force assumes by more than three standard errors and
+:attr:`OnlineSettings.flux_tolerance`, the law in force is switched to itself with its
+torque channel rescaled (:meth:`~selftune.core.ControlLaw.scaled_reference`: the same
+feedback, so the same loop and cost; the steady torque right again).
+
+**The watchdog**: a change detected within :attr:`OnlineSettings.probation` samples of a
+switch (the measured currents left the band the model in force predicts, just after the
+new law came in) reverts to the last law certified before it (a ``"revert"`` event), and
+the tuner learns the plant afresh.
+
 Probing (a small exploration) is wanted while the estimates do not certify any law: at
 the start, after a change, and while the candidate is not stable with margin on every
 plausible plant.
@@ -29,7 +40,7 @@ from typing import Literal
 import numpy as np
 
 from ...core import Array, ControlLaw
-from ...errors import InputError
+from ...errors import InputError, UnsolvableError
 from .._problem import LearningProblem
 from ..evidence._discrete_model import DiscreteModel
 from ..evidence._spmsm_structure import SpmsmStructure
@@ -38,13 +49,22 @@ from ._certify import Certificate, certify
 from ._model import OnlineModel
 from ._physical import ChangeTest, ChangeWatch, PhysicalEstimate, physical_estimate
 
-__all__ = ["RESTART_SHARE", "OnlineSettings", "OnlineTuner", "TunerEvent"]
+__all__ = ["JUMP", "RESTART_SHARE", "YOUNG_SHARE", "OnlineSettings", "OnlineTuner", "TunerEvent"]
 
 #: The share of the fast memory's weight the slow one restarts from after a change: the
 #: fast memory still holds the old plant (an alarm comes within its memory), and a
 #: restart from all of it was reported as a second and third change while the slow
 #: model re-learned (README drive, R_s +20%: at 1.08 and 1.28 s after 1.01 s).
 RESTART_SHARE = 0.1
+
+#: The most a parameter may move between consecutive looks, in its standard errors,
+#: for the estimate to be acted on (:meth:`OnlineTuner._doubt`).
+JUMP = 2.0
+
+#: The share of the slow memory's full weight its model needs before the change watch
+#: takes it as the reference: younger, its noise moments misjudge the errors (on the
+#: realistic drive, with dead time, a young reference alarmed at 0.2 s of a constant motor).
+YOUNG_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -66,8 +86,9 @@ class OnlineSettings:
         What the drive holds over a sample (:class:`~selftune.learn.SpmsmStructure`).
     dead_time : bool
         Model the inverter's dead time (the rows need the electrical angle).
-    memories : (float, float)
-        The fast and the slow model's memories, s.
+    memories : (float, float, float)
+        The fast model's memory and the two slow ones', s: the slow models' difference
+        removes the lag a steady drift leaves in them (:meth:`~._model.OnlineModel.drift_free`).
     look_every : int
         Samples between looks.
     false_alarm : float
@@ -80,6 +101,16 @@ class OnlineSettings:
     least_saving : float
         The least saving of a reference step's cost worth a switch, a fraction (a switch
         adds a transient; below 0.1% it is not seen in the torque).
+    flux_tolerance : float
+        The least change of the flux ratio, a fraction, for which the torque reference's
+        current is rescaled (the steady torque error it leaves; half of 0.1%).
+    probation : int
+        Samples after a switch during which a detected change reverts it (the watchdog).
+    drift_rates : (float, float, float, float)
+        The fastest drift heating gives ``R_s``, ``L_s``, the flux ratio and the
+        dead-time voltage, fractions per second (copper 0.39%/K heating at up to 2 K/s;
+        the magnets' 0.1%/K at up to 1 K/s): drift this fast over the slow memory is not
+        a change (:class:`~._physical.ChangeWatch`'s allowance).
     """
 
     h: float
@@ -88,12 +119,15 @@ class OnlineSettings:
     electrical_speed: float
     hold: Literal["stationary", "rotor"] = "stationary"
     dead_time: bool = True
-    memories: tuple[float, float] = (0.05, 2.0)
+    memories: tuple[float, float, float] = (0.05, 1.0, 2.0)
     look_every: int = 1000
     false_alarm: float = 1e-4
     window: int = 500
     torque_channel: int | None = 1
     least_saving: float = 1e-3
+    flux_tolerance: float = 5e-4
+    probation: int = 1000
+    drift_rates: tuple[float, float, float, float] = (0.008, 0.001, 0.001, 0.01)
 
     @property
     def structure(self) -> SpmsmStructure:
@@ -109,15 +143,17 @@ class TunerEvent:
     ----------
     sample : int
         The samples fed before the look.
-    kind : {"change", "switch", "kept", "waiting"}
-        A change detected; a certified law to switch to; the law in force kept; no
-        estimate yet (too little data, or data that do not excite the plant).
+    kind : {"change", "switch", "revert", "kept", "waiting"}
+        A change detected; a certified law to switch to (a new design, or the law in
+        force with its torque reference rescaled); the watchdog's return to the law
+        certified before the last switch; the law in force kept; no estimate yet (too
+        little data, or data that do not excite the plant).
     reason : str
         Why, in words.
     estimate : PhysicalEstimate or None
         The parameters the look used.
     law : ControlLaw or None
-        With ``"switch"``: the law to switch to at the next sample.
+        With ``"switch"`` and ``"revert"``: the law to switch to at the next sample.
     certificate : Certificate or None
         The candidate's certificate.
     change : ChangeTest or None
@@ -125,7 +161,7 @@ class TunerEvent:
     """
 
     sample: int
-    kind: Literal["change", "switch", "kept", "waiting"]
+    kind: Literal["change", "switch", "revert", "kept", "waiting"]
     reason: str
     estimate: PhysicalEstimate | None = None
     law: ControlLaw | None = None
@@ -142,25 +178,38 @@ class OnlineTuner:
         What it knows and how it looks.
     law : ControlLaw
         The law in force (the loop's delay and integral action).
-    start : ndarray
+    start : ndarray, optional
         The parameters to start the estimates from (the nameplate's ``[R_s, L_s, 1]``,
-        and a dead-time voltage guess, V).
+        and a dead-time voltage guess, V); by default read off the first model
+        (:meth:`~selftune.learn.SpmsmStructure.initial`).
+    law_flux : float
+        The flux ratio (to the flux of ``settings.problem``'s F) the law in force assumes.
     """
 
-    def __init__(self, settings: OnlineSettings, law: ControlLaw, start: Array) -> None:
+    def __init__(
+        self,
+        settings: OnlineSettings,
+        law: ControlLaw,
+        start: Array | None = None,
+        law_flux: float = 1.0,
+    ) -> None:
         self.settings = settings
         self.law = law
+        self.law_flux = float(law_flux)
+        self._previous: tuple[ControlLaw, float] | None = None
+        self._probation_end = -1
         problem = settings.problem
         self._model = OnlineModel(
             settings.h, settings.memories, problem.n, problem.m, problem.q, settings.dead_time
         )
-        self._theta = np.asarray(start, dtype=float)
+        self._theta = None if start is None else np.asarray(start, dtype=float)
         self._pending = np.zeros((settings.input_delay, problem.m))
         self._sample = 0
         self._next_look = settings.look_every
         self._watch = ChangeWatch(settings.window, settings.false_alarm)
         self.estimate: PhysicalEstimate | None = None
         self._designed: PhysicalEstimate | None = None
+        self._last_estimate: PhysicalEstimate | None = None
         self.probing = True
 
     @property
@@ -190,6 +239,8 @@ class OnlineTuner:
         test = self._watch.add(*rows)
         if test is not None and test.changed:
             events.append(self._changed(test))
+            if self._previous is not None and self._sample <= self._probation_end:
+                events.append(self._revert())
         if self._sample >= self._next_look:
             self._next_look = self._sample + self.settings.look_every
             events += self._look(w[-1])
@@ -199,13 +250,15 @@ class OnlineTuner:
         """The slow memory restarts from a tenth of the fast one's (enough to be solved,
         little of the old plant); the next look two fast memories on."""
         moments = self._model.moments
-        restarted = copy.deepcopy(moments[0])
-        restarted.forgetting = moments[1].forgetting
-        restarted.forget(RESTART_SHARE)
-        moments[1] = restarted
+        for slow in (1, 2):
+            restarted = copy.deepcopy(moments[0])
+            restarted.forgetting = moments[slow].forgetting
+            restarted.forget(RESTART_SHARE)
+            moments[slow] = restarted
         self._watch.reference_off()
         self.probing = True
         self._designed = None
+        self._last_estimate = None
         fast_samples = round(self.settings.memories[0] / self.settings.h)
         self._next_look = self._sample + 2 * fast_samples
         names = self.settings.structure.names(self.settings.dead_time)
@@ -218,23 +271,79 @@ class OnlineTuner:
             change=test,
         )  # fmt: skip
 
+    def _revert(self) -> TunerEvent:
+        """The watchdog: back to the law certified before the last switch."""
+        assert self._previous is not None
+        self.law, self.law_flux = self._previous
+        self._previous = None
+        return TunerEvent(
+            self._sample, "revert",
+            "a change was detected within the probation after the last switch: back to "
+            "the law certified before it",
+            law=self.law,
+        )  # fmt: skip
+
+    def _switch(self, law: ControlLaw, flux: float) -> None:
+        """Put ``law`` (assuming the flux ratio ``flux``) in force, on probation."""
+        self._previous = (self.law, self.law_flux)
+        self._probation_end = self._sample + self.settings.probation
+        self.law, self.law_flux = law, flux
+
+    def _flux_update(self, estimate: PhysicalEstimate) -> list[TunerEvent]:
+        """The law in force with its torque reference rescaled, if the flux moved."""
+        channel = self.settings.torque_channel
+        kappa, se = float(estimate.theta[2]), float(estimate.standard_errors[2])
+        moved = kappa / self.law_flux - 1.0
+        bound = max(3.0 * se / self.law_flux, self.settings.flux_tolerance)
+        if channel is None or self.settings.problem.F is None or not abs(moved) > bound:
+            return []
+        scales = np.ones(self.law.q)
+        scales[channel] = self.law_flux / kappa
+        reason = (
+            f"the flux ratio is {kappa:.5f} +- {se:.5f}, {moved:+.3%} from the "
+            f"{self.law_flux:.5f} the law in force assumes (beyond 3 standard errors and "
+            f"{self.settings.flux_tolerance:.3%}): its torque reference's current rescaled, "
+            "the feedback kept"
+        )
+        law = self.law.scaled_reference(scales)
+        self._switch(law, kappa)
+        return [TunerEvent(self._sample, "switch", reason, estimate, law)]
+
     def _look(self, w: Array) -> list[TunerEvent]:
-        moments = self._model.moments[1]
         try:
-            estimate = physical_estimate(self._model.model(1), self.settings.structure, self._theta)
-            Theta, _, covariance = moments.estimate()
+            model, Theta, covariance = self._model.drift_free(1, 2)
+            if self._theta is None:
+                self._theta = self.settings.structure.initial(model)
+            estimate = physical_estimate(model, self.settings.structure, self._theta)
         except (np.linalg.LinAlgError, InputError) as failure:
             self.probing = True
             return [TunerEvent(self._sample, "waiting", f"no estimate yet: {failure}")]
-        self._watch.reference(Theta, moments.noise(Theta), estimate.sensitivities, covariance)
-        self._theta = estimate.theta
+        previous, self._last_estimate = self._last_estimate, estimate
+        if np.all(estimate.theta[:3] > 0.0):  # the next fit starts here
+            self._theta = estimate.theta
+        doubt = self._doubt(estimate, previous)
+        if doubt:
+            self.probing = True
+            return [TunerEvent(self._sample, "waiting", doubt, estimate)]
+        noise = self._model.moments[2].noise(Theta)
+        settings = self.settings
+        if self._model.moments[2].weight >= YOUNG_SHARE * settings.memories[2] / settings.h:
+            rates = np.array(settings.drift_rates[: estimate.theta.size])
+            allowance = rates * np.abs(estimate.theta) * settings.memories[2]
+            self._watch.reference(Theta, noise, estimate.sensitivities, covariance, allowance)
         self.estimate = estimate
         if self._designed_near(estimate):
             self.probing = False
-            return [TunerEvent(self._sample, "kept", "the estimate has not moved by half a "
-                               "standard error since the last design", estimate)]  # fmt: skip
+            return self._flux_update(estimate) or [
+                TunerEvent(self._sample, "kept", "the estimate has not moved by half a "
+                           "standard error since the last design", estimate)
+            ]  # fmt: skip
         self._designed = estimate
-        candidate = self._design(estimate)
+        try:
+            candidate = self._design(estimate)
+        except UnsolvableError as failure:
+            self.probing = True
+            return [TunerEvent(self._sample, "kept", f"no law designed: {failure}", estimate)]
         settings = self.settings
         problem = self._scaled_problem(estimate)
         certificate = certify(
@@ -244,11 +353,43 @@ class OnlineTuner:
         )  # fmt: skip
         self.probing = not bool(np.all(certificate.radii <= certificate.limit))
         if certificate.certified:
-            self.law = candidate
+            self._switch(candidate, float(estimate.theta[2]))
             return [TunerEvent(self._sample, "switch", certificate.reason, estimate,
                                candidate, certificate)]  # fmt: skip
-        return [TunerEvent(self._sample, "kept", certificate.reason, estimate, None,
-                           certificate)]  # fmt: skip
+        return self._flux_update(estimate) or [
+            TunerEvent(self._sample, "kept", certificate.reason, estimate, None, certificate)
+        ]
+
+    def _doubt(self, estimate: PhysicalEstimate, previous: PhysicalEstimate | None) -> str:
+        """Why the estimate is not to be acted on ("" if it is): a parameter not
+        physical, or moved since the last look by more than :data:`JUMP` of its
+        standard errors. Consecutive looks share all but ``look_every`` of the slow
+        memories' samples, so their estimates differ by a fraction of a standard error;
+        a larger jump is the instruments failing (the currents hold still between
+        reference steps, and only their noise is left to excite the plant), where the
+        estimate is far off and its standard errors do not say so (on an ideal drive,
+        R_s went from 0.66 to -0.52 ohm in 0.1 s with a standard error of 0.1 ohm, and
+        a law designed on -0.63 ohm was certified)."""
+        names = self.settings.structure.names(self.settings.dead_time)
+        theta = estimate.theta
+        if not np.all(theta[:3] > 0.0):
+            values = ", ".join(
+                f"{name} {value:.4g}" for name, value in zip(names, theta, strict=False)
+            )
+            return f"the estimate is not a motor ({values}): the data do not excite it; probing"
+        if previous is None:
+            return ""
+        moved = np.abs(theta - previous.theta)
+        bound = JUMP * np.maximum(estimate.standard_errors, previous.standard_errors)
+        if np.all(moved <= bound):
+            return ""
+        worst = int(np.argmax(moved / np.maximum(bound, 1e-300)))
+        return (
+            f"{names[worst]} moved from {previous.theta[worst]:.5g} to {theta[worst]:.5g} "
+            f"since the last look, beyond {JUMP:g} standard errors "
+            f"({estimate.standard_errors[worst]:.2g}) though the looks share most of their "
+            "data: the data do not excite the plant enough to trust it; probing"
+        )
 
     def _designed_near(self, estimate: PhysicalEstimate) -> bool:
         """Whether the last design's estimate is within half a standard error of this
