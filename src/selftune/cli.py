@@ -258,14 +258,19 @@ def _add_tune(subparsers: _Subparsers) -> None:
             " quality, its steady torque on the simulated drive and how it compares with the"
             " model-based optimum. The learner is told only the pole pairs, the speed, the"
             " torque reference and the nameplate flux (Algorithm 3 identifies the flux)."
+            " With --online PROFILE.toml the drive, once commissioned, runs through the"
+            " profile's heating and faults with the online tuner in the loop: it prints the"
+            " switches and their reasons, the estimates against the truth, the cost against"
+            " the law tuned cold and against the optimum of each instant, and the steady"
+            " torque error."
         ),
     )
     parser.add_argument("--motor", metavar="MOTOR.toml", required=True, help="the motor file")
     parser.add_argument(
         "--algorithm",
         choices=["1", "2", "3", "offpolicy"],
-        default="offpolicy",
-        help="which algorithm (default: %(default)s)",
+        default=None,
+        help="which algorithm (default: offpolicy)",
     )
     parser.add_argument(
         "--target",
@@ -277,16 +282,45 @@ def _add_tune(subparsers: _Subparsers) -> None:
             " target; continuous, or digital with a [drive] table)"
         ),
     )
+    parser.add_argument(
+        "--online",
+        metavar="PROFILE.toml",
+        default=None,
+        help=(
+            "commission the drive, then run it through the R_s, L_s and phi_pm profile of"
+            " PROFILE.toml with the online tuner in the loop (digital target, integral"
+            " action, the off-policy learner)"
+        ),
+    )
+    parser.add_argument(
+        "--report",
+        metavar="DIR",
+        default=None,
+        help="with --online: write its figures, JSON and printed report into DIR",
+    )
     _add_seed_option(parser)
     _add_json_option(parser)
 
 
 def _run_tune(args: argparse.Namespace) -> int:
-    from .commands import tune_command
+    from .commands import online_command, tune_command
     from .config import load_motor_config
+    from .errors import InputError
 
-    return tune_command(
-        load_motor_config(args.motor), args.algorithm, args.seed, args.json, target=args.target
+    if args.online is None:
+        if args.report is not None:
+            raise InputError("--report: needs --online PROFILE.toml (the online run's report)")
+        return tune_command(
+            load_motor_config(args.motor), args.algorithm or "offpolicy", args.seed, args.json,
+            target=args.target,
+        )  # fmt: skip
+    if args.algorithm not in (None, "offpolicy") or args.target not in (None, "digital"):
+        raise InputError(
+            "--online: the drive is commissioned with the off-policy learner for the digital"
+            " target; leave out --algorithm and --target (or give offpolicy, digital)"
+        )
+    return online_command(
+        load_motor_config(args.motor), args.online, args.seed, args.json, args.report
     )
 
 

@@ -408,6 +408,78 @@ def tune_command(
     return 0
 
 
+def online_command(
+    config: MotorConfig,
+    profile_path: str,
+    seed: int,
+    json_path: str | None,
+    report_dir: str | None,
+) -> int:
+    """``selftune tune --online``: commission the drive of ``config``, then run it
+    through the profile with the online tuner in the loop; print, and write the JSON and
+    the report's figures.
+
+    Parameters
+    ----------
+    config : MotorConfig
+        The motor file's content (its ``[drive]`` table: the drive; without one, the
+        ideal drive at the ``[learning]`` sampling period).
+    profile_path : str
+        PROFILE.toml (:func:`selftune.config.load_online_config`).
+    seed : int
+        The seed of the commissioning, the noise and the probing.
+    json_path : str or None
+        Where to write the JSON (``-``: standard output, without the report).
+    report_dir : str or None
+        Where to write the figures, the JSON and the printed report as one set.
+    """
+    from tqdm import tqdm
+
+    from .config import load_online_config
+    from .report import (
+        ONLINE_REPORT_FILES,
+        evaluate_online,
+        online_document,
+        online_lines,
+        write_online_report,
+    )
+    from .sim import DriveSettings
+    from .tuning import run_online, tuning_settings
+
+    _check_json_target(json_path)
+    if report_dir is not None:
+        check_output_directory(report_dir, ONLINE_REPORT_FILES, "online report")
+    online = load_online_config(profile_path)
+    settings = tuning_settings(config, seed, "digital")
+    drive = config.drive if config.drive is not None else DriveSettings()
+    with (
+        tqdm(
+            total=round(online.duration, 3), desc="online", unit=" s", file=sys.stderr,
+            disable=None, leave=False, bar_format="{desc}: {n:.1f}/{total} s {bar} {elapsed}",
+        ) as bar,
+        _numerics(config.source) as caught,
+    ):  # fmt: skip
+
+        def progress(now: float) -> None:
+            bar.update(now - bar.n)
+
+        run = run_online(
+            config.motor, settings, drive, online.profile, online.duration, seed=seed,
+            progress=progress,
+        )  # fmt: skip
+        evaluation = evaluate_online(run)
+    _check_numerics(config.source, caught, run.cold.P, run.cold.K)
+    lines = online_lines(config.source, run, evaluation)
+    if json_path is not None:
+        _write_json(json_path, online_document(run, evaluation))
+    if report_dir is not None:
+        write_online_report(run, evaluation, lines, report_dir)
+    _print_report(lines, json_path)
+    if report_dir is not None and json_path != STANDARD_OUTPUT:
+        print(f"wrote {report_dir}/ ({', '.join(ONLINE_REPORT_FILES)})")
+    return 0
+
+
 def reproduce_command(out: str, seed: int) -> int:
     """``selftune reproduce``: the paper's Section V into ``out``, with progress on a
     terminal.

@@ -18,6 +18,7 @@ from ._digital_evaluation import (
     digital_step_cost,
     evaluate_digital,
     feedback_excess_cost,
+    step_cost,
     true_motor,
 )
 from ._documents import history_document, regulator_document
@@ -28,6 +29,17 @@ from ._evaluate import (
     evaluate,
     feedback_value,
     steady_state,
+)
+from ._online_report import (
+    ONLINE_REPORT_FILES,
+    TIMELINE_POINTS,
+    OnlineEvaluation,
+    evaluate_online,
+    online_document,
+    online_lines,
+    online_summary,
+    steps_detected,
+    write_online_report,
 )
 from ._reproduce import (
     ALGORITHM_LABELS,
@@ -49,7 +61,10 @@ from ._tune_report import (
 __all__ = [
     "ALGORITHM_LABELS",
     "HOT_RESISTANCE",
+    "ONLINE_REPORT_FILES",
     "STEADY_SECONDS",
+    "TIMELINE_POINTS",
+    "OnlineEvaluation",
     "Reproduction",
     "TorqueCheck",
     "TuningEvaluation",
@@ -58,18 +73,25 @@ __all__ = [
     "drive_text",
     "evaluate",
     "evaluate_digital",
+    "evaluate_online",
     "feedback_excess_cost",
     "feedback_value",
     "history_document",
+    "online_document",
+    "online_lines",
+    "online_summary",
     "regulator_document",
     "report",
     "reproduce",
     "results_document",
     "steady_state",
     "steady_torque_error",
+    "step_cost",
+    "steps_detected",
     "torque_check",
     "true_motor",
     "tune_document",
     "tune_lines",
+    "write_online_report",
     "write_outputs",
 ]

@@ -29,6 +29,7 @@ __all__ = [
     "digital_step_cost",
     "evaluate_digital",
     "feedback_excess_cost",
+    "step_cost",
     "true_motor",
 ]
 
@@ -111,17 +112,39 @@ def feedback_excess_cost(optimum: ModelBasedSolution, law: ControlLaw, w: Array)
     float
         ``inf`` if the feedback does not stabilize the loop.
     """
-    loop, plant = optimum.loop, optimum.sampled_plant[:2]
+    loop = optimum.loop
     if law.history != loop.input_delay or law.r != loop.r:
         return float("nan")
+    return step_cost(optimum, law, w) / step_cost(optimum, optimum.law, w) - 1.0
+
+
+def step_cost(optimum: ModelBasedSolution, law: ControlLaw, w: Array) -> float:
+    """``zeta_0' P(law) zeta_0``: the digital cost of ``law``'s feedback for the torque
+    step from rest to the optimum's equilibrium at ``w``, on the optimum's sampled loop
+    (see the module docstring).
+
+    Parameters
+    ----------
+    optimum : ModelBasedSolution
+        The optimum of the true sampled loop (its plant, delay, weights, integrator).
+    law : ControlLaw
+        The law (the same delay and integrator).
+    w : ndarray, shape (q,)
+        The true ``w`` of the step.
+
+    Returns
+    -------
+    float
+        ``inf`` if the feedback does not stabilize the loop.
+    """
+    loop, plant = optimum.loop, optimum.sampled_plant[:2]
     weights = loop.weights(optimum.Q, optimum.R, "digital")
     zeta0 = loop.step_from_rest(optimum.X, optimum.U, w)
     try:
         value = loop.value(plant, law, weights)
     except UnsolvableError:
         return float("inf")
-    best = loop.value(plant, optimum.law, weights)
-    return float(zeta0 @ value @ zeta0) / float(zeta0 @ best @ zeta0) - 1.0
+    return float(zeta0 @ value @ zeta0)
 
 
 def digital_step_cost(

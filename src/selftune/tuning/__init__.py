@@ -17,6 +17,15 @@ from ._drive import Drive
 from ._episodes import DIVERGED_CURRENT, NOISE_FLOOR_FACTOR
 from ._knowledge import PAPER_PERTURBATION, known_flux_form, reference_perturbation
 from ._offpolicy import offpolicy
+from ._online import (
+    CHUNK_SECONDS,
+    PROBING_SHARE,
+    SEGMENT_CHUNKS,
+    TORQUE_LEVELS,
+    OnlineRun,
+    OnlineSwitch,
+    run_online,
+)
 from ._onpolicy import algorithm1, algorithm2, algorithm3
 from ._results import TuningIteration, TuningResult
 from ._session import ALGORITHMS, AlgorithmName, run_algorithm
@@ -24,12 +33,18 @@ from ._settings import TUNING_KEYS, Perturbation, TuningSettings, tuning_setting
 
 __all__ = [
     "ALGORITHMS",
+    "CHUNK_SECONDS",
     "DIVERGED_CURRENT",
     "NOISE_FLOOR_FACTOR",
     "PAPER_PERTURBATION",
+    "PROBING_SHARE",
+    "SEGMENT_CHUNKS",
+    "TORQUE_LEVELS",
     "TUNING_KEYS",
     "AlgorithmName",
     "Drive",
+    "OnlineRun",
+    "OnlineSwitch",
     "Perturbation",
     "TuningIteration",
     "TuningResult",
@@ -41,5 +56,6 @@ __all__ = [
     "offpolicy",
     "reference_perturbation",
     "run_algorithm",
+    "run_online",
     "tuning_settings",
 ]
