@@ -88,16 +88,17 @@ def physical_estimate(
     weight = np.diag(1.0 / np.maximum(variances, max(float(np.max(variances)), 1e-300) * 1e-24))
     theta = np.asarray(start, dtype=float).copy()
 
-    def entries(parameters: Array) -> Array:
-        return np.concatenate(structure(parameters), axis=1).ravel(order="F")
-
     for _ in range(iterations):
-        value = entries(theta)
         steps = _STEP * np.maximum(np.abs(theta), 1e-6)
+        # theta and its steps in one evaluation: rows of vec([Ad, Bd, Ed]) (column-major)
+        stacked = np.concatenate(
+            structure.stack(np.vstack([theta, theta + steps[:, None] * np.eye(theta.size)])),
+            axis=2,
+        )
+        value, *stepped = stacked.transpose(0, 2, 1).reshape(stacked.shape[0], -1)
         J = np.column_stack(
-            [(entries(theta + step * unit) - value) / step
-             for step, unit in zip(steps, np.eye(theta.size), strict=True)]
-        )  # fmt: skip
+            [(entry - value) / step for step, entry in zip(steps, stepped, strict=True)]
+        )
         normal = J.T @ weight @ J
         theta = theta + np.linalg.solve(normal, J.T @ weight @ (target - value))
     gain = np.linalg.solve(normal, J.T @ weight)  # d theta / d entries
