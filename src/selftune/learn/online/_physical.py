@@ -19,7 +19,6 @@ parameter's direction (:class:`ChangeWatch`).
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -165,7 +164,10 @@ class ChangeWatch:
             raise InputError(f"false_alarm: expected a probability in (0, 1), got {false_alarm!r}")
         self.window = int(window)
         self.false_alarm = false_alarm
-        self._reference: tuple[Array, tuple[Array, Array, Array], list[Array], Array] | None = None
+        # Theta, (Sigma, R, Q), the directions' maps side by side, covariance, threshold
+        self._reference: tuple[Array, tuple[Array, Array, Array], Array, Array, float] | None = (
+            None
+        )
         # per chunk: transitions, scores, variance within it (interior measurements and
         # the process noise), loads, and each direction's first and last u
         self._parts: list[tuple[int, Array, Array, Array, Array, Array]] = []
@@ -195,8 +197,10 @@ class ChangeWatch:
         n = Theta.shape[1]
         directions = [column.reshape((n, -1), order="F") for column in sensitivities.T]
         # each direction's instruments-to-score map, M_j' Sigma^-1, made once per reference
-        weighted = [M.T @ np.linalg.inv(noise[0]) for M in directions]
-        self._reference = (Theta, noise, weighted, covariance)
+        # (side by side: one product gives every direction's u)
+        weighted = np.hstack([M.T @ np.linalg.inv(noise[0]) for M in directions])
+        threshold = float(scipy.stats.norm.isf(0.5 * self.false_alarm / len(directions)))
+        self._reference = (Theta, noise, weighted, covariance, threshold)
 
     def reference_off(self) -> None:
         """Stop watching until the next reference (after a change, the old one is wrong)."""
@@ -213,35 +217,28 @@ class ChangeWatch:
         """
         if self._reference is None or z.shape[0] == 0:
             return None
-        Theta, (_, R, Q), weighted, covariance = self._reference
-        n = Theta.shape[1]
+        Theta, (_, R, Q), weighted, covariance, threshold = self._reference
+        T, (p, n) = z.shape[0], Theta.shape
         Ad = Theta[:n].T
         errors = y - z @ Theta
-        scores, variances, loads, firsts, lasts = [], [], [], [], []
-        for map_ in weighted:
-            u = zeta @ map_  # (T, n): u_k = Sigma^-1 M_j zeta_k
-            scores.append(float(np.sum(u * errors)))
-            paths = u[:-1] - u[1:] @ Ad  # c_j' for the chunk's interior measurements
-            spread = np.sum((u @ Q) * u) + np.sum((paths @ R) * paths)
-            variances.append(float(spread))
-            loads.append((z.T @ u).ravel(order="F"))  # vec(sum_k z_k u_k')
-            firsts.append(u[0])
-            lasts.append(u[-1])
-        self._parts.append((
-            z.shape[0], np.array(scores), np.array(variances), np.array(loads),
-            np.array(firsts), np.array(lasts),
-        ))  # fmt: skip
+        u = (zeta @ weighted).reshape(T, -1, n)  # (T, j, n): u_k = Sigma^-1 M_j zeta_k
+        scores = np.sum(u * errors[:, np.newaxis], axis=(0, 2))
+        paths = u[:-1] - u[1:] @ Ad  # c_j' for the chunk's interior measurements
+        variances = np.sum((u @ Q) * u, axis=(0, 2)) + np.sum((paths @ R) * paths, axis=(0, 2))
+        # vec(sum_k z_k u_k') of each direction
+        loads = (z.T @ u.reshape(T, -1)).reshape(p, -1, n).transpose(1, 2, 0).reshape(-1, p * n)
+        self._parts.append((T, scores, variances, loads, u[0], u[-1]))
         while sum(part[0] for part in self._parts[1:]) >= self.window:
             self._parts.pop(0)
-        total = np.sum([part[1] for part in self._parts], axis=0)
-        load = np.sum([part[3] for part in self._parts], axis=0)  # (parameters, p n)
-        reference = np.einsum("ji,ik,jk->j", load, covariance, load)
-        noise_part = np.sum([part[2] for part in self._parts], axis=0)
+        parts = self._parts
+        total = np.sum([part[1] for part in parts], axis=0)
+        load = np.sum([part[3] for part in parts], axis=0)  # (parameters, p n)
+        reference = np.sum((load @ covariance) * load, axis=1)
         # the measurements between chunks, and the window's first and last
-        joins = [self._parts[0][4] @ Ad, self._parts[-1][5]]
-        joins += [before[5] - after[4] @ Ad for before, after in itertools.pairwise(self._parts)]
-        noise_part = noise_part + sum(np.sum((c @ R) * c, axis=1) for c in joins)
+        firsts, lasts = np.array([part[4] for part in parts]), np.array([part[5] for part in parts])
+        joins = np.concatenate([firsts[:1] @ Ad, lasts[-1:], lasts[:-1] - firsts[1:] @ Ad])
+        noise_part = np.sum([part[2] for part in parts], axis=0)
+        noise_part = noise_part + np.sum((joins @ R) * joins, axis=(0, 2))
         spread = np.sqrt(np.maximum(noise_part + reference, 1e-300))
         z_scores = np.asarray(total / spread, dtype=np.float64)
-        threshold = float(scipy.stats.norm.isf(0.5 * self.false_alarm / z_scores.size))
         return ChangeTest(z_scores, threshold, bool(np.max(np.abs(z_scores)) > threshold))
