@@ -53,6 +53,9 @@ class ForgettingMoments:
         next value is ``y`` (the measurement noise's path through ``Ad``).
     outputs : int
         n, the size of ``y``.
+
+    The moments change through :meth:`add` and :meth:`forget` only: :meth:`estimate` is
+    kept until the next of them (a look asks for it twice).
     """
 
     forgetting: float
@@ -66,6 +69,7 @@ class ForgettingMoments:
     weight: float = field(init=False, default=0.0)  # sum w
     count: int = field(init=False, default=0)  # samples added
     _last: tuple[Array, Array] | None = field(init=False, default=None, repr=False)
+    _estimate: tuple[Array, Array, Array] | None = field(init=False, default=None, repr=False)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.forgetting <= 1.0:
@@ -92,6 +96,7 @@ class ForgettingMoments:
         count = z.shape[0]
         if count == 0:
             return
+        self._estimate = None
         lam = self.forgetting
         # the newest sample weighs 1, the oldest of the chunk lambda^(T-1)
         weights = lam ** np.arange(count - 1, -1, -1, dtype=float)
@@ -124,6 +129,7 @@ class ForgettingMoments:
         keep : float
             The weight left to the samples so far.
         """
+        self._estimate = None
         self.cross *= keep
         self.second *= keep
         self.squared *= keep**2
@@ -166,6 +172,13 @@ class ForgettingMoments:
             If the instruments' moment ``G`` is singular (the data do not excite every
             regressor).
         """
+        if self._estimate is None:
+            self._estimate = self._estimated()
+        Theta, Sigma, covariance = self._estimate
+        return Theta.copy(), Sigma.copy(), covariance.copy()
+
+    def _estimated(self) -> tuple[Array, Array, Array]:
+        """:meth:`estimate`, computed."""
         p = self.regressors
         G, H = self.cross[:, :p], self.cross[:, p:]
         Theta = np.asarray(np.linalg.solve(G, H), dtype=np.float64)

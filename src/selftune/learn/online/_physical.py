@@ -198,7 +198,8 @@ class ChangeWatch:
         directions = [column.reshape((n, -1), order="F") for column in sensitivities.T]
         # each direction's instruments-to-score map, M_j' Sigma^-1, made once per reference
         # (side by side: one product gives every direction's u)
-        weighted = np.hstack([M.T @ np.linalg.inv(noise[0]) for M in directions])
+        Sigma_inverse = np.linalg.inv(noise[0])
+        weighted = np.hstack([M.T @ Sigma_inverse for M in directions])
         threshold = float(scipy.stats.norm.isf(0.5 * self.false_alarm / len(directions)))
         self._reference = (Theta, noise, weighted, covariance, threshold)
 
