@@ -165,12 +165,10 @@ class ChangeWatch:
         self.window = int(window)
         self.false_alarm = false_alarm
         # Theta, (Sigma, R, Q), the directions' maps side by side, covariance, threshold
-        self._reference: tuple[Array, tuple[Array, Array, Array], Array, Array, float] | None = (
-            None
-        )
-        # per chunk: transitions, scores, variance within it (interior measurements and
-        # the process noise), loads, and each direction's first and last u
-        self._parts: list[tuple[int, Array, Array, Array, Array, Array]] = []
+        self._reference: tuple[Array, tuple[Array, Array, Array], Array, Array, float] | None = None
+        # per chunk: transitions, and per direction (rows) side by side: score, variance
+        # within it (interior measurements and the process noise), load, first and last u
+        self._parts: list[tuple[int, Array]] = []
 
     def reference(
         self,
@@ -223,23 +221,26 @@ class ChangeWatch:
         Ad = Theta[:n].T
         errors = y - z @ Theta
         u = (zeta @ weighted).reshape(T, -1, n)  # (T, j, n): u_k = Sigma^-1 M_j zeta_k
-        scores = np.sum(u * errors[:, np.newaxis], axis=(0, 2))
+        part = np.empty((u.shape[1], 2 + p * n + 2 * n))
+        part[:, 0] = np.sum(u * errors[:, np.newaxis], axis=(0, 2))  # scores
         paths = u[:-1] - u[1:] @ Ad  # c_j' for the chunk's interior measurements
-        variances = np.sum((u @ Q) * u, axis=(0, 2)) + np.sum((paths @ R) * paths, axis=(0, 2))
+        part[:, 1] = np.sum((u @ Q) * u, axis=(0, 2)) + np.sum((paths @ R) * paths, axis=(0, 2))
         # vec(sum_k z_k u_k') of each direction
-        loads = (z.T @ u.reshape(T, -1)).reshape(p, -1, n).transpose(1, 2, 0).reshape(-1, p * n)
-        self._parts.append((T, scores, variances, loads, u[0], u[-1]))
-        while sum(part[0] for part in self._parts[1:]) >= self.window:
+        part[:, 2 : 2 + p * n] = (
+            (z.T @ u.reshape(T, -1)).reshape(p, -1, n).transpose(1, 2, 0).reshape(-1, p * n)
+        )
+        part[:, 2 + p * n :] = np.concatenate([u[0], u[-1]], axis=1)
+        self._parts.append((T, part))
+        while sum(count for count, _ in self._parts[1:]) >= self.window:
             self._parts.pop(0)
-        parts = self._parts
-        total = np.sum([part[1] for part in parts], axis=0)
-        load = np.sum([part[3] for part in parts], axis=0)  # (parameters, p n)
+        window = np.array([part for _, part in self._parts])  # (chunks, directions, ...)
+        total = np.sum(window, axis=0)
+        load = total[:, 2 : 2 + p * n]  # (directions, p n)
         reference = np.sum((load @ covariance) * load, axis=1)
         # the measurements between chunks, and the window's first and last
-        firsts, lasts = np.array([part[4] for part in parts]), np.array([part[5] for part in parts])
+        firsts, lasts = window[:, :, 2 + p * n : 2 + p * n + n], window[:, :, 2 + p * n + n :]
         joins = np.concatenate([firsts[:1] @ Ad, lasts[-1:], lasts[:-1] - firsts[1:] @ Ad])
-        noise_part = np.sum([part[2] for part in parts], axis=0)
-        noise_part = noise_part + np.sum((joins @ R) * joins, axis=(0, 2))
+        noise_part = total[:, 1] + np.sum((joins @ R) * joins, axis=(0, 2))
         spread = np.sqrt(np.maximum(noise_part + reference, 1e-300))
-        z_scores = np.asarray(total / spread, dtype=np.float64)
+        z_scores = np.asarray(total[:, 0] / spread, dtype=np.float64)
         return ChangeTest(z_scores, threshold, bool(np.max(np.abs(z_scores)) > threshold))
