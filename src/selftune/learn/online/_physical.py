@@ -20,6 +20,7 @@ parameter's direction (:class:`ChangeWatch`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import scipy.stats
@@ -198,7 +199,7 @@ class ChangeWatch:
         # (side by side: one product gives every direction's u)
         Sigma_inverse = np.linalg.inv(noise[0])
         weighted = np.hstack([M.T @ Sigma_inverse for M in directions])
-        threshold = float(scipy.stats.norm.isf(0.5 * self.false_alarm / len(directions)))
+        threshold = _threshold(self.false_alarm, len(directions))
         self._reference = (Theta, noise, weighted, covariance, threshold)
 
     def reference_off(self) -> None:
@@ -244,3 +245,10 @@ class ChangeWatch:
         spread = np.sqrt(np.maximum(noise_part + reference, 1e-300))
         z_scores = np.asarray(total[:, 0] / spread, dtype=np.float64)
         return ChangeTest(z_scores, threshold, bool(np.max(np.abs(z_scores)) > threshold))
+
+
+@lru_cache(maxsize=8)
+def _threshold(false_alarm: float, directions: int) -> float:
+    """The largest score's bound: the two-sided normal quantile of ``false_alarm /
+    directions`` (the same for every reference)."""
+    return float(scipy.stats.norm.isf(0.5 * false_alarm / directions))
