@@ -192,13 +192,11 @@ class ForgettingMoments:
         Ad = Theta[:n].T
         before, after = self.pairs[:p, :p], self.pairs[p:, p:]
         cross = self.pairs[:p, p:]  # sum u_k u_(k+1)'
-        V = (
-            np.kron(Q, self.squared)
-            + np.kron(R, before)
-            + np.kron(Ad @ R @ Ad.T, after)
-            - np.kron(R @ Ad.T, cross)
-            - np.kron(Ad @ R, cross.T)
-        )
+        # the five Kronecker products of V at once, summed in order (Q, R, Ad R Ad', the pairs)
+        left = np.array([Q, R, Ad @ R @ Ad.T, -(R @ Ad.T), -(Ad @ R)])  # (5, n, n)
+        right = np.array([self.squared, before, after, cross, cross.T])  # (5, p, p)
+        V = np.sum(left[:, :, None, :, None] * right[:, None, :, None, :], axis=0)
+        V = V.reshape(n * p, n * p)
         G_inverse = np.linalg.inv(G)
         spread = np.kron(np.eye(n), G_inverse)
         return Theta, Sigma, np.asarray(spread @ V @ spread.T)
