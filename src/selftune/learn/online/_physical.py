@@ -165,10 +165,9 @@ class ChangeWatch:
             raise InputError(f"false_alarm: expected a probability in (0, 1), got {false_alarm!r}")
         self.window = int(window)
         self.false_alarm = false_alarm
-        # Theta, (Sigma, R, Q), the directions' maps side by side, covariance, threshold
-        self._reference: tuple[Array, tuple[Array, Array, Array], Array, Array, float] | None = None
-        # per chunk: transitions, and per direction (rows) side by side: score, variance
-        # within it (interior measurements and the process noise), load, first and last u
+        self._reference: _Reference | None = None
+        # per chunk: transitions, and side by side: the directions' scores, variances
+        # within it (interior measurements and the process noise), loads, first and last u
         self._parts: list[tuple[int, Array]] = []
 
     def reference(
@@ -196,11 +195,14 @@ class ChangeWatch:
         n = Theta.shape[1]
         directions = [column.reshape((n, -1), order="F") for column in sensitivities.T]
         # each direction's instruments-to-score map, M_j' Sigma^-1, made once per reference
-        # (side by side: one product gives every direction's u)
         Sigma_inverse = np.linalg.inv(noise[0])
-        weighted = np.hstack([M.T @ Sigma_inverse for M in directions])
-        threshold = _threshold(self.false_alarm, len(directions))
-        self._reference = (Theta, noise, weighted, covariance, threshold)
+        blocks = np.eye(len(directions))  # the n x n maps act on each direction's u
+        self._reference = _Reference(
+            Theta, np.hstack([M.T @ Sigma_inverse for M in directions]),
+            np.kron(blocks, Theta[:n].T), np.kron(blocks, noise[1]), np.kron(blocks, noise[2]),
+            np.kron(blocks, np.ones((n, 1))), covariance,
+            _threshold(self.false_alarm, len(directions)),
+        )  # fmt: skip
 
     def reference_off(self) -> None:
         """Stop watching until the next reference (after a change, the old one is wrong)."""
@@ -215,36 +217,59 @@ class ChangeWatch:
         zeta, z, y : ndarray
             Instruments (T, p), regressors (T, p) and next states (T, n).
         """
-        if self._reference is None or z.shape[0] == 0:
+        reference = self._reference
+        if reference is None or z.shape[0] == 0:
             return None
-        Theta, (_, R, Q), weighted, covariance, threshold = self._reference
-        T, (p, n) = z.shape[0], Theta.shape
-        Ad = Theta[:n].T
-        errors = y - z @ Theta
-        u = (zeta @ weighted).reshape(T, -1, n)  # (T, j, n): u_k = Sigma^-1 M_j zeta_k
-        part = np.empty((u.shape[1], 2 + p * n + 2 * n))
-        part[:, 0] = np.sum(u * errors[:, np.newaxis], axis=(0, 2))  # scores
-        paths = u[:-1] - u[1:] @ Ad  # c_j' for the chunk's interior measurements
-        part[:, 1] = np.sum((u @ Q) * u, axis=(0, 2)) + np.sum((paths @ R) * paths, axis=(0, 2))
-        # vec(sum_k z_k u_k') of each direction
-        part[:, 2 : 2 + p * n] = (
-            (z.T @ u.reshape(T, -1)).reshape(p, -1, n).transpose(1, 2, 0).reshape(-1, p * n)
+        T, (p, n), directions = z.shape[0], reference.Theta.shape, reference.sums.shape[1]
+        errors = y - z @ reference.Theta
+        u = zeta @ reference.maps  # row k: every direction's u_k' = (Sigma^-1 M_j zeta_k)'
+        paths = u[:-1] - u[1:] @ reference.Ad  # c_j' for the chunk's interior measurements
+        within = np.sum((u @ reference.Q) * u, axis=0) + np.sum(
+            (paths @ reference.R) * paths, axis=0
         )
-        part[:, 2 + p * n :] = np.concatenate([u[0], u[-1]], axis=1)
-        self._parts.append((T, part))
+        self._parts.append((T, np.concatenate([
+            np.sum(u * np.tile(errors, directions), axis=0) @ reference.sums,  # scores
+            within @ reference.sums,
+            (z.T @ u).reshape(p, directions, n).transpose(1, 2, 0).ravel(),  # vec(sum z_k u_k')
+            u[0], u[-1],
+        ])))  # fmt: skip
         while sum(count for count, _ in self._parts[1:]) >= self.window:
             self._parts.pop(0)
-        window = np.array([part for _, part in self._parts])  # (chunks, directions, ...)
+        window = np.array([part for _, part in self._parts])  # (chunks, ...)
         total = np.sum(window, axis=0)
-        load = total[:, 2 : 2 + p * n]  # (directions, p n)
-        reference = np.sum((load @ covariance) * load, axis=1)
+        loads = 2 * directions + directions * p * n  # where the loads end
+        load = total[2 * directions : loads].reshape(directions, p * n)
+        uncertain = np.sum((load @ reference.covariance) * load, axis=1)
         # the measurements between chunks, and the window's first and last
-        firsts, lasts = window[:, :, 2 + p * n : 2 + p * n + n], window[:, :, 2 + p * n + n :]
+        firsts, lasts = (
+            window[:, loads : loads + directions * n],
+            window[:, loads + directions * n :],
+        )
+        Ad = reference.Ad
         joins = np.concatenate([firsts[:1] @ Ad, lasts[-1:], lasts[:-1] - firsts[1:] @ Ad])
-        noise_part = total[:, 1] + np.sum((joins @ R) * joins, axis=(0, 2))
-        spread = np.sqrt(np.maximum(noise_part + reference, 1e-300))
-        z_scores = np.asarray(total[:, 0] / spread, dtype=np.float64)
+        joined = np.sum((joins @ reference.R) * joins, axis=0) @ reference.sums
+        spread = np.sqrt(
+            np.maximum(total[directions : 2 * directions] + joined + uncertain, 1e-300)
+        )
+        z_scores = np.asarray(total[:directions] / spread, dtype=np.float64)
+        threshold = reference.threshold
         return ChangeTest(z_scores, threshold, bool(np.max(np.abs(z_scores)) > threshold))
+
+
+@dataclass(frozen=True)
+class _Reference:
+    """A change watch's reference in the forms a chunk needs: every direction's ``u_k'``
+    side by side in one row (direction j's in columns ``j n`` to ``j n + n - 1``), so the
+    n x n matrices act on them block by block."""
+
+    Theta: Array
+    maps: Array  # (p, j n): [M_1' Sigma^-1, M_2' Sigma^-1, ...]
+    Ad: Array  # I (x) Ad: a row of u's times it is each direction's (Ad' u)'
+    R: Array  # I (x) R
+    Q: Array  # I (x) Q
+    sums: Array  # (j n, j): sums each direction's n columns
+    covariance: Array
+    threshold: float
 
 
 @lru_cache(maxsize=8)
