@@ -196,11 +196,13 @@ class ChangeWatch:
         directions = [column.reshape((n, -1), order="F") for column in sensitivities.T]
         # each direction's instruments-to-score map, M_j' Sigma^-1, made once per reference
         Sigma_inverse = np.linalg.inv(noise[0])
-        blocks = np.eye(len(directions))  # the n x n maps act on each direction's u
+
+        def blocks(M: Array) -> Array:  # I (x) M: M acts on each direction's u
+            return np.asarray(np.kron(np.eye(len(directions)), M), dtype=np.float64)
+
         self._reference = _Reference(
-            Theta, np.hstack([M.T @ Sigma_inverse for M in directions]),
-            np.kron(blocks, Theta[:n].T), np.kron(blocks, noise[1]), np.kron(blocks, noise[2]),
-            np.kron(blocks, np.ones((n, 1))), covariance,
+            Theta, np.hstack([M.T @ Sigma_inverse for M in directions]), blocks(Theta[:n].T),
+            blocks(noise[1]), blocks(noise[2]), blocks(np.ones((n, 1))), covariance,
             _threshold(self.false_alarm, len(directions)),
         )  # fmt: skip
 
