@@ -42,6 +42,7 @@ u in V.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal, get_args
 
@@ -447,10 +448,29 @@ class SampledLoop:
         law : ControlLaw
             The controller.
         """
+        return float(self.spectral_radii([plant], law)[0])
+
+    def spectral_radii(
+        self, plants: Sequence[tuple[ArrayLike, ArrayLike]], law: ControlLaw
+    ) -> Array:
+        """:meth:`spectral_radius` of ``law`` on each of several plants (their
+        eigenvalues in one call).
+
+        Parameters
+        ----------
+        plants : sequence of (Ad, Bd)
+            The sampled plants.
+        law : ControlLaw
+            The controller.
+
+        Returns
+        -------
+        ndarray, shape (len(plants),)
+        """
         if self.continuous:
             raise InputError("h: the spectral radius is of a sampled loop (h > 0)")
-        A_cl, _ = self.closed_loop(plant, law)
-        return float(np.max(np.abs(np.linalg.eigvals(A_cl))))
+        A_cl = np.array([self.closed_loop(plant, law)[0] for plant in plants])
+        return np.asarray(np.max(np.abs(np.linalg.eigvals(A_cl)), axis=1), dtype=np.float64)
 
     def step_from_rest(self, X: ArrayLike, U: ArrayLike, w: ArrayLike) -> Array:
         """The loop's state ``zeta_0`` at a step of the reference from rest to ``w``: the

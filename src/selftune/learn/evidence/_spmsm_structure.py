@@ -8,7 +8,7 @@ from typing import Literal
 
 import numpy as np
 
-from ...core import Array, discretize, rotating_hold
+from ...core import Array, augmented, discretize, expm_stack, rotating_hold
 from ...errors import InputError
 from ._discrete_model import DiscreteModel
 
@@ -65,21 +65,75 @@ class SpmsmStructure:
             If ``L_s`` is not positive, or the discretization overflows (the fit treats
             such parameters as giving no model).
         """
-        R_s, L_s, kappa = float(theta[0]), float(theta[1]), float(theta[2])
-        if not L_s > 0.0:
-            raise InputError(f"L_s: must be positive, got {L_s:.4g} H")
+        Ad, Bd, Ed = self.stack(np.asarray(theta, dtype=float)[np.newaxis])
+        return Ad[0], Bd[0], Ed[0]
+
+    def stack(self, thetas: Array) -> tuple[Array, Array, Array]:
+        """``(Ad, Bd, Ed)`` of a stack of parameters at once (one matrix exponential
+        call for all of them, as a Jacobian's steps or the plausible plants need): each
+        the same numbers as :meth:`__call__` of its row.
+
+        Parameters
+        ----------
+        thetas : ndarray, shape (P, 3) or (P, 4)
+            Rows ``[R_s, L_s, kappa]``, and ``v`` with dead time.
+
+        Returns
+        -------
+        Ad : ndarray, shape (P, 2, 2)
+        Bd : ndarray, shape (P, 2, 2)
+        Ed : ndarray, shape (P, 2, 2) or (P, 2, 4)
+
+        Raises
+        ------
+        InputError
+            As :meth:`__call__`, for the first row that fails.
+        """
+        thetas = np.asarray(thetas, dtype=float)
+        P = thetas.shape[0]
+        R_s, L_s, kappa = thetas[:, 0], thetas[:, 1], thetas[:, 2]
         w_e, h = self.electrical_speed, self.h
-        A = np.array([[-R_s / L_s, w_e], [-w_e, -R_s / L_s]])
-        B = np.eye(2) / L_s
-        D = np.array([[0.0, 0.0], [-kappa / L_s, 0.0]])
-        exact = discretize(A, B, h, D=D)
-        Bd = exact.Bd
+        A = np.zeros((P, 2, 2))
+        B = np.zeros((P, 2, 2))
+        D = np.zeros((P, 2, 2))
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            A[:, 0, 0] = A[:, 1, 1] = -R_s / L_s
+            A[:, 0, 1], A[:, 1, 0] = w_e, -w_e
+            B[:, 0, 0] = B[:, 1, 1] = 1.0 / L_s
+            D[:, 1, 0] = -kappa / L_s
+            turns = self.hold == "stationary" or self.dead_time
+            # the zero-order hold's and the rotating hold's exponentials (rotating_hold:
+            # a held vector turning by [[0, w_e], [-w_e, 0]]), one stack
+            M = augmented(A, B, D, None)
+            if turns:
+                rotation = np.array([[0.0, w_e], [-w_e, 0.0]])
+                M = np.concatenate([M, augmented(A, B, B, rotation)])
+            exp = expm_stack(M, np.array([h]), uniform=P == 1)[:, 0]
+        failed = ~(L_s > 0.0) | ~np.all(np.isfinite(exp.reshape(-1, P, 36)), axis=(0, 2))
+        if np.any(failed):
+            self._refuse(A, B, D, L_s, int(np.flatnonzero(failed)[0]))
+        Ad, Bd, Ed = exp[:P, :2, :2].copy(), exp[:P, :2, 2:4].copy(), exp[:P, :2, 4:].copy()
+        if not turns:
+            return Ad, Bd, Ed
+        turning = np.ascontiguousarray(exp[P:, :2, 4:])
         if self.hold == "stationary":  # the angle compensation centres the command
-            Bd = rotating_hold(A, B, h, w_e, advance=0.5 * w_e * h)
+            advance = 0.5 * w_e * h
+            c, s = np.cos(advance), np.sin(advance)
+            Bd = turning @ np.array([[c, -s], [s, c]])
         if not self.dead_time:
-            return exact.Ad, Bd, exact.Ed
-        dead_time = rotating_hold(A, B, h, w_e)  # set at the sample's start, then held
-        return exact.Ad, Bd, np.hstack([exact.Ed, -float(theta[3]) * dead_time])
+            return Ad, Bd, Ed
+        # set at the sample's start, then held (no advance)
+        dead_time = turning @ np.array([[1.0, -0.0], [0.0, 1.0]])
+        return Ad, Bd, np.concatenate([Ed, -thetas[:, 3, None, None] * dead_time], axis=2)
+
+    def _refuse(self, A: Array, B: Array, D: Array, L_s: Array, row: int) -> None:
+        """Raise the error of a row whose matrices cannot be made (:func:`discretize`'s
+        and :func:`rotating_hold`'s own messages)."""
+        if not L_s[row] > 0.0:
+            raise InputError(f"L_s: must be positive, got {float(L_s[row]):.4g} H")
+        discretize(A[row], B[row], self.h, D=D[row])
+        rotating_hold(A[row], B[row], self.h, self.electrical_speed)
+        raise InputError("theta: the discretization overflows")  # not reached
 
     def initial(self, model: DiscreteModel) -> Array:
         """``[R_s, L_s, kappa]`` (and ``v``) read off an unstructured model (a start).

@@ -20,7 +20,6 @@ Anything else keeps the law in force, and the certificate says why.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,7 +28,8 @@ from ...core import Array, ControlLaw
 from ...errors import InputError, UnsolvableError
 from ...loop import LoopWeights, SampledLoop
 from ..evidence._discrete_model import DiscreteModel
-from ..verdict._quality import closed_loop_radius, largest_radius
+from ..evidence._spmsm_structure import SpmsmStructure
+from ..verdict._quality import closed_loop_radii, closed_loop_radius, largest_radius
 from ..verdict._verdict import plausible_models
 from ._physical import PhysicalEstimate
 
@@ -92,7 +92,7 @@ def certify(
     candidate: ControlLaw,
     current: ControlLaw,
     estimate: PhysicalEstimate,
-    structure: Callable[[Array], tuple[Array, Array, Array]],
+    structure: SpmsmStructure,
     loop: SampledLoop,
     weights: tuple[Array, Array],
     w: Array,
@@ -106,8 +106,8 @@ def certify(
         The proposed law and the law in force (the loop's delay and integrator).
     estimate : PhysicalEstimate
         The plant's parameters and their covariance.
-    structure : callable
-        The parameters' map to ``(Ad, Bd, Ed)``.
+    structure : SpmsmStructure
+        The parameters' map to ``(Ad, Bd, Ed)`` (one parameter vector, or a stack).
     loop : SampledLoop
         The drive's loop: sampling period, delay, integral action and its weight.
     weights : (Q, R)
@@ -132,16 +132,16 @@ def certify(
         )
         return Certificate(False, reason, np.array([radius]), limit, first, float("nan"))
     try:
-        models = plausible_models(nominal, structure, estimate.theta, estimate.covariance)
+        models = plausible_models(
+            nominal, structure, estimate.theta, estimate.covariance, stacked=structure.stack
+        )
     except InputError as failure:  # a plant the parameters' spread allows is not a motor
         reason = (
             f"the plants the estimate's standard errors allow include no motor ({failure}): "
             "the data do not pin the plant down; the law in force stays"
         )
         return Certificate(False, reason, np.array([radius]), limit, first, float("nan"))
-    radii = np.array(
-        [radius] + [closed_loop_radius(model, candidate, loop.input_delay) for model in models[1:]]
-    )
+    radii = np.concatenate([[radius], closed_loop_radii(models[1:], candidate, loop.input_delay)])
     if not np.all(radii <= limit):
         unstable = int(np.sum(~(radii <= limit)))
         reason = (

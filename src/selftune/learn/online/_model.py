@@ -51,7 +51,7 @@ class OnlineModel:
     q: int
     dead_time: bool = False
     moments: list[ForgettingMoments] = field(init=False, repr=False)
-    _tail: tuple[Array, Array, Array, Array] | None = field(init=False, default=None, repr=False)
+    _tail: tuple[Array, Array] | None = field(init=False, default=None, repr=False)
 
     def __post_init__(self) -> None:
         self.h = positive_finite(self.h, "h")
@@ -87,24 +87,21 @@ class OnlineModel:
         """
         if self.dead_time and angle is None:
             raise InputError("angle: the dead-time model needs the electrical angle of each row")
+        data = np.hstack([x, a, w])  # rows [x_k, a_k, w_k]
         angles = np.zeros(x.shape[0]) if angle is None else angle
         if self._tail is not None:
-            x, a, w, angles = (
-                np.concatenate([old, new])
-                for old, new in zip(self._tail, (x, a, w, angles), strict=True)
-            )
-        self._tail = (x[-_TAIL:], a[-_TAIL:], w[-_TAIL:], angles[-_TAIL:])
-        angle_ = angles
-        if x.shape[0] < _TAIL + 1:
+            data = np.concatenate([self._tail[0], data])
+            angles = np.concatenate([self._tail[1], angles])
+        self._tail = (data[-_TAIL:], angles[-_TAIL:])
+        if data.shape[0] < _TAIL + 1:
             size = self.moments[0].regressors
             return np.zeros((0, size)), np.zeros((0, size)), np.zeros((0, self.n))
-        now = slice(1, -1)  # transitions k -> k + 1 with a row k - 1 before
-        z = [x[now], a[now], w[now]]
-        zeta = [x[:-2], a[now], w[now]]
+        n, now = self.n, slice(1, -1)  # transitions k -> k + 1 with a row k - 1 before
+        z, zeta = data[now], np.hstack([data[:-2, :n], data[now, n:]])
         if self.dead_time:
-            z.append(phase_signs(x[now], angle_[now]))
-            zeta.append(phase_signs(x[:-2], angle_[now]))
-        rows = (np.hstack(zeta), np.hstack(z), x[2:])
+            z = np.hstack([z, phase_signs(data[now, :n], angles[now])])
+            zeta = np.hstack([zeta, phase_signs(data[:-2, :n], angles[now])])
+        rows = (zeta, z, data[2:, :n])
         for moments in self.moments:
             moments.add(*rows)
         return rows

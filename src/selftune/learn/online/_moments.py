@@ -30,6 +30,7 @@ errors nearly cancel in the sums: counting them white would overstate the errors
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -53,6 +54,9 @@ class ForgettingMoments:
         next value is ``y`` (the measurement noise's path through ``Ad``).
     outputs : int
         n, the size of ``y``.
+
+    The moments change through :meth:`add` and :meth:`forget` only: :meth:`estimate` is
+    kept until the next of them (a look asks for it twice).
     """
 
     forgetting: float
@@ -66,6 +70,7 @@ class ForgettingMoments:
     weight: float = field(init=False, default=0.0)  # sum w
     count: int = field(init=False, default=0)  # samples added
     _last: tuple[Array, Array] | None = field(init=False, default=None, repr=False)
+    _estimate: tuple[Array, Array, Array] | None = field(init=False, default=None, repr=False)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.forgetting <= 1.0:
@@ -92,27 +97,32 @@ class ForgettingMoments:
         count = z.shape[0]
         if count == 0:
             return
+        self._estimate = None
         lam = self.forgetting
         # the newest sample weighs 1, the oldest of the chunk lambda^(T-1)
-        weights = lam ** np.arange(count - 1, -1, -1, dtype=float)
+        weights, total = _chunk_weights(lam, count)
         v = np.hstack([z, y])
-        weighted = zeta * weights[:, None]
-        older = lam**count
-        self.cross = older * self.cross + weighted.T @ v
-        self.second = older * self.second + (v * weights[:, None]).T @ v
-        self.squared = older**2 * self.squared + (weighted * weights[:, None]).T @ zeta
-        # pairs (k, k + 1) ending in this chunk: the first starts at the last chunk's end
+        # row k's sample before it: the last chunk's last, none (zeros) before the first
+        first = self._last is None
         if self._last is None:
-            before_zeta, before_v, ends = zeta[:-1], v[:-1], slice(1, None)
-        else:
-            before_zeta = np.vstack([self._last[0], zeta[:-1]])
-            before_v, ends = np.vstack([self._last[1], v[:-1]]), slice(None)
-        pair = weights[ends]  # the weight of each pair's later sample
-        stacked = np.hstack([before_zeta * (lam * pair)[:, None], zeta[ends] * pair[:, None]])
+            self._last = (np.zeros((1, zeta.shape[1])), np.zeros((1, v.shape[1])))
+        before_zeta = np.vstack([self._last[0], zeta[:-1]])
+        before_v = np.vstack([self._last[1], v[:-1]])
+        p, size = zeta.shape[1], v.shape[1]
+        weighted = np.hstack([zeta, v, before_v]) * weights[:, None]
+        products = weighted.T @ v  # cross, second and the lagged second at once
+        older = lam**count
+        self.cross = older * self.cross + products[:p]
+        self.second = older * self.second + products[p : p + size]
+        self.second_lagged = older * self.second_lagged + products[p + size :]
+        self.squared = older**2 * self.squared + (weighted[:, :p] * weights[:, None]).T @ zeta
+        # pairs (k, k + 1) ending in this chunk, weighed by the later sample's weight: the
+        # first starts at the last chunk's end
+        stacked = np.hstack([before_zeta * (lam * weights)[:, None], weighted[:, :p]])
+        stacked = stacked[1:] if first else stacked
         self.pairs = older**2 * self.pairs + stacked.T @ stacked
-        self.second_lagged = older * self.second_lagged + (before_v * pair[:, None]).T @ v[ends]
         self._last = (zeta[-1:].copy(), v[-1:].copy())
-        self.weight = older * self.weight + float(np.sum(weights))
+        self.weight = older * self.weight + total
         self.count += count
 
     def forget(self, keep: float) -> None:
@@ -124,6 +134,7 @@ class ForgettingMoments:
         keep : float
             The weight left to the samples so far.
         """
+        self._estimate = None
         self.cross *= keep
         self.second *= keep
         self.squared *= keep**2
@@ -166,6 +177,13 @@ class ForgettingMoments:
             If the instruments' moment ``G`` is singular (the data do not excite every
             regressor).
         """
+        if self._estimate is None:
+            self._estimate = self._estimated()
+        Theta, Sigma, covariance = self._estimate
+        return Theta.copy(), Sigma.copy(), covariance.copy()
+
+    def _estimated(self) -> tuple[Array, Array, Array]:
+        """:meth:`estimate`, computed."""
         p = self.regressors
         G, H = self.cross[:, :p], self.cross[:, p:]
         Theta = np.asarray(np.linalg.solve(G, H), dtype=np.float64)
@@ -174,16 +192,22 @@ class ForgettingMoments:
         Ad = Theta[:n].T
         before, after = self.pairs[:p, :p], self.pairs[p:, p:]
         cross = self.pairs[:p, p:]  # sum u_k u_(k+1)'
-        V = (
-            np.kron(Q, self.squared)
-            + np.kron(R, before)
-            + np.kron(Ad @ R @ Ad.T, after)
-            - np.kron(R @ Ad.T, cross)
-            - np.kron(Ad @ R, cross.T)
-        )
+        # the five Kronecker products of V at once, summed in order (Q, R, Ad R Ad', the pairs)
+        left = np.array([Q, R, Ad @ R @ Ad.T, -(R @ Ad.T), -(Ad @ R)])  # (5, n, n)
+        right = np.array([self.squared, before, after, cross, cross.T])  # (5, p, p)
+        V = np.sum(left[:, :, None, :, None] * right[:, None, :, None, :], axis=0)
+        V = V.reshape(n * p, n * p)
         G_inverse = np.linalg.inv(G)
         spread = np.kron(np.eye(n), G_inverse)
         return Theta, Sigma, np.asarray(spread @ V @ spread.T)
+
+
+@lru_cache(maxsize=8)
+def _chunk_weights(forgetting: float, count: int) -> tuple[Array, float]:
+    """A chunk's weights, ``lambda^(T-1), ..., lambda, 1``, and their sum (read-only)."""
+    weights = forgetting ** np.arange(count - 1, -1, -1, dtype=float)
+    weights.setflags(write=False)
+    return weights, float(np.sum(weights))
 
 
 def _semidefinite(M: Array) -> Array:

@@ -19,8 +19,8 @@ parameter's direction (:class:`ChangeWatch`).
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import scipy.stats
@@ -88,16 +88,17 @@ def physical_estimate(
     weight = np.diag(1.0 / np.maximum(variances, max(float(np.max(variances)), 1e-300) * 1e-24))
     theta = np.asarray(start, dtype=float).copy()
 
-    def entries(parameters: Array) -> Array:
-        return np.concatenate(structure(parameters), axis=1).ravel(order="F")
-
     for _ in range(iterations):
-        value = entries(theta)
         steps = _STEP * np.maximum(np.abs(theta), 1e-6)
+        # theta and its steps in one evaluation: rows of vec([Ad, Bd, Ed]) (column-major)
+        stacked = np.concatenate(
+            structure.stack(np.vstack([theta, theta + steps[:, None] * np.eye(theta.size)])),
+            axis=2,
+        )
+        value, *stepped = stacked.transpose(0, 2, 1).reshape(stacked.shape[0], -1)
         J = np.column_stack(
-            [(entries(theta + step * unit) - value) / step
-             for step, unit in zip(steps, np.eye(theta.size), strict=True)]
-        )  # fmt: skip
+            [(entry - value) / step for step, entry in zip(steps, stepped, strict=True)]
+        )
         normal = J.T @ weight @ J
         theta = theta + np.linalg.solve(normal, J.T @ weight @ (target - value))
     gain = np.linalg.solve(normal, J.T @ weight)  # d theta / d entries
@@ -167,12 +168,10 @@ class ChangeWatch:
             raise InputError(f"false_alarm: expected a probability in (0, 1), got {false_alarm!r}")
         self.window = int(window)
         self.false_alarm = false_alarm
-        self._reference: (
-            tuple[Array, tuple[Array, Array, Array], list[Array], Array, list[Array], Array] | None
-        ) = None
-        # per chunk: transitions, scores, variance within it (interior measurements and
-        # the process noise), loads, each direction's first and last u, and its shifts
-        self._parts: list[tuple[int, Array, Array, Array, Array, Array, Array]] = []
+        self._reference: _Reference | None = None
+        # per chunk: transitions, and side by side: the directions' scores, variances
+        # within it (interior measurements and the process noise), loads, first and last u
+        self._parts: list[tuple[int, Array]] = []
 
     def reference(
         self,
@@ -203,9 +202,18 @@ class ChangeWatch:
         n = Theta.shape[1]
         directions = [column.reshape((n, -1), order="F") for column in sensitivities.T]
         # each direction's instruments-to-score map, M_j' Sigma^-1, made once per reference
-        weighted = [M.T @ np.linalg.inv(noise[0]) for M in directions]
-        lag = np.zeros(len(directions)) if allowance is None else np.asarray(allowance, float)
-        self._reference = (Theta, noise, weighted, covariance, directions, lag)
+        Sigma_inverse = np.linalg.inv(noise[0])
+
+        def blocks(M: Array) -> Array:  # I (x) M: M acts on each direction's u
+            return np.asarray(np.kron(np.eye(len(directions)), M), dtype=np.float64)
+
+        self._reference = _Reference(
+            Theta, np.hstack([M.T @ Sigma_inverse for M in directions]), blocks(Theta[:n].T),
+            blocks(noise[1]), blocks(noise[2]), blocks(np.ones((n, 1))), covariance,
+            _threshold(self.false_alarm, len(directions)),
+            np.hstack([M.T for M in directions]),
+            np.zeros(len(directions)) if allowance is None else np.asarray(allowance, float),
+        )  # fmt: skip
 
     def reference_off(self) -> None:
         """Stop watching until the next reference (after a change, the old one is wrong)."""
@@ -220,39 +228,68 @@ class ChangeWatch:
         zeta, z, y : ndarray
             Instruments (T, p), regressors (T, p) and next states (T, n).
         """
-        if self._reference is None or z.shape[0] == 0:
+        reference = self._reference
+        if reference is None or z.shape[0] == 0:
             return None
-        Theta, (_, R, Q), weighted, covariance, directions, lag = self._reference
-        n = Theta.shape[1]
-        Ad = Theta[:n].T
-        errors = y - z @ Theta
-        scores, variances, loads, firsts, lasts, shifts = [], [], [], [], [], []
-        for map_, M in zip(weighted, directions, strict=True):
-            u = zeta @ map_  # (T, n): u_k = Sigma^-1 M_j zeta_k
-            scores.append(float(np.sum(u * errors)))
-            shifts.append(float(np.sum(u * (z @ M.T))))
-            paths = u[:-1] - u[1:] @ Ad  # c_j' for the chunk's interior measurements
-            spread = np.sum((u @ Q) * u) + np.sum((paths @ R) * paths)
-            variances.append(float(spread))
-            loads.append((z.T @ u).ravel(order="F"))  # vec(sum_k z_k u_k')
-            firsts.append(u[0])
-            lasts.append(u[-1])
-        self._parts.append((
-            z.shape[0], np.array(scores), np.array(variances), np.array(loads),
-            np.array(firsts), np.array(lasts), np.array(shifts),
-        ))  # fmt: skip
-        while sum(part[0] for part in self._parts[1:]) >= self.window:
+        T, (p, n), directions = z.shape[0], reference.Theta.shape, reference.sums.shape[1]
+        errors = y - z @ reference.Theta
+        u = zeta @ reference.maps  # row k: every direction's u_k' = (Sigma^-1 M_j zeta_k)'
+        paths = u[:-1] - u[1:] @ reference.Ad  # c_j' for the chunk's interior measurements
+        within = np.sum((u @ reference.Q) * u, axis=0) + np.sum(
+            (paths @ reference.R) * paths, axis=0
+        )
+        self._parts.append((T, np.concatenate([
+            np.sum(u * np.tile(errors, directions), axis=0) @ reference.sums,  # scores
+            within @ reference.sums,
+            (z.T @ u).reshape(p, directions, n).transpose(1, 2, 0).ravel(),  # vec(sum z_k u_k')
+            u[0], u[-1],
+            np.sum(u * (z @ reference.directions), axis=0) @ reference.sums,  # shifts s_j
+        ])))  # fmt: skip
+        while sum(count for count, _ in self._parts[1:]) >= self.window:
             self._parts.pop(0)
-        total = np.sum([part[1] for part in self._parts], axis=0)
-        load = np.sum([part[3] for part in self._parts], axis=0)  # (parameters, p n)
-        reference = np.einsum("ji,ik,jk->j", load, covariance, load)
-        noise_part = np.sum([part[2] for part in self._parts], axis=0)
+        window = np.array([part for _, part in self._parts])  # (chunks, ...)
+        total = np.sum(window, axis=0)
+        loads = 2 * directions + directions * p * n  # where the loads end
+        load = total[2 * directions : loads].reshape(directions, p * n)
+        uncertain = np.sum((load @ reference.covariance) * load, axis=1)
         # the measurements between chunks, and the window's first and last
-        joins = [self._parts[0][4] @ Ad, self._parts[-1][5]]
-        joins += [before[5] - after[4] @ Ad for before, after in itertools.pairwise(self._parts)]
-        noise_part = noise_part + sum(np.sum((c @ R) * c, axis=1) for c in joins)
-        drift = (np.sum([part[6] for part in self._parts], axis=0) * lag) ** 2
-        spread = np.sqrt(np.maximum(noise_part + reference + drift, 1e-300))
-        z_scores = np.asarray(total / spread, dtype=np.float64)
-        threshold = float(scipy.stats.norm.isf(0.5 * self.false_alarm / z_scores.size))
+        edges = loads + 2 * directions * n  # where the first and last u end
+        firsts, lasts = (
+            window[:, loads : loads + directions * n],
+            window[:, loads + directions * n : edges],
+        )
+        drift = (total[edges:] * reference.allowance) ** 2
+        Ad = reference.Ad
+        joins = np.concatenate([firsts[:1] @ Ad, lasts[-1:], lasts[:-1] - firsts[1:] @ Ad])
+        joined = np.sum((joins @ reference.R) * joins, axis=0) @ reference.sums
+        spread = np.sqrt(
+            np.maximum(total[directions : 2 * directions] + joined + uncertain + drift, 1e-300)
+        )
+        z_scores = np.asarray(total[:directions] / spread, dtype=np.float64)
+        threshold = reference.threshold
         return ChangeTest(z_scores, threshold, bool(np.max(np.abs(z_scores)) > threshold))
+
+
+@dataclass(frozen=True)
+class _Reference:
+    """A change watch's reference in the forms a chunk needs: every direction's ``u_k'``
+    side by side in one row (direction j's in columns ``j n`` to ``j n + n - 1``), so the
+    n x n matrices act on them block by block."""
+
+    Theta: Array
+    maps: Array  # (p, j n): [M_1' Sigma^-1, M_2' Sigma^-1, ...]
+    Ad: Array  # I (x) Ad: a row of u's times it is each direction's (Ad' u)'
+    R: Array  # I (x) R
+    Q: Array  # I (x) Q
+    sums: Array  # (j n, j): sums each direction's n columns
+    covariance: Array
+    threshold: float
+    directions: Array  # (p, j n): [M_1', M_2', ...]: z_k' times it is every M_j z_k
+    allowance: Array  # (j,): how far behind a drifting plant the reference may be
+
+
+@lru_cache(maxsize=8)
+def _threshold(false_alarm: float, directions: int) -> float:
+    """The largest score's bound: the two-sided normal quantile of ``false_alarm /
+    directions`` (the same for every reference)."""
+    return float(scipy.stats.norm.isf(0.5 * false_alarm / directions))

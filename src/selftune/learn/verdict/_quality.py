@@ -23,7 +23,7 @@ iteration did not lower the value step by step as theory says it must.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,6 +43,7 @@ __all__ = [
     "block_errors",
     "check_precision",
     "check_safety",
+    "closed_loop_radii",
     "closed_loop_radius",
     "largest_radius",
     "relative_size",
@@ -235,7 +236,24 @@ def closed_loop_radius(model: DiscreteModel, law: ControlLaw, delay: int) -> flo
     delay : int
         The drive's computation delay, samples.
     """
-    return SampledLoop.of_law(law, model.h, delay).spectral_radius((model.Ad, model.Bd), law)
+    return float(closed_loop_radii([model], law, delay)[0])
+
+
+def closed_loop_radii(models: Sequence[DiscreteModel], law: ControlLaw, delay: int) -> Array:
+    """:func:`closed_loop_radius` on each of several models of one sampling period (the
+    plausible models), their eigenvalues in one call.
+
+    Parameters
+    ----------
+    models : sequence of DiscreteModel
+        The plants (the first one's h is the loop's).
+    law : ControlLaw
+        The controller (its ``history`` at most ``delay``).
+    delay : int
+        The drive's computation delay, samples.
+    """
+    loop = SampledLoop.of_law(law, models[0].h, delay)
+    return loop.spectral_radii([(model.Ad, model.Bd) for model in models], law)
 
 
 def standard_errors(

@@ -19,6 +19,7 @@ from ._quality import (
     BlockErrors,
     Quality,
     block_errors,
+    closed_loop_radii,
     closed_loop_radius,
     relative_size,
     standard_errors,
@@ -207,7 +208,7 @@ def _radii(law: ControlLaw, evidence: Evidence, options: LearningOptions) -> Arr
     if fit is None:
         return np.array([closed_loop_radius(model, law, options.input_delay)])
     draws = plausible_models(model, fit.matrices, fit.parameters, fit.parameter_covariance)
-    return np.array([closed_loop_radius(each, law, options.input_delay) for each in draws])
+    return closed_loop_radii(draws, law, options.input_delay)
 
 
 def plausible_models(
@@ -215,6 +216,7 @@ def plausible_models(
     matrices: Callable[[Array], tuple[Array, Array, Array]],
     parameters: Array,
     covariance: Array,
+    stacked: Callable[[Array], tuple[Array, Array, Array]] | None = None,
 ) -> list[DiscreteModel]:
     """The model, then :data:`PLAUSIBLE_MODELS` models drawn from its parameters'
     uncertainty (a fixed seed: a verdict is reproducible).
@@ -229,14 +231,18 @@ def plausible_models(
         The fitted parameters.
     covariance : ndarray, shape (p, p)
         Their covariance.
+    stacked : callable, optional
+        The same map for a stack of parameters (rows) at once, to stacks of matrices
+        (:meth:`~selftune.learn.SpmsmStructure.stack`); default: ``matrices`` draw by draw.
     """
     rng = np.random.default_rng(0)
     draws = rng.multivariate_normal(parameters, covariance, size=PLAUSIBLE_MODELS, method="svd")
-    models = [model]
-    for theta in draws:
-        Ad, Bd, Ed = matrices(theta)
-        models.append(replace(model, Ad=Ad, Bd=Bd, Ed=Ed))
-    return models
+    drawn = (
+        zip(*stacked(draws), strict=True)
+        if stacked is not None
+        else (matrices(theta) for theta in draws)
+    )
+    return [model] + [replace(model, Ad=Ad, Bd=Bd, Ed=Ed) for Ad, Bd, Ed in drawn]
 
 
 def dead_time_voltage(evidence: Evidence) -> float | None:
