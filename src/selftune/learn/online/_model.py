@@ -142,17 +142,19 @@ class OnlineModel:
             covariance=_row_major_covariance(covariance, Theta.shape),
         )
 
-    def drift_free(self, recent: int, older: int) -> tuple[DiscreteModel, Array, Array]:
+    def drift_free(self, recent: int, older: int) -> tuple[DiscreteModel, Array, Array, float]:
         """The model now, without the lag a steady drift leaves in a memory's estimate.
 
-        Under forgetting with time constant ``tau`` a parameter that moves at a steady
-        rate is estimated ``tau`` times that rate late (a warming resistance, 0.4%/K,
-        over a 2 s memory). Two memories ``tau_a < tau_b`` are late by different amounts,
-        so ``c_a Theta_a + c_b Theta_b`` with ``c_a = tau_b / (tau_b - tau_a)``,
-        ``c_b = -tau_a / (tau_b - tau_a)`` is not late at all (Brown's double
-        smoothing). Its covariance is the older memory's times
-        ``2 tau_b (c_a^2 / (2 tau_a) + c_b^2 / (2 tau_b) + 2 c_a c_b / (tau_a + tau_b))``
-        (white errors over steady excitation: 3.67 for ``tau_b = 2 tau_a``).
+        A parameter that moves at a steady rate is estimated late by the mean age of the
+        memory's weights (:attr:`~._moments.ForgettingMoments.age`: its time constant
+        ``tau`` once full; a warming resistance, 0.4%/K, over a 2 s memory). Two
+        memories of ages ``a < b`` are late by different amounts, so
+        ``c_a Theta_a + c_b Theta_b`` with ``c_a = b / (b - a)``, ``c_b = -a / (b - a)``
+        is not late at all (Brown's double smoothing). Its covariance is the older
+        memory's times ``2 b (c_a^2 / (2 a) + c_b^2 / (2 b) + 2 c_a c_b / (a + b))``
+        (white errors over steady excitation and full memories: 3.67 for ``b = 2 a``).
+        Where the two ages are within 10% (both memories restarted from one), the older
+        memory's model is returned as it is, with its lag.
 
         Parameters
         ----------
@@ -167,26 +169,28 @@ class OnlineModel:
             Its coefficients (``[Ad, Bd, Ed]'``).
         covariance : ndarray
             The covariance of ``vec(Theta)`` (column-major).
+        lag : float
+            How late the model is under a steady drift, s: 0, or the older memory's
+            mean age where it is returned as it is.
 
         Raises
         ------
         numpy.linalg.LinAlgError
             If the data so far do not excite every regressor.
         """
-        tau_a, tau_b = self.memories[recent], self.memories[older]
-        if not tau_a < tau_b:
+        if not self.memories[recent] < self.memories[older]:
             raise InputError(f"memories: {recent} must be shorter than {older}")
-        Theta_a, *_ = self.moments[recent].estimate()
+        a, b = self.moments[recent].age, self.moments[older].age
         Theta_b, Sigma, covariance = self.moments[older].estimate()
-        c_a, c_b = tau_b / (tau_b - tau_a), -tau_a / (tau_b - tau_a)
-        scale = (
-            2
-            * tau_b
-            * (c_a**2 / (2 * tau_a) + c_b**2 / (2 * tau_b) + 2 * c_a * c_b / (tau_a + tau_b))
-        )
+        if not b - a > 0.1 * b:
+            model = self._discrete(self.moments[older], Theta_b, Sigma, covariance)
+            return model, Theta_b, covariance, b * self.h
+        Theta_a, *_ = self.moments[recent].estimate()
+        c_a, c_b = b / (b - a), -a / (b - a)
+        scale = 2 * b * (c_a**2 / (2 * a) + c_b**2 / (2 * b) + 2 * c_a * c_b / (a + b))
         Theta = c_a * Theta_a + c_b * Theta_b
         covariance = scale * covariance
-        return self._discrete(self.moments[older], Theta, Sigma, covariance), Theta, covariance
+        return self._discrete(self.moments[older], Theta, Sigma, covariance), Theta, covariance, 0.0
 
 
 def _row_major_covariance(covariance: Array, shape: tuple[int, int]) -> Array:

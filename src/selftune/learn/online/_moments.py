@@ -68,6 +68,7 @@ class ForgettingMoments:
     pairs: Array = field(init=False, repr=False)  # sum over pairs of [u_k; u_(k+1)] [.]'
     second_lagged: Array = field(init=False, repr=False)  # sum w [z, y]_k' [z, y]_(k+1)
     weight: float = field(init=False, default=0.0)  # sum w
+    aged: float = field(init=False, default=0.0)  # sum w age (samples; the newest 0)
     count: int = field(init=False, default=0)  # samples added
     _last: tuple[Array, Array] | None = field(init=False, default=None, repr=False)
     _estimate: tuple[Array, Array, Array] | None = field(init=False, default=None, repr=False)
@@ -122,6 +123,9 @@ class ForgettingMoments:
         stacked = stacked[1:] if first else stacked
         self.pairs = older**2 * self.pairs + stacked.T @ stacked
         self._last = (zeta[-1:].copy(), v[-1:].copy())
+        self.aged = older * (self.aged + count * self.weight) + float(
+            weights @ np.arange(count - 1, -1, -1)
+        )
         self.weight = older * self.weight + total
         self.count += count
 
@@ -141,6 +145,14 @@ class ForgettingMoments:
         self.pairs *= keep**2
         self.second_lagged *= keep
         self.weight *= keep
+        self.aged *= keep
+
+    @property
+    def age(self) -> float:
+        """The weights' mean age, samples (the newest sample's is 0): under forgetting
+        alone ``lambda / (1 - lambda)``, less while the memory fills. A parameter that
+        moves at a steady rate is estimated this many samples late."""
+        return self.aged / self.weight if self.weight > 0.0 else 0.0
 
     @property
     def effective_samples(self) -> float:
@@ -166,6 +178,28 @@ class ForgettingMoments:
         Ad = Theta[:n].T
         R = _semidefinite(np.asarray(-np.linalg.solve(Ad, lagged.T)))  # -Ad^-1 (-Ad R)
         return Sigma, R, _semidefinite(Sigma - R - Ad @ R @ Ad.T)
+
+    def instrument_weight(self, Theta: Array) -> Array:
+        """The weight on ``vec(Theta' - Theta_hat')`` (column-major ``vec`` of
+        ``[Ad, Bd, Ed]``) of two-stage least squares: ``Sigma^-1 (x) G' S^-1 G`` in
+        ``vec(Theta)``'s order, reordered; ``G`` the instruments' cross moment, ``S``
+        their own, ``Sigma`` the errors' covariance at ``Theta``.
+
+        A structured model fitted with it weighs each combination of the entries by how
+        much the data say about it, from moments of the data themselves (not from the
+        inverse of an estimated covariance, whose small eigenvalues are not known well).
+
+        Parameters
+        ----------
+        Theta : ndarray, shape (p, n)
+            The coefficients the errors are taken at.
+        """
+        p, n = self.regressors, self.outputs
+        G = self.cross[:, :p]
+        information = G.T @ np.linalg.solve(self.squared, G)
+        weight = np.kron(np.linalg.inv(self.noise(Theta)[0]), information)
+        order = np.arange(p * n).reshape(n, p).T.ravel()  # vec(Theta) index of vec(Theta')
+        return np.asarray(weight[np.ix_(order, order)], dtype=np.float64)
 
     def estimate(self) -> tuple[Array, Array, Array]:
         """``Theta`` (p, n), the error covariance ``Sigma`` (n, n) and the covariance of
