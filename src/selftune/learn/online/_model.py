@@ -87,7 +87,7 @@ class OnlineModel:
         """
         if self.dead_time and angle is None:
             raise InputError("angle: the dead-time model needs the electrical angle of each row")
-        data = np.hstack([x, a, w])  # rows [x_k, a_k, w_k]
+        data = np.concatenate([x, a, w], axis=1)  # rows [x_k, a_k, w_k]
         angles = np.zeros(x.shape[0]) if angle is None else angle
         if self._tail is not None:
             data = np.concatenate([self._tail[0], data])
@@ -97,7 +97,7 @@ class OnlineModel:
             size = self.moments[0].regressors
             return np.zeros((0, size)), np.zeros((0, size)), np.zeros((0, self.n))
         n, now = self.n, slice(1, -1)  # transitions k -> k + 1 with a row k - 1 before
-        z, zeta = data[now], np.hstack([data[:-2, :n], data[now, n:]])
+        z, zeta = data[now], np.concatenate([data[:-2, :n], data[now, n:]], axis=1)
         if self.dead_time:
             z = np.hstack([z, phase_signs(data[now, :n], angles[now])])
             zeta = np.hstack([zeta, phase_signs(data[:-2, :n], angles[now])])

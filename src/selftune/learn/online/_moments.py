@@ -102,15 +102,15 @@ class ForgettingMoments:
         lam = self.forgetting
         # the newest sample weighs 1, the oldest of the chunk lambda^(T-1)
         weights, total = _chunk_weights(lam, count)
-        v = np.hstack([z, y])
+        v = np.concatenate([z, y], axis=1)
         # row k's sample before it: the last chunk's last, none (zeros) before the first
         first = self._last is None
         if self._last is None:
             self._last = (np.zeros((1, zeta.shape[1])), np.zeros((1, v.shape[1])))
-        before_zeta = np.vstack([self._last[0], zeta[:-1]])
-        before_v = np.vstack([self._last[1], v[:-1]])
+        before_zeta = np.concatenate([self._last[0], zeta[:-1]])
+        before_v = np.concatenate([self._last[1], v[:-1]])
         p, size = zeta.shape[1], v.shape[1]
-        weighted = np.hstack([zeta, v, before_v]) * weights[:, None]
+        weighted = np.concatenate([zeta, v, before_v], axis=1) * weights[:, None]
         products = weighted.T @ v  # cross, second and the lagged second at once
         older = lam**count
         self.cross = older * self.cross + products[:p]
@@ -119,7 +119,7 @@ class ForgettingMoments:
         self.squared = older**2 * self.squared + (weighted[:, :p] * weights[:, None]).T @ zeta
         # pairs (k, k + 1) ending in this chunk, weighed by the later sample's weight: the
         # first starts at the last chunk's end
-        stacked = np.hstack([before_zeta * (lam * weights)[:, None], weighted[:, :p]])
+        stacked = np.concatenate([before_zeta * (lam * weights)[:, None], weighted[:, :p]], axis=1)
         stacked = stacked[1:] if first else stacked
         self.pairs = older**2 * self.pairs + stacked.T @ stacked
         self._last = (zeta[-1:].copy(), v[-1:].copy())
