@@ -33,9 +33,10 @@ an ADC rounding to the LSB ``adc_range / 2**(adc_bits - 1)`` and clipping to the
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,15 +60,15 @@ __all__ = [
     "Modulator",
     "MotorBatch",
     "PwmSegments",
+    "carrier_edges",
+    "carrier_sample",
     "carrier_segments",
     "dead_time_voltage",
     "from_phases",
     "leg_duties",
     "phasor_mean",
-    "propagate_segments",
     "random_inputs",
     "run_loop",
-    "segments_mean_dq",
     "to_phases",
 ]
 
@@ -82,6 +83,9 @@ MAGNET_COEFFICIENT = 0.001
 PHASE_DIRECTIONS: ComplexArray = np.exp(2j * np.pi * np.arange(3) / 3)
 #: The amplitude-invariant Clarke transform as a row: ``i_ab = i_abc @ CLARKE``.
 CLARKE: ComplexArray = (2.0 / 3.0) * PHASE_DIRECTIONS
+#: ``conj(PHASE_DIRECTIONS)`` and CLARKE as Python complex numbers (one motor's sample).
+_DIRECTIONS = tuple(complex(d) for d in np.conj(PHASE_DIRECTIONS))
+_CLARKE = tuple(complex(c) for c in CLARKE)
 
 
 def to_phases(vector: ComplexArray) -> Array:
@@ -195,6 +199,28 @@ class CurrentSensor:
             phases = codes * self.lsb
         return phases
 
+    def phase_values(
+        self, phases: tuple[float, float, float], noise: Sequence[float] | None
+    ) -> tuple[float, float, float]:
+        """:meth:`phases` of one motor in Python floats: its true phase currents, A, and
+        the noise added to each at the sample (None: no noise)."""
+        if noise is not None:
+            phases = (phases[0] + noise[0], phases[1] + noise[1], phases[2] + noise[2])
+        if self.lsb is None:
+            return phases
+        lsb, low, high = self.lsb, -self.codes, self.codes - 1
+        return (
+            _adc_code(phases[0] / lsb, low, high) * lsb,
+            _adc_code(phases[1] / lsb, low, high) * lsb,
+            _adc_code(phases[2] / lsb, low, high) * lsb,
+        )
+
+
+def _adc_code(value: float, low: int, high: int) -> float:
+    """``clip(round(value), low, high)`` of one float as numpy's (half to even, as
+    round(); NaN stays NaN, infinities clip)."""
+    return float(min(max(round(value) if math.isfinite(value) else value, low), high))
+
 
 def dead_time_voltage(signs: Array, amplitude: float) -> ComplexArray:
     """The stationary vector (P,) of the phase errors ``-amplitude sign(i_x)``, V.
@@ -207,10 +233,19 @@ def dead_time_voltage(signs: Array, amplitude: float) -> ComplexArray:
 def leg_duties(voltage: ComplexArray, dc_voltage: float) -> Array:
     """Space-vector duties (P, 3) of legs a, b, c for the references ``voltage`` (P,), V,
     with the min-max zero sequence, clipped to ``[0, 1]``; ``dc_voltage`` in V."""
-    phases = to_phases(voltage)
-    zero_sequence = -0.5 * (phases.max(axis=-1) + phases.min(axis=-1))
-    duties = 0.5 + (phases + zero_sequence[:, np.newaxis]) / dc_voltage
-    return np.clip(duties, 0.0, 1.0)
+    rows = [_duties(complex(v), dc_voltage) for v in np.asarray(voltage).tolist()]
+    return np.array(rows, dtype=float).reshape(-1, 3)
+
+
+def _duties(voltage: complex, dc_voltage: float) -> tuple[float, float, float]:
+    """:func:`leg_duties` of one reference, in Python floats."""
+    phases = _phase_values(voltage)
+    zero_sequence = -0.5 * (max(phases) + min(phases))
+    return (
+        min(max(0.5 + (phases[0] + zero_sequence) / dc_voltage, 0.0), 1.0),
+        min(max(0.5 + (phases[1] + zero_sequence) / dc_voltage, 0.0), 1.0),
+        min(max(0.5 + (phases[2] + zero_sequence) / dc_voltage, 0.0), 1.0),
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -234,10 +269,56 @@ class PwmSegments:
         return np.diff(self.boundaries, axis=-1)
 
 
+def _phase_values(vector: complex) -> tuple[float, float, float]:
+    """:func:`to_phases` of one vector (Python floats)."""
+    return (
+        (vector * _DIRECTIONS[0]).real,
+        (vector * _DIRECTIONS[1]).real,
+        (vector * _DIRECTIONS[2]).real,
+    )
+
+
+def _sign(value: float) -> float:
+    """``numpy.sign`` of one float (NaN stays NaN)."""
+    return 1.0 if value > 0.0 else -1.0 if value < 0.0 else value
+
+
+def _signs(phases: tuple[float, float, float]) -> tuple[float, float, float]:
+    """``numpy.sign`` of each of three floats."""
+    return (_sign(phases[0]), _sign(phases[1]), _sign(phases[2]))
+
+
+@lru_cache(maxsize=16)
+def _compensations(amplitude: float) -> dict[tuple[float, float, float], complex]:
+    """``-dead_time_voltage(signs, amplitude)`` of every sign pattern, V."""
+    signs = np.array(np.meshgrid(*[[-1.0, 0.0, 1.0]] * 3, indexing="ij")).reshape(3, -1).T
+    values = -dead_time_voltage(signs, amplitude)
+    return {(a, b, c): complex(v) for (a, b, c), v in zip(signs.tolist(), values, strict=True)}
+
+
+def carrier_edges(
+    voltage: complex, dc_voltage: float, period: float, dead_time: float, signs: Sequence[float]
+) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float]]:
+    """Each leg's high interval ``[rise, fall)`` over one center-aligned carrier period
+    (s from its start), with dead time, for one reference ``voltage`` (``alpha + j
+    beta``, V) and the signs of the phase currents at the period start; in Python floats
+    (numpy's cost per call on 3 values was most of a sample's)."""
+    duties = _duties(voltage, dc_voltage)
+    half = 0.5 * period
+    edges = []
+    for duty, sign in zip(duties, signs, strict=True):
+        switching = 0.0 < duty < 1.0  # a leg held at 0 or 1 does not switch
+        rise = (1.0 - duty) * half + (dead_time if sign > 0.0 and switching else 0.0)
+        fall = min((1.0 + duty) * half + (dead_time if sign < 0.0 and switching else 0.0), period)
+        edges.append((min(rise, fall), fall))
+    return edges[0], edges[1], edges[2]
+
+
 def carrier_segments(
     voltage: ComplexArray, dc_voltage: float, period: float, dead_time: float, signs: Array
 ) -> PwmSegments:
-    """The segments of one center-aligned carrier period, with dead time.
+    """The segments of one center-aligned carrier period, with dead time (the legs'
+    :func:`carrier_edges`, sorted).
 
     Parameters
     ----------
@@ -257,14 +338,16 @@ def carrier_segments(
     PwmSegments
         Without dead time the volt-seconds equal ``voltage * period`` exactly.
     """
-    duties = leg_duties(voltage, dc_voltage)
-    switching = (duties > 0.0) & (duties < 1.0)  # a leg held at 0 or 1 does not switch
-    rise = (1.0 - duties) * (0.5 * period) + dead_time * ((signs > 0.0) & switching)
-    fall = (1.0 + duties) * (0.5 * period) + dead_time * ((signs < 0.0) & switching)
-    fall = np.minimum(fall, period)
-    rise = np.minimum(rise, fall)
-    count = voltage.shape[0]
-    edges = np.sort(np.concatenate([rise, fall], axis=-1), axis=-1)
+    legs = np.array(
+        [
+            carrier_edges(complex(v), dc_voltage, period, dead_time, s)
+            for v, s in zip(np.asarray(voltage).tolist(), np.asarray(signs).tolist(), strict=True)
+        ],
+        dtype=float,
+    ).reshape(-1, 3, 2)
+    rise, fall = legs[:, :, 0], legs[:, :, 1]
+    count = rise.shape[0]
+    edges = np.sort(legs.reshape(count, 6), axis=-1)
     boundaries = np.concatenate([np.zeros((count, 1)), edges, np.full((count, 1), period)], -1)
     middle = 0.5 * (boundaries[:, 1:] + boundaries[:, :-1])[:, :, np.newaxis]
     high = (rise[:, np.newaxis, :] <= middle) & (middle < fall[:, np.newaxis, :])
@@ -272,30 +355,44 @@ def carrier_segments(
     return PwmSegments(boundaries=boundaries, voltages=voltages)
 
 
-def propagate_segments(
-    motor: MotorBatch, current: ComplexArray, segments: PwmSegments, emf: ComplexArray
-) -> ComplexArray:
-    """``i_ab`` (P,) at the end of a carrier period, exactly, from its start value ``current``.
+def carrier_sample(
+    motor: tuple[float, float, float, float],
+    current: complex,
+    edges: Sequence[tuple[float, float]],
+    dc_voltage: float,
+    period: float,
+    emf: complex,
+    rotor: complex,
+) -> tuple[complex, complex]:
+    """One motor over one carrier period (``period`` = T, s), exactly: ``i_ab`` at its end
+    and the mean rotor-frame voltage over it, V.
 
-    ``i(T) = a_T i(0) + sum_j v_j (exp(-gamma (T - b_(j+1))) - exp(-gamma (T - b_j))) / R_s
-    + emf``, where ``emf`` (P,), A, is the back-EMF's part over the whole period.
+    ``motor`` is ``(gamma, R_s, w_e, exp(-gamma T))``; ``current`` the start's ``i_ab``;
+    ``edges`` the legs' :func:`carrier_edges`; ``emf`` (A) the back-EMF's part over the
+    whole period; ``rotor`` ``exp(j theta)`` at its start. The voltage is the legs'
+    pulses superposed, ``V_dc sum_x CLARKE_x [r_x <= t < f_x]`` (the ``-V_dc / 2`` common
+    mode cancels), so with ``w_x = f_x - r_x``::
+
+        i(T) = a_T i(0) + V_dc sum_x CLARKE_x (exp(-gamma (T - f_x)) - exp(-gamma (T - r_x)))
+               / R_s + emf
+        mean = exp(-j theta) V_dc sum_x CLARKE_x w_x exp(-j w_e m_x) sinc_x / T
+
+    ``m_x = (r_x + f_x) / 2``, ``sinc_x = sin(y) / y``, ``y = w_e w_x / 2``: the mean of
+    ``exp(-j w_e s)`` over the pulse. A leg that never rises adds nothing.
     """
-    gamma = motor.gamma[:, np.newaxis]
-    period = segments.boundaries[:, -1:]
-    remaining = np.exp(-gamma * (period - segments.boundaries[:, 1:]))  # (P, 7)
-    weights = -remaining * np.expm1(-gamma * segments.durations)
-    forced = np.sum(segments.voltages * weights, axis=-1) / motor.R_s
-    return np.exp(-motor.gamma * period[:, 0]) * current + forced + emf
-
-
-def segments_mean_dq(motor: MotorBatch, segments: PwmSegments, rotor: ComplexArray) -> ComplexArray:
-    """The mean rotor-frame voltage (P,), V, over a carrier period starting at the rotor
-    phasor ``rotor = exp(j theta)`` (P,)."""
-    w = motor.electrical_speed[:, np.newaxis]
-    durations = segments.durations
-    turn = np.exp(-1j * w * segments.boundaries[:, :-1]) * phasor_mean(w * durations)
-    total = np.sum(segments.voltages * durations * turn, axis=-1)
-    return np.conj(rotor) * total / segments.boundaries[:, -1]
+    gamma, R_s, w, decay = motor
+    forced = total = 0j
+    for (rise, fall), direction in zip(edges, _CLARKE, strict=True):
+        width = fall - rise
+        if width == 0.0:
+            continue
+        forced += direction * (-math.exp(-gamma * (period - fall)) * math.expm1(-gamma * width))
+        half = 0.5 * w * width
+        middle = w * (rise + 0.5 * width)
+        mean = math.sin(half) / half if half != 0.0 else 1.0
+        total += direction * (width * mean) * complex(math.cos(middle), -math.sin(middle))
+    after = decay * current + dc_voltage * forced / R_s + emf
+    return after, rotor.conjugate() * (dc_voltage * total) / period
 
 
 # -- the time loop ----------------------------------------------------------------------
@@ -450,29 +547,33 @@ class LoopState:
 
 
 def _limit(u: Array, limit: float) -> Array:
-    """Each row of ``u`` (P, 2) scaled to a magnitude of at most ``limit``, V."""
-    magnitude = np.sqrt(u[:, 0] ** 2 + u[:, 1] ** 2)
-    return u * np.minimum(1.0, limit / np.maximum(magnitude, np.finfo(float).tiny))[:, None]
+    """Each row of ``u`` (P, 2) scaled to a magnitude of at most ``limit``, V (``u`` itself
+    where none exceeds it; in Python floats: numpy's cost per call on 2 values was half
+    of the stepper's)."""
+    scales = []
+    for a, b in u.tolist():
+        magnitude = math.sqrt(a * a + b * b)
+        scales.append(1.0 if magnitude <= limit else limit / magnitude)  # NaN: NaN
+    if all(scale == 1.0 for scale in scales):
+        return u
+    return u * np.array(scales)[:, np.newaxis]
 
 
 def _step(
     inputs: LoopInputs, k: int, current: ComplexArray, command: ComplexArray, extra: ComplexArray
 ) -> tuple[ComplexArray, ComplexArray]:
-    """Sample k: ``i_ab`` at ``t_(k+1)`` and the mean dq voltage over the sample.
+    """Sample k with average PWM: ``i_ab`` at ``t_(k+1)`` and the mean dq voltage over the
+    sample.
 
     ``command`` is ``exp(j (theta_k + eps)) u`` of the command applied now and ``extra``
     the stationary dead-time compensation computed with it, V.
     """
-    motor, mod, rotor = inputs.motor, inputs.modulator, inputs.rotor[:, k]
-    amplitude, h = mod.dead_time_amplitude, mod.period
+    mod, rotor = inputs.modulator, inputs.rotor[:, k]
+    amplitude = mod.dead_time_amplitude
     signs = np.sign(to_phases(current)) if amplitude > 0.0 else np.zeros((current.shape[0], 3))
     steady, turning = (command + extra, None) if mod.stationary else (extra, command)
     emf = inputs.emf[:, k]
-    if mod.carrier:
-        assert mod.dc_voltage is not None
-        segments = carrier_segments(steady, mod.dc_voltage, h, mod.dead_time, signs)
-        after = propagate_segments(motor, current, segments, emf)
-        return after, segments_mean_dq(motor, segments, rotor)
+    assert not mod.carrier, "carrier PWM steps through _CarrierInverter"
     steady = steady + dead_time_voltage(signs, amplitude)
     after = inputs.decay * current + inputs.charge * steady + emf
     mean = steady * np.conj(rotor) * inputs.turn
@@ -497,6 +598,11 @@ def _measure(
     if compensate:
         extra = -dead_time_voltage(np.sign(phases), mod.dead_time_amplitude)
     return measured * np.conj(inputs.rotor[:, k]), extra
+
+
+#: A plant's results: measured i_dq and true i_ab (P, N + 1), mean dq voltages (P, N), the
+#: compensations (P, d + N + 1) and the current after the last sample (P,).
+_Results = tuple[ComplexArray, ComplexArray, ComplexArray, ComplexArray, ComplexArray]
 
 
 class _Inverter:
@@ -525,6 +631,99 @@ class _Inverter:
         extra = self.extras[:, computed_at] if computed_at >= 0 else self.earlier[:, computed_at]
         self.current, self.applied[:, k] = _step(self.inputs, k, self.current, command, extra)
 
+    def results(self) -> _Results:
+        """The measured ``i_dq`` and the true ``i_ab`` (P, N + 1), the mean dq voltages
+        (P, N), the compensation computed at each sample with those before the run
+        (P, d + N + 1), and the current after the last sample (P,)."""
+        extras = np.concatenate([self.earlier, self.extras], axis=1)
+        return self.measured, self.currents, self.applied, extras, self.current
+
+
+class _CarrierInverter:
+    """The inverter with carrier PWM, the motors and the sensor as the stepper's plant (a
+    ``LoopPlant``), each motor's sample in Python floats (:func:`carrier_edges`,
+    :func:`carrier_sample`): numpy's cost per call on arrays of 3 or 7 values was most of
+    a sample's (0.3 ms a sample against 0.1 ms for all of the stepper's work)."""
+
+    def __init__(self, inputs: LoopInputs, start: LoopState | None = None) -> None:
+        mod, motor, sensor = inputs.modulator, inputs.motor, inputs.sensor
+        assert mod.carrier and mod.stationary and mod.dc_voltage is not None
+        count, plants = inputs.rho.shape[1], inputs.rotor.shape[0]
+        self.plants, self.sensor, self.dc_voltage = plants, sensor, mod.dc_voltage
+        self.period, self.dead_time = mod.period, mod.dead_time
+        self.signed = mod.dead_time_amplitude > 0.0
+        self.compensations = (
+            _compensations(mod.dead_time_amplitude)
+            if mod.compensation and mod.dead_time_amplitude > 0.0
+            else None
+        )
+        self.motors = list(
+            zip(
+                motor.gamma.tolist(), motor.R_s.tolist(), motor.electrical_speed.tolist(),
+                inputs.decay.tolist(), strict=True,
+            )
+        )  # fmt: skip
+        self.rotor, self.modulation = inputs.rotor.tolist(), inputs.modulation.tolist()
+        self.emf = inputs.emf.tolist()
+        noise = sensor.noise
+        self.noise = (
+            None if noise is None else np.broadcast_to(noise, (plants, *noise.shape[1:])).tolist()
+        )
+        self.measured = [[0j] * (count + 1) for _ in range(plants)]
+        self.currents = [[0j] * (count + 1) for _ in range(plants)]
+        self.applied = [[0j] * count for _ in range(plants)]
+        self.extras = [[0j] * (count + 1) for _ in range(plants)]
+        self.row = np.empty((plants, 2))
+        delay = mod.delay
+        self.current: list[complex] = [0j] * plants if start is None else start.current.tolist()
+        self.earlier: list[list[complex]] = (
+            [[0j] * delay for _ in range(plants)] if start is None else start.extras.tolist()
+        )
+
+    def measure(self, k: int) -> Array:
+        """The measured ``i_dq`` (P, 2) at sample k; keeps the compensation it asks for."""
+        sensor, compensations, row = self.sensor, self.compensations, self.row
+        for i in range(self.plants):
+            current = self.current[i]
+            self.currents[i][k] = current
+            measured = current
+            phases = _phase_values(current)
+            if not sensor.exact:
+                noise = None if self.noise is None else self.noise[i][k]
+                phases = sensor.phase_values(phases, noise)
+                measured = phases[0] * _CLARKE[0] + phases[1] * _CLARKE[1] + phases[2] * _CLARKE[2]
+            if compensations is not None:
+                extra = compensations.get(_signs(phases))
+                self.extras[i][k] = complex(np.nan, np.nan) if extra is None else extra  # NaN
+            dq = measured * self.rotor[i][k].conjugate()
+            self.measured[i][k] = dq
+            row[i] = dq.real, dq.imag
+        return row
+
+    def advance(self, k: int, applied: Array, computed_at: int) -> None:
+        """Modulate the command computed at ``computed_at`` over sample k."""
+        for i, (u_d, u_q) in enumerate(applied.tolist()):
+            command = self.modulation[i][k] * complex(u_d, u_q)
+            extras = self.extras[i] if computed_at >= 0 else self.earlier[i]
+            extra, current = extras[computed_at], self.current[i]
+            signs = _signs(_phase_values(current)) if self.signed else (0.0, 0.0, 0.0)
+            dc, period = self.dc_voltage, self.period
+            edges = carrier_edges(command + extra, dc, period, self.dead_time, signs)
+            self.current[i], self.applied[i][k] = carrier_sample(
+                self.motors[i], current, edges, dc, period, self.emf[i][k], self.rotor[i][k]
+            )
+
+    def results(self) -> _Results:
+        """As :meth:`_Inverter.results`."""
+        extras = [before + after for before, after in zip(self.earlier, self.extras, strict=True)]
+        return (
+            np.array(self.measured, dtype=complex),
+            np.array(self.currents, dtype=complex),
+            np.array(self.applied, dtype=complex).reshape(self.plants, -1),
+            np.array(extras, dtype=complex).reshape(self.plants, -1),
+            np.array(self.current, dtype=complex),
+        )
+
 
 def run_loop(inputs: LoopInputs, start: LoopState | None = None) -> LoopOutputs:
     """The time loop: measure, compute, limit, modulate, propagate, all motors at once
@@ -538,7 +737,7 @@ def run_loop(inputs: LoopInputs, start: LoopState | None = None) -> LoopOutputs:
         Where a previous run stopped (default: rest). A run continued from the state
         another stopped in gives, to the bit, the samples of one run over both.
     """
-    plant = _Inverter(inputs, start)
+    plant = (_CarrierInverter if inputs.modulator.carrier else _Inverter)(inputs, start)
     limit, delay = inputs.modulator.limit, inputs.modulator.delay
     pad = max(inputs.feedback.history, delay)
     given = None
@@ -549,16 +748,15 @@ def run_loop(inputs: LoopInputs, start: LoopState | None = None) -> LoopOutputs:
         plant, inputs.feedback, inputs.w, inputs.rho, delay,
         limit=lambda u: _limit(u, limit), start=given,
     )  # fmt: skip
+    measured, currents, applied, extras, current = plant.results()
     count = inputs.rho.shape[1]
     state = LoopState(
-        current=plant.current,
+        current=current,
         commands=loop.commands,
-        extras=np.concatenate([plant.earlier, plant.extras[:, :count]], axis=1)[:, count:],
+        extras=extras[:, count : count + delay],
         integrator=loop.integrator,
     )
-    return LoopOutputs(
-        plant.measured, plant.currents, loop.commands, plant.applied, loop.pad, state
-    )
+    return LoopOutputs(measured, currents, loop.commands, applied, loop.pad, state)
 
 
 def _draws(

@@ -207,16 +207,20 @@ def run_closed_loop(
     state = np.zeros((plants, feedback.gains.shape[2], 1))
     if start is not None:
         commands[:, :pad], state[:, state.shape[1] - integrators :, 0] = start
-    past = slice(n + q, n + q + m * history)
+    # views of state's parts, made once (indexing costs more than the values it moves)
+    x, w_k = state[:, :n, 0], state[:, n : n + q, 0]
+    past = state[:, n + q : n + q + m * history, 0]
+    z = state[:, state.shape[1] - integrators :, 0]
+    gains = feedback.gains
     for k in range(count):
-        state[:, :n, 0] = plant.measure(k)
-        state[:, n : n + q, 0] = w[:, k]
-        state[:, past, 0] = commands[:, pad + k - history : pad + k].reshape(plants, m * history)
-        output = (feedback.gains @ state)[:, :, 0]
+        x[...] = plant.measure(k)
+        w_k[...] = w[:, k]
+        past[...] = commands[:, pad + k - history : pad + k].reshape(plants, m * history)
+        output = (gains @ state)[:, :, 0]
         u = output[:, :m] + rho[:, k]
         commands[:, pad + k] = u if limit is None else limit(u)
         if integrators:
-            state[:, state.shape[1] - integrators :, 0] += output[:, m:]
+            z += output[:, m:]
         plant.advance(k, commands[:, pad + k - delay], k - delay)
     plant.measure(count)
     integrator = state[:, state.shape[1] - integrators :, 0]
