@@ -219,7 +219,9 @@ class CurrentSensor:
 def _adc_code(value: float, low: int, high: int) -> float:
     """``clip(round(value), low, high)`` of one float as numpy's (half to even, as
     round(); NaN stays NaN, infinities clip)."""
-    return float(min(max(round(value) if math.isfinite(value) else value, low), high))
+    if low <= value <= high:
+        return float(round(value))
+    return float(high) if value > high else float(low) if value < low else value
 
 
 def dead_time_voltage(signs: Array, amplitude: float) -> ComplexArray:
@@ -239,12 +241,12 @@ def leg_duties(voltage: ComplexArray, dc_voltage: float) -> Array:
 
 def _duties(voltage: complex, dc_voltage: float) -> tuple[float, float, float]:
     """:func:`leg_duties` of one reference, in Python floats."""
-    phases = _phase_values(voltage)
-    zero_sequence = -0.5 * (max(phases) + min(phases))
+    a, b, c = _phase_values(voltage)
+    zero_sequence = -0.5 * (max(a, b, c) + min(a, b, c))
     return (
-        min(max(0.5 + (phases[0] + zero_sequence) / dc_voltage, 0.0), 1.0),
-        min(max(0.5 + (phases[1] + zero_sequence) / dc_voltage, 0.0), 1.0),
-        min(max(0.5 + (phases[2] + zero_sequence) / dc_voltage, 0.0), 1.0),
+        min(max(0.5 + (a + zero_sequence) / dc_voltage, 0.0), 1.0),
+        min(max(0.5 + (b + zero_sequence) / dc_voltage, 0.0), 1.0),
+        min(max(0.5 + (c + zero_sequence) / dc_voltage, 0.0), 1.0),
     )
 
 
@@ -303,15 +305,16 @@ def carrier_edges(
     (s from its start), with dead time, for one reference ``voltage`` (``alpha + j
     beta``, V) and the signs of the phase currents at the period start; in Python floats
     (numpy's cost per call on 3 values was most of a sample's)."""
-    duties = _duties(voltage, dc_voltage)
     half = 0.5 * period
-    edges = []
-    for duty, sign in zip(duties, signs, strict=True):
+
+    def leg(duty: float, sign: float) -> tuple[float, float]:
         switching = 0.0 < duty < 1.0  # a leg held at 0 or 1 does not switch
         rise = (1.0 - duty) * half + (dead_time if sign > 0.0 and switching else 0.0)
         fall = min((1.0 + duty) * half + (dead_time if sign < 0.0 and switching else 0.0), period)
-        edges.append((min(rise, fall), fall))
-    return edges[0], edges[1], edges[2]
+        return min(rise, fall), fall
+
+    a, b, c = _duties(voltage, dc_voltage)
+    return leg(a, signs[0]), leg(b, signs[1]), leg(c, signs[2])
 
 
 def carrier_segments(
@@ -669,11 +672,14 @@ class _CarrierInverter:
         self.noise = (
             None if noise is None else np.broadcast_to(noise, (plants, *noise.shape[1:])).tolist()
         )
-        self.measured = [[0j] * (count + 1) for _ in range(plants)]
+        # sample by sample (rows): the Park transform's exp(-j theta) and i_dq
+        self.turn = np.conj(inputs.rotor).T.copy()
+        self.measured = np.empty((count + 1, plants), dtype=complex)
         self.currents = [[0j] * (count + 1) for _ in range(plants)]
         self.applied = [[0j] * count for _ in range(plants)]
         self.extras = [[0j] * (count + 1) for _ in range(plants)]
-        self.row = np.empty((plants, 2))
+        #: the signs of the true phase currents at the last measurement (the sample's start)
+        self.signs = [(0.0, 0.0, 0.0)] * plants
         delay = mod.delay
         self.current: list[complex] = [0j] * plants if start is None else start.current.tolist()
         self.earlier: list[list[complex]] = (
@@ -681,34 +687,42 @@ class _CarrierInverter:
         )
 
     def measure(self, k: int) -> Array:
-        """The measured ``i_dq`` (P, 2) at sample k; keeps the compensation it asks for."""
-        sensor, compensations, row = self.sensor, self.compensations, self.row
+        """The measured ``i_dq`` (P, 2) at sample k; keeps the compensation it asks for.
+
+        The Park transform is numpy's (its complex product rounds as a fused multiply-add
+        does, Python's does not): a log's currents are, to the bit, the other plant's."""
+        sensor, compensations = self.sensor, self.compensations
+        read = []
         for i in range(self.plants):
             current = self.current[i]
             self.currents[i][k] = current
-            measured = current
             phases = _phase_values(current)
-            if not sensor.exact:
+            if self.signed:  # the dead time acts with the true signs at the period start
+                self.signs[i] = _signs(phases)
+            if sensor.exact:
+                read.append(current)
+            else:
                 noise = None if self.noise is None else self.noise[i][k]
                 phases = sensor.phase_values(phases, noise)
-                measured = phases[0] * _CLARKE[0] + phases[1] * _CLARKE[1] + phases[2] * _CLARKE[2]
+                read.append(
+                    phases[0] * _CLARKE[0] + phases[1] * _CLARKE[1] + phases[2] * _CLARKE[2]
+                )
             if compensations is not None:
                 extra = compensations.get(_signs(phases))
                 self.extras[i][k] = complex(np.nan, np.nan) if extra is None else extra  # NaN
-            dq = measured * self.rotor[i][k].conjugate()
-            self.measured[i][k] = dq
-            row[i] = dq.real, dq.imag
-        return row
+        measured = self.measured[k]
+        np.multiply(np.array(read), self.turn[k], out=measured)
+        return measured.view(float).reshape(self.plants, 2)
 
     def advance(self, k: int, applied: Array, computed_at: int) -> None:
-        """Modulate the command computed at ``computed_at`` over sample k."""
+        """Modulate the command computed at ``computed_at`` over sample k (measured
+        before, as the stepper does)."""
         for i, (u_d, u_q) in enumerate(applied.tolist()):
             command = self.modulation[i][k] * complex(u_d, u_q)
             extras = self.extras[i] if computed_at >= 0 else self.earlier[i]
             extra, current = extras[computed_at], self.current[i]
-            signs = _signs(_phase_values(current)) if self.signed else (0.0, 0.0, 0.0)
             dc, period = self.dc_voltage, self.period
-            edges = carrier_edges(command + extra, dc, period, self.dead_time, signs)
+            edges = carrier_edges(command + extra, dc, period, self.dead_time, self.signs[i])
             self.current[i], self.applied[i][k] = carrier_sample(
                 self.motors[i], current, edges, dc, period, self.emf[i][k], self.rotor[i][k]
             )
@@ -717,7 +731,7 @@ class _CarrierInverter:
         """As :meth:`_Inverter.results`."""
         extras = [before + after for before, after in zip(self.earlier, self.extras, strict=True)]
         return (
-            np.array(self.measured, dtype=complex),
+            np.ascontiguousarray(self.measured.T),
             np.array(self.currents, dtype=complex),
             np.array(self.applied, dtype=complex).reshape(self.plants, -1),
             np.array(extras, dtype=complex).reshape(self.plants, -1),
