@@ -48,6 +48,12 @@ from selftune.sim import (
     constant,
     uniform,
 )
+from selftune.sim._inverter import (
+    CurrentSensor,
+    carrier_edges,
+    carrier_sample,
+    carrier_segments,
+)
 from selftune.sim._linear import LinearLoop
 
 Array = NDArray[np.float64]
@@ -393,6 +399,77 @@ def test_profile_factors_interpolate_and_step() -> None:
     np.testing.assert_allclose(at.R_s, [1.0, 1.1, 1.2, 1.44, 1.47, 1.5, 1.5], rtol=1e-14)
     np.testing.assert_allclose(at.phi_pm, [1.0, 0.975, 0.95, 0.95, 0.925, 0.9, 0.9], rtol=1e-14)
     np.testing.assert_array_equal(at.L_s, 1.0)
+
+
+# -- the carrier plant, one motor in Python floats ----------------------------------------
+
+
+def segment_by_segment(
+    current: complex, voltage: complex, signs: Array, emf: complex, rotor: complex
+) -> tuple[complex, complex]:
+    """``i_ab`` after one carrier period and the mean dq voltage over it, summed over the
+    sorted segments of :func:`carrier_segments` (the exact solution for a constant voltage
+    over each: ``i(b) = a i(a) + v (1 - a) / R_s``, ``a = exp(-gamma (b - a))``, ``1 - a``
+    without cancellation)."""
+    assert HARDWARE.dc_voltage is not None
+    segments = carrier_segments(
+        np.array([voltage]), HARDWARE.dc_voltage, H, HARDWARE.dead_time, signs[np.newaxis]
+    )
+    gamma, w_e = MOTOR.R_s / MOTOR.L_s, W_E
+    after, total = current, 0j
+    for j in range(7):
+        start, stop = segments.boundaries[0, j], segments.boundaries[0, j + 1]
+        v, change = segments.voltages[0, j], np.expm1(-gamma * (stop - start))
+        after = (1.0 + change) * after - v * change / MOTOR.R_s
+        # the integral of exp(-j w_e s) over the segment, without cancellation
+        length = stop - start
+        middle = np.exp(-1j * w_e * (start + stop) / 2)
+        total += v * length * middle * np.sinc(w_e * length / (2 * np.pi))
+    return after + emf, np.conj(rotor) * total / H
+
+
+def test_the_superposed_legs_are_the_segments_exact_solution() -> None:
+    """The carrier plant propagates the three legs' pulses, superposed; summed segment by
+    segment the period gives the same current and mean voltage, to rounding: terms of
+    V_dc h / L_s (0.9 A) and V_dc (540 V) cancel to a few eps of them."""
+    assert HARDWARE.dc_voltage is not None
+    rng = np.random.default_rng(4)
+    gamma = MOTOR.R_s / MOTOR.L_s
+    motor = (gamma, MOTOR.R_s, W_E, float(np.exp(-gamma * H)))
+    dc, size = HARDWARE.dc_voltage, HARDWARE.dc_voltage * H / MOTOR.L_s
+    for _ in range(300):
+        voltage = complex(
+            dc / np.sqrt(3.0) * np.sqrt(rng.uniform()) * np.exp(2j * np.pi * rng.uniform())
+        )
+        current, emf = complex(*rng.normal(0.0, 5.0, 2)), complex(*rng.normal(0.0, 0.1, 2))
+        rotor = complex(np.exp(2j * np.pi * rng.uniform()))
+        signs = rng.choice([-1.0, 0.0, 1.0], size=3)
+        edges = carrier_edges(voltage, dc, H, HARDWARE.dead_time, signs.tolist())
+        after, mean = carrier_sample(motor, current, edges, dc, H, emf, rotor)
+        expected_after, expected_mean = segment_by_segment(current, voltage, signs, emf, rotor)
+        eps = np.finfo(float).eps
+        assert abs(after - expected_after) < 16 * eps * (abs(current) + size)
+        assert abs(mean - expected_mean) < 16 * eps * dc
+
+
+def test_the_sensor_reads_one_motor_as_numpy_reads_many() -> None:
+    """:meth:`CurrentSensor.phase_values` (Python floats) equals :meth:`CurrentSensor.phases`
+    to the bit: the noise, the rounding half to even, the clipping at the codes."""
+    lsb = 50.0 / 2048
+    values = [
+        [2.5 * lsb, -3.5 * lsb, 0.5 * lsb],  # ties: to even
+        [-0.5 * lsb, 1e9, -1e9],  # clipped to the codes
+        [2047.5 * lsb, -2048.5 * lsb, np.inf],
+    ]
+    noise = np.concatenate([values, np.random.default_rng(2).normal(0.0, 3.0, (50, 3))])[np.newaxis]
+    for sensor in (
+        CurrentSensor(noise=noise, lsb=lsb, codes=2048),
+        CurrentSensor(noise=noise, lsb=None, codes=0),
+    ):
+        for k in range(noise.shape[1]):
+            expected = sensor.phases(np.zeros(1, dtype=complex), k)[0]  # the phases: the noise
+            actual = sensor.phase_values((0.0, 0.0, 0.0), noise[0, k].tolist())
+            np.testing.assert_array_equal(actual, expected)
 
 
 # -- speed --------------------------------------------------------------------------------

@@ -19,7 +19,8 @@ integral ``int_0^tau exp(-gamma (tau - s)) exp(j w_e s) ds``. No ODE solver.
 V_dc``, ``v_0 = -(max v_x + min v_x) / 2``, in ``[0, 1]`` while ``|v| <= V_dc / sqrt(3)``.
 Center-aligned carrier: leg x high on ``[(1 - d_x) T/2, (1 + d_x) T/2]``, all legs low at
 the period boundary (the carrier peak, where the currents are sampled); up to 7 constant
-segments per period. Dead time ``t_d``: a leg whose current flows out (``i_x > 0``) rises
+segments per period, propagated as the three legs' pulses superposed (the voltage is
+``V_dc sum_x CLARKE_x [leg x high]``: :func:`carrier_sample`). Dead time ``t_d``: a leg whose current flows out (``i_x > 0``) rises
 ``t_d`` late, one whose current flows in falls ``t_d`` late, so the mean phase voltage
 moves by ``-t_d f_sw V_dc sign(i_x)``; the sign is the one at the period start (the
 sample instant) for all the period's edges (exact unless a phase current crosses zero

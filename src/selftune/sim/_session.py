@@ -513,11 +513,9 @@ class DriveSession:
             delay = settings.input_delay
             earlier = before.commands[0, MEMORY - delay :]
             logged = np.concatenate([earlier, computed])[:count]
-        lengths = [piece.b - piece.a for piece in held]
-        R_s, L_s, phi_pm = (
-            np.append(np.repeat([piece.factors[i] for piece in held], lengths), following[i])
-            for i in range(3)
-        )
+        lengths = [piece.b - piece.a for piece in held] + [1]
+        factors = np.array([piece.factors for piece in held] + [following], dtype=float)
+        R_s, L_s, phi_pm = np.repeat(factors, lengths, axis=0).T
         true = self._true
         torque = self._nameplate.torque(true_dq.imag[np.newaxis])[0] * phi_pm
         return DriveChunk(
