@@ -20,12 +20,13 @@ V_dc``, ``v_0 = -(max v_x + min v_x) / 2``, in ``[0, 1]`` while ``|v| <= V_dc / 
 Center-aligned carrier: leg x high on ``[(1 - d_x) T/2, (1 + d_x) T/2]``, all legs low at
 the period boundary (the carrier peak, where the currents are sampled); up to 7 constant
 segments per period, propagated as the three legs' pulses superposed (the voltage is
-``V_dc sum_x CLARKE_x [leg x high]``: :func:`carrier_sample`). Dead time ``t_d``: a leg whose current flows out (``i_x > 0``) rises
-``t_d`` late, one whose current flows in falls ``t_d`` late, so the mean phase voltage
-moves by ``-t_d f_sw V_dc sign(i_x)``; the sign is the one at the period start (the
-sample instant) for all the period's edges (exact unless a phase current crosses zero
-within the period). A leg at duty 0 or 1 does not switch; a pulse cannot be shorter than
-0 or longer than the period (the average model does not clip its error).
+``V_dc sum_x CLARKE_x [leg x high]``: :func:`carrier_sample`). Dead time ``t_d``: a leg
+whose current flows out (``i_x > 0``) rises ``t_d`` late, one whose current flows in
+falls ``t_d`` late, so the mean phase voltage moves by ``-t_d f_sw V_dc sign(i_x)``; the
+sign is the one at the period start (the sample instant) for all the period's edges
+(exact unless a phase current crosses zero within the period). A leg at duty 0 or 1 does
+not switch; a pulse cannot be shorter than 0 or longer than the period (the average model
+does not clip its error).
 
 **Sensor**: phase currents (amplitude-invariant inverse Clarke) plus Gaussian noise, then
 an ADC rounding to the LSB ``adc_range / 2**(adc_bits - 1)`` and clipping to the codes
@@ -34,10 +35,10 @@ an ADC rounding to the LSB ``adc_range / 2**(adc_bits - 1)`` and clipping to the
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
+from math import cos, exp, expm1, sin, sqrt
 
 import numpy as np
 from numpy.typing import NDArray
@@ -281,14 +282,14 @@ def _phase_values(vector: complex) -> tuple[float, float, float]:
     )
 
 
-def _sign(value: float) -> float:
-    """``numpy.sign`` of one float (NaN stays NaN)."""
-    return 1.0 if value > 0.0 else -1.0 if value < 0.0 else value
-
-
 def _signs(phases: tuple[float, float, float]) -> tuple[float, float, float]:
-    """``numpy.sign`` of each of three floats."""
-    return (_sign(phases[0]), _sign(phases[1]), _sign(phases[2]))
+    """``numpy.sign`` of each of three floats (NaN stays NaN)."""
+    a, b, c = phases
+    return (
+        1.0 if a > 0.0 else -1.0 if a < 0.0 else a,
+        1.0 if b > 0.0 else -1.0 if b < 0.0 else b,
+        1.0 if c > 0.0 else -1.0 if c < 0.0 else c,
+    )
 
 
 @lru_cache(maxsize=16)
@@ -307,15 +308,20 @@ def carrier_edges(
     beta``, V) and the signs of the phase currents at the period start; in Python floats
     (numpy's cost per call on 3 values was most of a sample's)."""
     half = 0.5 * period
-
-    def leg(duty: float, sign: float) -> tuple[float, float]:
-        switching = 0.0 < duty < 1.0  # a leg held at 0 or 1 does not switch
-        rise = (1.0 - duty) * half + (dead_time if sign > 0.0 and switching else 0.0)
-        fall = min((1.0 + duty) * half + (dead_time if sign < 0.0 and switching else 0.0), period)
-        return min(rise, fall), fall
-
     a, b, c = _duties(voltage, dc_voltage)
-    return leg(a, signs[0]), leg(b, signs[1]), leg(c, signs[2])
+    return (
+        _leg(a, signs[0], half, dead_time),
+        _leg(b, signs[1], half, dead_time),
+        _leg(c, signs[2], half, dead_time),
+    )
+
+
+def _leg(duty: float, sign: float, half: float, dead_time: float) -> tuple[float, float]:
+    """One leg's :func:`carrier_edges` (``half`` = T / 2)."""
+    switching = 0.0 < duty < 1.0  # a leg held at 0 or 1 does not switch
+    rise = (1.0 - duty) * half + (dead_time if sign > 0.0 and switching else 0.0)
+    fall = min((1.0 + duty) * half + (dead_time if sign < 0.0 and switching else 0.0), 2 * half)
+    return min(rise, fall), fall
 
 
 def carrier_segments(
@@ -390,11 +396,11 @@ def carrier_sample(
         width = fall - rise
         if width == 0.0:
             continue
-        forced += direction * (-math.exp(-gamma * (period - fall)) * math.expm1(-gamma * width))
+        forced += direction * (-exp(-gamma * (period - fall)) * expm1(-gamma * width))
         half = 0.5 * w * width
         middle = w * (rise + 0.5 * width)
-        mean = math.sin(half) / half if half != 0.0 else 1.0
-        total += direction * (width * mean) * complex(math.cos(middle), -math.sin(middle))
+        mean = sin(half) / half if half != 0.0 else 1.0
+        total += direction * (width * mean) * complex(cos(middle), -sin(middle))
     after = decay * current + dc_voltage * forced / R_s + emf
     return after, rotor.conjugate() * (dc_voltage * total) / period
 
@@ -556,7 +562,7 @@ def _limit(u: Array, limit: float) -> Array:
     of the stepper's)."""
     scales = []
     for a, b in u.tolist():
-        magnitude = math.sqrt(a * a + b * b)
+        magnitude = sqrt(a * a + b * b)
         scales.append(1.0 if magnitude <= limit else limit / magnitude)  # NaN: NaN
     if all(scale == 1.0 for scale in scales):
         return u
@@ -670,12 +676,13 @@ class _CarrierInverter:
         self.rotor, self.modulation = inputs.rotor.tolist(), inputs.modulation.tolist()
         self.emf = inputs.emf.tolist()
         noise = sensor.noise
-        self.noise = (
-            None if noise is None else np.broadcast_to(noise, (plants, *noise.shape[1:])).tolist()
-        )
+        if noise is not None and noise.shape[0] != plants:  # one noise for all motors
+            noise = np.broadcast_to(noise, (plants, *noise.shape[1:]))
+        self.noise = None if noise is None else noise.tolist()
         # sample by sample (rows): the Park transform's exp(-j theta) and i_dq
         self.turn = np.conj(inputs.rotor).T.copy()
         self.measured = np.empty((count + 1, plants), dtype=complex)
+        self.pairs = self.measured.view(float).reshape(count + 1, plants, 2)  # [d, q] rows
         self.currents = [[0j] * (count + 1) for _ in range(plants)]
         self.applied = [[0j] * count for _ in range(plants)]
         self.extras = [[0j] * (count + 1) for _ in range(plants)]
@@ -711,9 +718,8 @@ class _CarrierInverter:
             if compensations is not None:
                 extra = compensations.get(_signs(phases))
                 self.extras[i][k] = complex(np.nan, np.nan) if extra is None else extra  # NaN
-        measured = self.measured[k]
-        np.multiply(np.array(read), self.turn[k], out=measured)
-        return measured.view(float).reshape(self.plants, 2)
+        np.multiply(np.array(read), self.turn[k], out=self.measured[k])
+        return self.pairs[k]
 
     def advance(self, k: int, applied: Array, computed_at: int) -> None:
         """Modulate the command computed at ``computed_at`` over sample k (measured

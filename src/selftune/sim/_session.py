@@ -500,12 +500,17 @@ class DriveSession:
 
         def joined(arrays: list[ComplexArray]) -> ComplexArray:
             """Per-sample arrays of the pieces (N + 1 each), the shared samples once."""
+            if len(arrays) == 1:  # (what leaves is copied)
+                return arrays[0]
             return np.concatenate([array[:, :-1] for array in arrays[:-1]] + [arrays[-1]], axis=1)
+
+        def stacked(arrays: list[Array]) -> Array:
+            return arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
 
         current = joined([piece.current for piece in pieces])[0]
         measured = joined([piece.measured for piece in pieces])[0]
-        computed = np.concatenate([piece.commands[0, piece.pad :] for piece in pieces])
-        applied = np.concatenate([piece.applied[0] for piece in pieces])
+        computed = stacked([piece.commands[0, piece.pad :] for piece in pieces])
+        applied = stacked([piece.applied[0] for piece in pieces])
         true_dq = current * np.conj(rotor)
         _check_finite(true_dq[np.newaxis], h * np.arange(first, first + count + 1, dtype=float))
         logged = computed
