@@ -38,9 +38,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from ..core import Array, ControlLaw, positive_finite, positive_integer
 from ..errors import InputError
@@ -504,7 +505,7 @@ class DriveSession:
                 return arrays[0]
             return np.concatenate([array[:, :-1] for array in arrays[:-1]] + [arrays[-1]], axis=1)
 
-        def stacked(arrays: list[Array]) -> Array:
+        def stacked(arrays: list[NDArray[Any]]) -> NDArray[Any]:
             return arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
 
         current = joined([piece.current for piece in pieces])[0]
