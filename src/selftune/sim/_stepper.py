@@ -223,8 +223,11 @@ def run_closed_loop(
             w_k[...] = w[:, k]
         past[...] = flat[:, (pad + k - history) * m : (pad + k) * m]
         np.matmul(gains, state, out=product)
-        u = computed + rho[:, k]
-        commands[:, pad + k] = u if limit is None else limit(u)
+        u = np.add(computed, rho[:, k], out=commands[:, pad + k])
+        if limit is not None:
+            limited = limit(u)
+            if limited is not u:
+                u[...] = limited
         if integrators:
             z += change
         plant.advance(k, commands[:, pad + k - delay], k - delay)
