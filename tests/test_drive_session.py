@@ -48,13 +48,9 @@ from selftune.sim import (
     constant,
     uniform,
 )
-from selftune.sim._inverter import (
-    CurrentSensor,
-    carrier_edges,
-    carrier_sample,
-    carrier_segments,
-)
+from selftune.sim._inverter import CurrentSensor
 from selftune.sim._linear import LinearLoop
+from selftune.sim._pwm import carrier_edges, carrier_sample, carrier_segments
 
 Array = NDArray[np.float64]
 MOTOR = SPMSM.paper()
@@ -494,7 +490,7 @@ if __name__ == "__main__":  # python tests/test_drive_session.py: the timings
     warm = ParameterProfile(time=[0.0, 120.0], R_s=[1.0, 1.4], phi_pm=[1.0, 0.92])
     for name, settings, total in (
         ("average PWM, noise", NOISY, 100_000),
-        ("hardware_like", HARDWARE, 5_000),
+        ("hardware_like", HARDWARE, 20_000),
     ):
         for profile in (None, warm):
             for chunk in (100, 1000):
