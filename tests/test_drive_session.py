@@ -10,19 +10,25 @@ Agreement found (paper motor at 100 rad/s, 10 kHz):
   step): to the bit on the stepper, 2e-14 A on the matrices; the matrices equal the
   stepper through a ramp and a step to 1e-12 (A and V);
 - the steady currents after an R_s and flux ramp equal the continuous dq steady state
-  ``(R_s + j w_e L_s + K) i = ...`` of the heated motor to 1e-12 relative.
+  ``(R_s + j w_e L_s + K) i = ...`` of the heated motor to 1e-12 relative;
+- the carrier plant (the three legs' pulses superposed, in Python floats) equals the
+  sorted segments' exact solution to 16 eps of ``V_dc h / L_s`` and ``V_dc``, and the
+  sensor's one-motor reading equals numpy's to the bit.
 
 Timings (``python tests/test_drive_session.py``: samples per CPU second, best of two,
-this 2-core machine with one BLAS thread; 10 kHz, the servo law below; 10 k/s is real
-time):
+this 2-core machine with one BLAS thread, the ranges over runs beside other work; 10 kHz,
+the servo law below; 10 k/s is real time):
 
 =====================  ==================  =============  ===============
 settings               motor               chunks of 100  chunks of 1,000
 =====================  ==================  =============  ===============
-average PWM, noise     constant            167 k/s        747 k/s
-average PWM, noise     warming, 10 ms hold 45-63 k/s      153-169 k/s
-hardware_like          constant            2.5 k/s        2.6 k/s
+average PWM, noise     constant            142-277 k/s    799-1,248 k/s
+average PWM, noise     warming, 10 ms hold 52-73 k/s      130-223 k/s
+hardware_like          constant            20-35 k/s      21-39 k/s
+hardware_like          warming, 10 ms hold 20-28 k/s      22-31 k/s
 =====================  ==================  =============  ===============
+
+(hardware_like was 2.5 k/s with each carrier period in numpy.)
 """
 
 from __future__ import annotations
@@ -46,6 +52,7 @@ from selftune.sim import (
     ParameterProfile,
     RealisticDrive,
     constant,
+    run_drive_batch,
     uniform,
 )
 from selftune.sim._inverter import CurrentSensor
@@ -500,4 +507,21 @@ if __name__ == "__main__":  # python tests/test_drive_session.py: the timings
                     f"{name:20s} {label:9s} chunks of {chunk:5d}: {rate:10.0f} samples/s, "
                     f"{rate * H:6.1f}x real time at 10 kHz"
                 )
+    # one run of 20,000 samples from rest (the timings of selftune.sim._realistic)
+    dead_time = dataclasses.replace(DriveSettings.hardware_like(), pwm="average")
+    for name, settings in (
+        ("average PWM", DriveSettings()),
+        ("dead time, noise, ADC", dead_time),
+        ("hardware_like", DriveSettings.hardware_like()),
+    ):
+        for motors in (1, 20):
+            seconds = []
+            for _ in range(2):
+                start = time.process_time()
+                run_drive_batch(
+                    [MOTOR] * motors, SPEED, H, settings, servo_law(), constant(REFERENCE),
+                    num_samples=20_000, exploration=uniform(2.0), seed=0,
+                )  # fmt: skip
+                seconds.append(time.process_time() - start)
+            print(f"{name:22s} {motors:2d} motor(s) x 20,000 samples: {min(seconds):6.2f} s")
     sys.exit(0)

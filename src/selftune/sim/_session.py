@@ -28,10 +28,13 @@ voltage limit not reached) a chunk runs as matrices read off one step of the inv
 and of the stepper, propagated all at once (:class:`~selftune.sim._linear.LinearLoop`);
 otherwise (or where a command reaches the limit) sample by sample through the stepper.
 At 10 kHz on this 2-core machine (one BLAS thread, CPU time, the servo law of the tests;
-``python tests/test_drive_session.py``): as matrices 17x real time in chunks of 100
-samples, 75x in chunks of 1,000; a motor warming along a ramp, held 10 ms: 6x and 17x
-(held 0.1 s: 11x and 47x; 1 ms: 1x and 2x, each interval a new discretization);
-through the stepper (``hardware_like``: carrier PWM, dead time, ADC) 0.2-0.3x.
+``python tests/test_drive_session.py``, best of two, the ranges over runs beside other
+work): as matrices 14-28x real time in chunks of 100 samples, 80-125x in chunks of
+1,000; a motor warming along a ramp, held 10 ms: 5-7x and 13-22x (held 0.1 s: 11x and
+47x; 1 ms: 1x and 2x, each interval a new discretization); through the stepper
+(``hardware_like``: carrier PWM, dead time, ADC; each carrier period in Python floats,
+:mod:`._pwm`) 2-3.5x in chunks of 100 and 2-4x in chunks of 1,000, warming or not (it
+was 0.2-0.3x with the period in numpy).
 """
 
 from __future__ import annotations
