@@ -10,19 +10,25 @@ Agreement found (paper motor at 100 rad/s, 10 kHz):
   step): to the bit on the stepper, 2e-14 A on the matrices; the matrices equal the
   stepper through a ramp and a step to 1e-12 (A and V);
 - the steady currents after an R_s and flux ramp equal the continuous dq steady state
-  ``(R_s + j w_e L_s + K) i = ...`` of the heated motor to 1e-12 relative.
+  ``(R_s + j w_e L_s + K) i = ...`` of the heated motor to 1e-12 relative;
+- the carrier plant (the three legs' pulses superposed, in Python floats) equals the
+  sorted segments' exact solution to 16 eps of ``V_dc h / L_s`` and ``V_dc``, and the
+  sensor's one-motor reading equals numpy's to the bit.
 
 Timings (``python tests/test_drive_session.py``: samples per CPU second, best of two,
-this 2-core machine with one BLAS thread; 10 kHz, the servo law below; 10 k/s is real
-time):
+this 2-core machine with one BLAS thread, the ranges over runs beside other work; 10 kHz,
+the servo law below; 10 k/s is real time):
 
 =====================  ==================  =============  ===============
 settings               motor               chunks of 100  chunks of 1,000
 =====================  ==================  =============  ===============
-average PWM, noise     constant            167 k/s        747 k/s
-average PWM, noise     warming, 10 ms hold 45-63 k/s      153-169 k/s
-hardware_like          constant            2.5 k/s        2.6 k/s
+average PWM, noise     constant            142-277 k/s    799-1,248 k/s
+average PWM, noise     warming, 10 ms hold 52-73 k/s      130-223 k/s
+hardware_like          constant            20-35 k/s      21-39 k/s
+hardware_like          warming, 10 ms hold 20-28 k/s      22-31 k/s
 =====================  ==================  =============  ===============
+
+(hardware_like was 2.5 k/s with each carrier period in numpy.)
 """
 
 from __future__ import annotations
@@ -46,9 +52,12 @@ from selftune.sim import (
     ParameterProfile,
     RealisticDrive,
     constant,
+    run_drive_batch,
     uniform,
 )
+from selftune.sim._inverter import CurrentSensor
 from selftune.sim._linear import LinearLoop
+from selftune.sim._pwm import carrier_edges, carrier_sample, carrier_segments
 
 Array = NDArray[np.float64]
 MOTOR = SPMSM.paper()
@@ -395,6 +404,77 @@ def test_profile_factors_interpolate_and_step() -> None:
     np.testing.assert_array_equal(at.L_s, 1.0)
 
 
+# -- the carrier plant, one motor in Python floats ----------------------------------------
+
+
+def segment_by_segment(
+    current: complex, voltage: complex, signs: Array, emf: complex, rotor: complex
+) -> tuple[complex, complex]:
+    """``i_ab`` after one carrier period and the mean dq voltage over it, summed over the
+    sorted segments of :func:`carrier_segments` (the exact solution for a constant voltage
+    over each: ``i(b) = a i(a) + v (1 - a) / R_s``, ``a = exp(-gamma (b - a))``, ``1 - a``
+    without cancellation)."""
+    assert HARDWARE.dc_voltage is not None
+    segments = carrier_segments(
+        np.array([voltage]), HARDWARE.dc_voltage, H, HARDWARE.dead_time, signs[np.newaxis]
+    )
+    gamma, w_e = MOTOR.R_s / MOTOR.L_s, W_E
+    after, total = current, 0j
+    for j in range(7):
+        start, stop = segments.boundaries[0, j], segments.boundaries[0, j + 1]
+        v, change = segments.voltages[0, j], np.expm1(-gamma * (stop - start))
+        after = (1.0 + change) * after - v * change / MOTOR.R_s
+        # the integral of exp(-j w_e s) over the segment, without cancellation
+        length = stop - start
+        middle = np.exp(-1j * w_e * (start + stop) / 2)
+        total += v * length * middle * np.sinc(w_e * length / (2 * np.pi))
+    return after + emf, np.conj(rotor) * total / H
+
+
+def test_the_superposed_legs_are_the_segments_exact_solution() -> None:
+    """The carrier plant propagates the three legs' pulses, superposed; summed segment by
+    segment the period gives the same current and mean voltage, to rounding: terms of
+    V_dc h / L_s (0.9 A) and V_dc (540 V) cancel to a few eps of them."""
+    assert HARDWARE.dc_voltage is not None
+    rng = np.random.default_rng(4)
+    gamma = MOTOR.R_s / MOTOR.L_s
+    motor = (gamma, MOTOR.R_s, W_E, float(np.exp(-gamma * H)))
+    dc, size = HARDWARE.dc_voltage, HARDWARE.dc_voltage * H / MOTOR.L_s
+    for _ in range(300):
+        voltage = complex(
+            dc / np.sqrt(3.0) * np.sqrt(rng.uniform()) * np.exp(2j * np.pi * rng.uniform())
+        )
+        current, emf = complex(*rng.normal(0.0, 5.0, 2)), complex(*rng.normal(0.0, 0.1, 2))
+        rotor = complex(np.exp(2j * np.pi * rng.uniform()))
+        signs = rng.choice([-1.0, 0.0, 1.0], size=3)
+        edges = carrier_edges(voltage, dc, H, HARDWARE.dead_time, signs.tolist())
+        after, mean = carrier_sample(motor, current, edges, dc, H, emf, rotor)
+        expected_after, expected_mean = segment_by_segment(current, voltage, signs, emf, rotor)
+        eps = np.finfo(float).eps
+        assert abs(after - expected_after) < 16 * eps * (abs(current) + size)
+        assert abs(mean - expected_mean) < 16 * eps * dc
+
+
+def test_the_sensor_reads_one_motor_as_numpy_reads_many() -> None:
+    """:meth:`CurrentSensor.phase_values` (Python floats) equals :meth:`CurrentSensor.phases`
+    to the bit: the noise, the rounding half to even, the clipping at the codes."""
+    lsb = 50.0 / 2048
+    values = [
+        [2.5 * lsb, -3.5 * lsb, 0.5 * lsb],  # ties: to even
+        [-0.5 * lsb, 1e9, -1e9],  # clipped to the codes
+        [2047.5 * lsb, -2048.5 * lsb, np.inf],
+    ]
+    noise = np.concatenate([values, np.random.default_rng(2).normal(0.0, 3.0, (50, 3))])[np.newaxis]
+    for sensor in (
+        CurrentSensor(noise=noise, lsb=lsb, codes=2048),
+        CurrentSensor(noise=noise, lsb=None, codes=0),
+    ):
+        for k in range(noise.shape[1]):
+            expected = sensor.phases(np.zeros(1, dtype=complex), k)[0]  # the phases: the noise
+            actual = sensor.phase_values((0.0, 0.0, 0.0), noise[0, k].tolist())
+            np.testing.assert_array_equal(actual, expected)
+
+
 # -- speed --------------------------------------------------------------------------------
 
 
@@ -417,7 +497,7 @@ if __name__ == "__main__":  # python tests/test_drive_session.py: the timings
     warm = ParameterProfile(time=[0.0, 120.0], R_s=[1.0, 1.4], phi_pm=[1.0, 0.92])
     for name, settings, total in (
         ("average PWM, noise", NOISY, 100_000),
-        ("hardware_like", HARDWARE, 5_000),
+        ("hardware_like", HARDWARE, 20_000),
     ):
         for profile in (None, warm):
             for chunk in (100, 1000):
@@ -427,4 +507,21 @@ if __name__ == "__main__":  # python tests/test_drive_session.py: the timings
                     f"{name:20s} {label:9s} chunks of {chunk:5d}: {rate:10.0f} samples/s, "
                     f"{rate * H:6.1f}x real time at 10 kHz"
                 )
+    # one run of 20,000 samples from rest (the timings of selftune.sim._realistic)
+    dead_time = dataclasses.replace(DriveSettings.hardware_like(), pwm="average")
+    for name, settings in (
+        ("average PWM", DriveSettings()),
+        ("dead time, noise, ADC", dead_time),
+        ("hardware_like", DriveSettings.hardware_like()),
+    ):
+        for motors in (1, 20):
+            seconds = []
+            for _ in range(2):
+                start = time.process_time()
+                run_drive_batch(
+                    [MOTOR] * motors, SPEED, H, settings, servo_law(), constant(REFERENCE),
+                    num_samples=20_000, exploration=uniform(2.0), seed=0,
+                )  # fmt: skip
+                seconds.append(time.process_time() - start)
+            print(f"{name:22s} {motors:2d} motor(s) x 20,000 samples: {min(seconds):6.2f} s")
     sys.exit(0)

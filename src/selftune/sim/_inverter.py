@@ -19,12 +19,14 @@ integral ``int_0^tau exp(-gamma (tau - s)) exp(j w_e s) ds``. No ODE solver.
 V_dc``, ``v_0 = -(max v_x + min v_x) / 2``, in ``[0, 1]`` while ``|v| <= V_dc / sqrt(3)``.
 Center-aligned carrier: leg x high on ``[(1 - d_x) T/2, (1 + d_x) T/2]``, all legs low at
 the period boundary (the carrier peak, where the currents are sampled); up to 7 constant
-segments per period. Dead time ``t_d``: a leg whose current flows out (``i_x > 0``) rises
-``t_d`` late, one whose current flows in falls ``t_d`` late, so the mean phase voltage
-moves by ``-t_d f_sw V_dc sign(i_x)``; the sign is the one at the period start (the
-sample instant) for all the period's edges (exact unless a phase current crosses zero
-within the period). A leg at duty 0 or 1 does not switch; a pulse cannot be shorter than
-0 or longer than the period (the average model does not clip its error).
+segments per period, propagated as the three legs' pulses superposed (the voltage is
+``V_dc sum_x CLARKE_x [leg x high]``: :func:`~selftune.sim._pwm.carrier_sample`). Dead
+time ``t_d``: a leg whose current flows out (``i_x > 0``) rises ``t_d`` late, one whose
+current flows in falls ``t_d`` late, so the mean phase voltage moves by ``-t_d f_sw V_dc
+sign(i_x)``; the sign is the one at the period start (the sample instant) for all the
+period's edges (exact unless a phase current crosses zero within the period). A leg at
+duty 0 or 1 does not switch; a pulse cannot be shorter than 0 or longer than the period
+(the average model does not clip its error).
 
 **Sensor**: phase currents (amplitude-invariant inverse Clarke) plus Gaussian noise, then
 an ADC rounding to the LSB ``adc_range / 2**(adc_bits - 1)`` and clipping to the codes
@@ -36,15 +38,27 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
+from math import sqrt
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ..core import Array
 from ..errors import InputError
 from ..model import SPMSM
 from ._checks import as_float_array, as_generator
 from ._exploration import Exploration
+from ._pwm import (
+    CLARKE,
+    ComplexArray,
+    PwmSegments,
+    _CarrierInverter,
+    _Results,
+    carrier_segments,
+    dead_time_voltage,
+    from_phases,
+    leg_duties,
+    to_phases,
+)
 from ._stepper import Feedback, run_closed_loop
 
 __all__ = [
@@ -64,34 +78,15 @@ __all__ = [
     "from_phases",
     "leg_duties",
     "phasor_mean",
-    "propagate_segments",
     "random_inputs",
     "run_loop",
-    "segments_mean_dq",
     "to_phases",
 ]
-
-ComplexArray = NDArray[np.complex128]
 
 #: Resistance rise of copper per kelvin, 1/K.
 COPPER_COEFFICIENT = 0.0039
 #: Flux loss of NdFeB magnets per kelvin, 1/K.
 MAGNET_COEFFICIENT = 0.001
-
-#: The directions of phases a, b, c in the stationary frame: ``exp(j 2 pi x / 3)``.
-PHASE_DIRECTIONS: ComplexArray = np.exp(2j * np.pi * np.arange(3) / 3)
-#: The amplitude-invariant Clarke transform as a row: ``i_ab = i_abc @ CLARKE``.
-CLARKE: ComplexArray = (2.0 / 3.0) * PHASE_DIRECTIONS
-
-
-def to_phases(vector: ComplexArray) -> Array:
-    """Phase values ``[a, b, c]`` (..., 3) of stationary vectors (amplitude-invariant)."""
-    return np.real(vector[..., np.newaxis] * np.conj(PHASE_DIRECTIONS))
-
-
-def from_phases(phases: Array) -> ComplexArray:
-    """``alpha + j beta`` of phase values (..., 3) (Clarke; the common mode is dropped)."""
-    return phases @ CLARKE
 
 
 def phasor_mean(x: Array) -> ComplexArray:
@@ -195,110 +190,29 @@ class CurrentSensor:
             phases = codes * self.lsb
         return phases
 
-
-def dead_time_voltage(signs: Array, amplitude: float) -> ComplexArray:
-    """The stationary vector (P,) of the phase errors ``-amplitude sign(i_x)``, V.
-
-    ``signs`` (P, 3) are ``sign(i_x)`` (0: no error); ``amplitude`` is ``t_d f_sw V_dc``, V.
-    """
-    return -amplitude * from_phases(signs)
-
-
-def leg_duties(voltage: ComplexArray, dc_voltage: float) -> Array:
-    """Space-vector duties (P, 3) of legs a, b, c for the references ``voltage`` (P,), V,
-    with the min-max zero sequence, clipped to ``[0, 1]``; ``dc_voltage`` in V."""
-    phases = to_phases(voltage)
-    zero_sequence = -0.5 * (phases.max(axis=-1) + phases.min(axis=-1))
-    duties = 0.5 + (phases + zero_sequence[:, np.newaxis]) / dc_voltage
-    return np.clip(duties, 0.0, 1.0)
-
-
-@dataclass(frozen=True, eq=False)
-class PwmSegments:
-    """The voltage over one carrier period, piecewise constant.
-
-    Attributes
-    ----------
-    boundaries : ndarray, shape (P, 8)
-        Segment boundaries from the period start, s: ``0 <= b_1 <= ... <= b_6 <= T``.
-    voltages : ndarray of complex, shape (P, 7)
-        The stationary-frame voltage of each segment, V.
-    """
-
-    boundaries: Array
-    voltages: ComplexArray
-
-    @property
-    def durations(self) -> Array:
-        """Segment lengths, s, shape (P, 7)."""
-        return np.diff(self.boundaries, axis=-1)
+    def phase_values(
+        self, phases: tuple[float, float, float], noise: Sequence[float] | None
+    ) -> tuple[float, float, float]:
+        """:meth:`phases` of one motor in Python floats: its true phase currents, A, and
+        the noise added to each at the sample (None: no noise)."""
+        if noise is not None:
+            phases = (phases[0] + noise[0], phases[1] + noise[1], phases[2] + noise[2])
+        if self.lsb is None:
+            return phases
+        lsb, low, high = self.lsb, -self.codes, self.codes - 1
+        return (
+            _adc_code(phases[0] / lsb, low, high) * lsb,
+            _adc_code(phases[1] / lsb, low, high) * lsb,
+            _adc_code(phases[2] / lsb, low, high) * lsb,
+        )
 
 
-def carrier_segments(
-    voltage: ComplexArray, dc_voltage: float, period: float, dead_time: float, signs: Array
-) -> PwmSegments:
-    """The segments of one center-aligned carrier period, with dead time.
-
-    Parameters
-    ----------
-    voltage : ndarray of complex, shape (P,)
-        Reference ``alpha + j beta`` over the period, V.
-    dc_voltage : float
-        DC-bus voltage, V.
-    period : float
-        Carrier period ``T = 1 / f_sw``, s.
-    dead_time : float
-        ``t_d``, s.
-    signs : ndarray, shape (P, 3)
-        ``sign(i_x)`` of the phase currents at the period start.
-
-    Returns
-    -------
-    PwmSegments
-        Without dead time the volt-seconds equal ``voltage * period`` exactly.
-    """
-    duties = leg_duties(voltage, dc_voltage)
-    switching = (duties > 0.0) & (duties < 1.0)  # a leg held at 0 or 1 does not switch
-    rise = (1.0 - duties) * (0.5 * period) + dead_time * ((signs > 0.0) & switching)
-    fall = (1.0 + duties) * (0.5 * period) + dead_time * ((signs < 0.0) & switching)
-    fall = np.minimum(fall, period)
-    rise = np.minimum(rise, fall)
-    count = voltage.shape[0]
-    edges = np.sort(np.concatenate([rise, fall], axis=-1), axis=-1)
-    boundaries = np.concatenate([np.zeros((count, 1)), edges, np.full((count, 1), period)], -1)
-    middle = 0.5 * (boundaries[:, 1:] + boundaries[:, :-1])[:, :, np.newaxis]
-    high = (rise[:, np.newaxis, :] <= middle) & (middle < fall[:, np.newaxis, :])
-    voltages = dc_voltage * (high.astype(float) @ CLARKE)  # the -V_dc/2 common mode cancels
-    return PwmSegments(boundaries=boundaries, voltages=voltages)
-
-
-def propagate_segments(
-    motor: MotorBatch, current: ComplexArray, segments: PwmSegments, emf: ComplexArray
-) -> ComplexArray:
-    """``i_ab`` (P,) at the end of a carrier period, exactly, from its start value ``current``.
-
-    ``i(T) = a_T i(0) + sum_j v_j (exp(-gamma (T - b_(j+1))) - exp(-gamma (T - b_j))) / R_s
-    + emf``, where ``emf`` (P,), A, is the back-EMF's part over the whole period.
-    """
-    gamma = motor.gamma[:, np.newaxis]
-    period = segments.boundaries[:, -1:]
-    remaining = np.exp(-gamma * (period - segments.boundaries[:, 1:]))  # (P, 7)
-    weights = -remaining * np.expm1(-gamma * segments.durations)
-    forced = np.sum(segments.voltages * weights, axis=-1) / motor.R_s
-    return np.exp(-motor.gamma * period[:, 0]) * current + forced + emf
-
-
-def segments_mean_dq(motor: MotorBatch, segments: PwmSegments, rotor: ComplexArray) -> ComplexArray:
-    """The mean rotor-frame voltage (P,), V, over a carrier period starting at the rotor
-    phasor ``rotor = exp(j theta)`` (P,)."""
-    w = motor.electrical_speed[:, np.newaxis]
-    durations = segments.durations
-    turn = np.exp(-1j * w * segments.boundaries[:, :-1]) * phasor_mean(w * durations)
-    total = np.sum(segments.voltages * durations * turn, axis=-1)
-    return np.conj(rotor) * total / segments.boundaries[:, -1]
-
-
-# -- the time loop ----------------------------------------------------------------------
+def _adc_code(value: float, low: int, high: int) -> float:
+    """``clip(round(value), low, high)`` of one float as numpy's (half to even, as
+    round(); NaN stays NaN, infinities clip)."""
+    if low <= value <= high:
+        return float(round(value))
+    return float(high) if value > high else float(low) if value < low else value
 
 
 @dataclass(frozen=True, eq=False)
@@ -450,29 +364,33 @@ class LoopState:
 
 
 def _limit(u: Array, limit: float) -> Array:
-    """Each row of ``u`` (P, 2) scaled to a magnitude of at most ``limit``, V."""
-    magnitude = np.sqrt(u[:, 0] ** 2 + u[:, 1] ** 2)
-    return u * np.minimum(1.0, limit / np.maximum(magnitude, np.finfo(float).tiny))[:, None]
+    """Each row of ``u`` (P, 2) scaled to a magnitude of at most ``limit``, V (``u`` itself
+    where none exceeds it; in Python floats: numpy's cost per call on 2 values was half
+    of the stepper's)."""
+    scales = []
+    for a, b in u.tolist():
+        magnitude = sqrt(a * a + b * b)
+        scales.append(1.0 if magnitude <= limit else limit / magnitude)  # NaN: NaN
+    if all(scale == 1.0 for scale in scales):
+        return u
+    return u * np.array(scales)[:, np.newaxis]
 
 
 def _step(
     inputs: LoopInputs, k: int, current: ComplexArray, command: ComplexArray, extra: ComplexArray
 ) -> tuple[ComplexArray, ComplexArray]:
-    """Sample k: ``i_ab`` at ``t_(k+1)`` and the mean dq voltage over the sample.
+    """Sample k with average PWM: ``i_ab`` at ``t_(k+1)`` and the mean dq voltage over the
+    sample.
 
     ``command`` is ``exp(j (theta_k + eps)) u`` of the command applied now and ``extra``
     the stationary dead-time compensation computed with it, V.
     """
-    motor, mod, rotor = inputs.motor, inputs.modulator, inputs.rotor[:, k]
-    amplitude, h = mod.dead_time_amplitude, mod.period
+    mod, rotor = inputs.modulator, inputs.rotor[:, k]
+    amplitude = mod.dead_time_amplitude
     signs = np.sign(to_phases(current)) if amplitude > 0.0 else np.zeros((current.shape[0], 3))
     steady, turning = (command + extra, None) if mod.stationary else (extra, command)
     emf = inputs.emf[:, k]
-    if mod.carrier:
-        assert mod.dc_voltage is not None
-        segments = carrier_segments(steady, mod.dc_voltage, h, mod.dead_time, signs)
-        after = propagate_segments(motor, current, segments, emf)
-        return after, segments_mean_dq(motor, segments, rotor)
+    assert not mod.carrier, "carrier PWM steps through _CarrierInverter"
     steady = steady + dead_time_voltage(signs, amplitude)
     after = inputs.decay * current + inputs.charge * steady + emf
     mean = steady * np.conj(rotor) * inputs.turn
@@ -525,6 +443,13 @@ class _Inverter:
         extra = self.extras[:, computed_at] if computed_at >= 0 else self.earlier[:, computed_at]
         self.current, self.applied[:, k] = _step(self.inputs, k, self.current, command, extra)
 
+    def results(self) -> _Results:
+        """The measured ``i_dq`` and the true ``i_ab`` (P, N + 1), the mean dq voltages
+        (P, N), the compensation computed at each sample with those before the run
+        (P, d + N + 1), and the current after the last sample (P,)."""
+        extras = np.concatenate([self.earlier, self.extras], axis=1)
+        return self.measured, self.currents, self.applied, extras, self.current
+
 
 def run_loop(inputs: LoopInputs, start: LoopState | None = None) -> LoopOutputs:
     """The time loop: measure, compute, limit, modulate, propagate, all motors at once
@@ -538,7 +463,7 @@ def run_loop(inputs: LoopInputs, start: LoopState | None = None) -> LoopOutputs:
         Where a previous run stopped (default: rest). A run continued from the state
         another stopped in gives, to the bit, the samples of one run over both.
     """
-    plant = _Inverter(inputs, start)
+    plant = (_CarrierInverter if inputs.modulator.carrier else _Inverter)(inputs, start)
     limit, delay = inputs.modulator.limit, inputs.modulator.delay
     pad = max(inputs.feedback.history, delay)
     given = None
@@ -549,16 +474,15 @@ def run_loop(inputs: LoopInputs, start: LoopState | None = None) -> LoopOutputs:
         plant, inputs.feedback, inputs.w, inputs.rho, delay,
         limit=lambda u: _limit(u, limit), start=given,
     )  # fmt: skip
+    measured, currents, applied, extras, current = plant.results()
     count = inputs.rho.shape[1]
     state = LoopState(
-        current=plant.current,
+        current=current,
         commands=loop.commands,
-        extras=np.concatenate([plant.earlier, plant.extras[:, :count]], axis=1)[:, count:],
+        extras=extras[:, count : count + delay],
         integrator=loop.integrator,
     )
-    return LoopOutputs(
-        plant.measured, plant.currents, loop.commands, plant.applied, loop.pad, state
-    )
+    return LoopOutputs(measured, currents, loop.commands, applied, loop.pad, state)
 
 
 def _draws(

@@ -34,10 +34,13 @@ in one time loop. The effects, and what each does to the ideal drive's sampled d
   always the motor's own, whatever flux the controller's ``w`` assumes.
 
 The log holds the dq command, never the voltage the inverter made; :class:`DriveRecord`
-adds what a real drive cannot log. Timings (this 2-core machine, one BLAS thread, best of
-two; 20 motors x 20,000 samples at 10 kHz under a law with one past input; one motor in
-brackets): average PWM 0.5 s (0.4 s); with dead time, noise and a 12-bit ADC 0.7 s
-(0.55 s); carrier PWM, hardware_like, 2.0-2.4 s (1.6-2.2 s) depending on the load.
+adds what a real drive cannot log. Timings (``python tests/test_drive_session.py``: this
+2-core machine, one BLAS thread, CPU time, best of two, the ranges over runs beside other
+work; 20 motors x 20,000 samples at 10 kHz under a law with one past input and integral
+action; one motor in brackets): average PWM 1.7-2.4 s (1.2-1.6 s); with dead time, noise
+and a 12-bit ADC 1.8-2.6 s (1.5-1.6 s); carrier PWM, hardware_like, 8.5 s (0.6-0.8 s):
+each motor's carrier period is stepped in Python floats (:mod:`._pwm`), so a batch costs
+its motors' sum (with the period in numpy it was 8.2 s (7.1 s) beside the same work).
 """
 
 from __future__ import annotations

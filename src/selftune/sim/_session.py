@@ -28,19 +28,23 @@ voltage limit not reached) a chunk runs as matrices read off one step of the inv
 and of the stepper, propagated all at once (:class:`~selftune.sim._linear.LinearLoop`);
 otherwise (or where a command reaches the limit) sample by sample through the stepper.
 At 10 kHz on this 2-core machine (one BLAS thread, CPU time, the servo law of the tests;
-``python tests/test_drive_session.py``): as matrices 17x real time in chunks of 100
-samples, 75x in chunks of 1,000; a motor warming along a ramp, held 10 ms: 6x and 17x
-(held 0.1 s: 11x and 47x; 1 ms: 1x and 2x, each interval a new discretization);
-through the stepper (``hardware_like``: carrier PWM, dead time, ADC) 0.2-0.3x.
+``python tests/test_drive_session.py``, best of two, the ranges over runs beside other
+work): as matrices 14-28x real time in chunks of 100 samples, 80-125x in chunks of
+1,000; a motor warming along a ramp, held 10 ms: 5-7x and 13-22x (held 0.1 s: 11x and
+47x; 1 ms: 1x and 2x, each interval a new discretization); through the stepper
+(``hardware_like``: carrier PWM, dead time, ADC; each carrier period in Python floats,
+:mod:`._pwm`) 2-3.5x in chunks of 100 and 2-4x in chunks of 1,000, warming or not (it
+was 0.2-0.3x with the period in numpy).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from ..core import Array, ControlLaw, positive_finite, positive_integer
 from ..errors import InputError
@@ -500,12 +504,17 @@ class DriveSession:
 
         def joined(arrays: list[ComplexArray]) -> ComplexArray:
             """Per-sample arrays of the pieces (N + 1 each), the shared samples once."""
+            if len(arrays) == 1:  # (what leaves is copied)
+                return arrays[0]
             return np.concatenate([array[:, :-1] for array in arrays[:-1]] + [arrays[-1]], axis=1)
+
+        def stacked(arrays: list[NDArray[Any]]) -> NDArray[Any]:
+            return arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
 
         current = joined([piece.current for piece in pieces])[0]
         measured = joined([piece.measured for piece in pieces])[0]
-        computed = np.concatenate([piece.commands[0, piece.pad :] for piece in pieces])
-        applied = np.concatenate([piece.applied[0] for piece in pieces])
+        computed = stacked([piece.commands[0, piece.pad :] for piece in pieces])
+        applied = stacked([piece.applied[0] for piece in pieces])
         true_dq = current * np.conj(rotor)
         _check_finite(true_dq[np.newaxis], h * np.arange(first, first + count + 1, dtype=float))
         logged = computed
@@ -513,11 +522,9 @@ class DriveSession:
             delay = settings.input_delay
             earlier = before.commands[0, MEMORY - delay :]
             logged = np.concatenate([earlier, computed])[:count]
-        lengths = [piece.b - piece.a for piece in held]
-        R_s, L_s, phi_pm = (
-            np.append(np.repeat([piece.factors[i] for piece in held], lengths), following[i])
-            for i in range(3)
-        )
+        lengths = [piece.b - piece.a for piece in held] + [1]
+        factors = np.array([piece.factors for piece in held] + [following], dtype=float)
+        R_s, L_s, phi_pm = np.repeat(factors, lengths, axis=0).T
         true = self._true
         torque = self._nameplate.torque(true_dq.imag[np.newaxis])[0] * phi_pm
         return DriveChunk(

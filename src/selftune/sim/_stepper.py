@@ -207,16 +207,29 @@ def run_closed_loop(
     state = np.zeros((plants, feedback.gains.shape[2], 1))
     if start is not None:
         commands[:, :pad], state[:, state.shape[1] - integrators :, 0] = start
-    past = slice(n + q, n + q + m * history)
+    # views made once (indexing costs more than the few values it moves, per sample)
+    x, w_k = state[:, :n, 0], state[:, n : n + q, 0]
+    past = state[:, n + q : n + q + m * history, 0]
+    z = state[:, state.shape[1] - integrators :, 0]
+    gains, flat = feedback.gains, commands.reshape(plants, -1)
+    product = np.empty((plants, gains.shape[1], 1))
+    computed, change = product[:, :m, 0], product[:, m:, 0]
+    held = w.strides[1] == 0  # one reference over the run (broadcast): set it once
+    if held:
+        w_k[...] = w[:, 0]
     for k in range(count):
-        state[:, :n, 0] = plant.measure(k)
-        state[:, n : n + q, 0] = w[:, k]
-        state[:, past, 0] = commands[:, pad + k - history : pad + k].reshape(plants, m * history)
-        output = (feedback.gains @ state)[:, :, 0]
-        u = output[:, :m] + rho[:, k]
-        commands[:, pad + k] = u if limit is None else limit(u)
+        x[...] = plant.measure(k)
+        if not held:
+            w_k[...] = w[:, k]
+        past[...] = flat[:, (pad + k - history) * m : (pad + k) * m]
+        np.matmul(gains, state, out=product)
+        u = np.add(computed, rho[:, k], out=commands[:, pad + k])
+        if limit is not None:
+            limited = limit(u)
+            if limited is not u:
+                u[...] = limited
         if integrators:
-            state[:, state.shape[1] - integrators :, 0] += output[:, m:]
+            z += change
         plant.advance(k, commands[:, pad + k - delay], k - delay)
     plant.measure(count)
     integrator = state[:, state.shape[1] - integrators :, 0]
