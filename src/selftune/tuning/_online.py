@@ -135,7 +135,8 @@ class OnlineRun:
     R_s, L_s, phi_pm : ndarray
         The true values at each chunk's end, ohm, H, Wb.
     look_time : ndarray
-        The drive time of each look with an estimate, s.
+        The drive time of each look whose estimate the tuner acted on, s (not those it
+        waited on: too young, or doubted; their standard errors do not hold).
     estimates : ndarray, shape (looks, p)
         Its ``[R_s, L_s, kappa(, v)]`` (kappa: the flux over the nameplate's).
     standard_errors : ndarray, shape (looks, p)
@@ -322,7 +323,7 @@ def run_online(
         for event in new_events:
             events.append(event)
             events_time.append(now)
-            if event.estimate is not None:
+            if event.estimate is not None and event.kind != "waiting":  # acted on
                 look_time.append(now)
                 estimates.append(event.estimate.theta)
                 errors.append(event.estimate.standard_errors)

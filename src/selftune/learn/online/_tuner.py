@@ -16,7 +16,7 @@ samples would mislead it), and the next look comes two fast memories later, on t
 plant's data.
 
 **The torque reference's current** follows the magnet flux: where a look's flux ratio
-differs from the one the law in force assumes by more than two standard errors and
+differs from the one the law in force assumes by more than its standard error and
 :attr:`OnlineSettings.flux_tolerance`, the law in force is switched to itself with its
 torque channel rescaled (:meth:`~selftune.core.ControlLaw.scaled_reference`: the same
 feedback, so the same loop and cost; the steady torque right again).
@@ -133,6 +133,10 @@ class OnlineSettings:
         the magnets' 0.1%/K at up to 1 K/s): drift this fast over the slow memory is not
         a change (:class:`~._physical.ChangeWatch`'s allowance, over the time a
         reference is used: until the next look, and the window).
+    least_change : float
+        The least change of one parameter alone, a fraction of it, that the change
+        watch reports (what the model leaves out, such as the carrier's ripple, is not
+        a change; a loose connection's +20% on R_s is).
     """
 
     h: float
@@ -150,6 +154,7 @@ class OnlineSettings:
     flux_tolerance: float = 5e-4
     probation: int = 1000
     drift_rates: tuple[float, float, float, float] = (0.008, 0.001, 0.001, 0.01)
+    least_change: float = 0.01
 
     @property
     def structure(self) -> SpmsmStructure:
@@ -316,14 +321,14 @@ class OnlineTuner:
         channel = self.settings.torque_channel
         kappa, se = float(estimate.theta[2]), float(estimate.standard_errors[2])
         moved = kappa / self.law_flux - 1.0
-        bound = max(2.0 * se / self.law_flux, self.settings.flux_tolerance)
+        bound = max(se / self.law_flux, self.settings.flux_tolerance)
         if channel is None or self.settings.problem.F is None or not abs(moved) > bound:
             return []
         scales = np.ones(self.law.q)
         scales[channel] = self.law_flux / kappa
         reason = (
             f"the flux ratio is {kappa:.5f} +- {se:.5f}, {moved:+.3%} from the "
-            f"{self.law_flux:.5f} the law in force assumes (beyond 2 standard errors and "
+            f"{self.law_flux:.5f} the law in force assumes (beyond its standard error and "
             f"{self.settings.flux_tolerance:.3%}): its torque reference's current rescaled, "
             "the feedback kept"
         )
@@ -370,7 +375,8 @@ class OnlineTuner:
         p, n = structured.shape
         order = np.arange(p * n).reshape(p, n).T.ravel()  # vec(Theta') index of vec(Theta)
         entries = (J @ estimate.covariance @ J.T)[np.ix_(order, order)]
-        self._watch.reference(structured, slow.noise(structured), J, entries, allowance)
+        least = settings.least_change * np.abs(estimate.theta)
+        self._watch.reference(structured, slow.noise(structured), J, entries, allowance, least)
         self.estimate = estimate
         if self._designed_near(estimate):
             self.probing = False
