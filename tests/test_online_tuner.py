@@ -79,7 +79,7 @@ def _run(seconds: float, seed: int):  # type: ignore[no-untyped-def]
         rows = slice(0, chunk)
         ws = np.broadcast_to(w, (chunk, w.size))
         for event in tuner.feed(part.measured[rows], part.logged_input, ws, part.angle[rows]):
-            if event.kind == "switch":
+            if event.law is not None:
                 pending = event.law
                 switches.append((tuner.sample * H, event.law, float(part.R_s[-1]), event.reason))
             if event.kind == "change":

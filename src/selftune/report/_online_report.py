@@ -224,6 +224,7 @@ def online_summary(run: OnlineRun, evaluation: OnlineEvaluation) -> dict[str, An
         "cold_excess_cost": evaluation.cold_excess_cost,
         "steady_torque_error_max": float(np.max(np.abs(errors))) if errors.size else None,
         "switches": kinds.count("switch"),
+        "rescales": kinds.count("rescale"),
         "reverts": kinds.count("revert"),
         "bad_switches": evaluation.bad_switches,
         "changes_detected": [float(t) for t in run.detections],
@@ -293,6 +294,11 @@ def online_document(run: OnlineRun, evaluation: OnlineEvaluation) -> dict[str, A
                 "torque_error": _worst_torque_errors(run, chunks),
                 "probing": run.probing[chunks],
             },
+            "changes": [
+                {"time": float(t), "reason": event.reason}
+                for t, event in zip(run.events_time, run.events, strict=True)
+                if event.kind == "change"
+            ],
             "real_time_factor": run.real_time_factor,
             "summary": online_summary(run, evaluation),
         },
@@ -318,13 +324,19 @@ def online_lines(source: str, run: OnlineRun, evaluation: OnlineEvaluation) -> l
         f"the torque reference stepping through +-{abs(run.torque):g} and "
         f"+-{abs(run.torque) / 3:.3g} N m every {SEGMENT_CHUNKS * CHUNK_SECONDS:g} s",
         "",
-        f"switches ({summary['switches']}, {summary['reverts']} reverted by the watchdog):",
+        f"switches to a new law: {summary['switches']}; returns by the watchdog: "
+        f"{summary['reverts']}; the torque reference's current rescaled for the flux: "
+        f"{summary['rescales']} times",
     ]
-    lines += [f"  {switch.time:8.3f} s {switch.kind}: {switch.reason}" for switch in run.switches]
-    if not run.switches:
-        lines.append("  none")
-    detections = ", ".join(f"{t:.3f}" for t in run.detections) or "none"
-    lines.append(f"changes detected at (s): {detections}")
+    shown = [switch for switch in run.switches if switch.kind != "rescale"]
+    lines += [f"  {switch.time:8.3f} s {switch.kind}: {switch.reason}" for switch in shown]
+    rescales = [switch for switch in run.switches if switch.kind == "rescale"]
+    if rescales:
+        lines.append(f"  last rescale, {rescales[-1].time:.3f} s: {rescales[-1].reason}")
+    changes = [(t, e) for t, e in zip(run.events_time, run.events, strict=True)
+               if e.kind == "change"]  # fmt: skip
+    lines.append(f"changes detected: {len(changes)}")
+    lines += [f"  {t:8.3f} s: {event.reason}" for t, event in changes]
     for step, delay in steps_detected(run):
         found = f"detected {delay * 1e3:.0f} ms later" if np.isfinite(delay) else "not detected"
         lines.append(f"  the profile's step at {step:g} s: {found}")
@@ -399,12 +411,13 @@ def _figure(run: OnlineRun, evaluation: OnlineEvaluation) -> Any:
     for panel in axes:
         panel.grid(True, alpha=0.3)
         for switch in run.switches:
-            panel.axvline(switch.time, color="#2ca02c" if switch.kind == "switch" else "red",
-                          linewidth=0.5, alpha=0.6)  # fmt: skip
+            if switch.kind != "rescale":
+                panel.axvline(switch.time, color="#2ca02c" if switch.kind == "switch" else "red",
+                              linewidth=0.5, alpha=0.6)  # fmt: skip
         panel.legend(loc="best", fontsize=8, frameon=False)
     figure.suptitle(
         "Online tuning: estimates, excess cost over the optimum of each instant, steady "
-        "torque error (vertical lines: switches; red: reverted)",
+        "torque error (vertical lines: switches to a new law; red: the watchdog's returns)",
         fontsize=9,
     )
     return figure

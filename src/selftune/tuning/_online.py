@@ -11,8 +11,9 @@ chunk of the drive's log:
 - while the tuner asks for it, a probing voltage, uniform within
   :data:`PROBING_SHARE` of the DC bus (or of the operating point's voltage without a
   bus), is added to the commands;
-- a law the tuner certifies (or the watchdog's return) is switched in at the next
-  chunk's first sample, bumplessly (:meth:`~selftune.core.ControlLaw.bumpless_integrator`).
+- a law the tuner hands over (certified, rescaled for the flux, or the watchdog's
+  return) is switched in at the next chunk's first sample, bumplessly
+  (:meth:`~selftune.core.ControlLaw.bumpless_integrator`).
 
 The run records what a drive's logger would, and the truth beside it: the switches with
 their reasons, the estimates and the true parameters, the law in force over time, the
@@ -71,8 +72,10 @@ class OnlineSwitch:
     ----------
     time : float
         Drive time of the switch (the law acts from the next chunk), s.
-    kind : {"switch", "revert"}
-        A certified law, or the watchdog's return to the law certified before.
+    kind : {"switch", "rescale", "revert"}
+        A certified law; the law in force with its torque reference's current rescaled
+        for the flux (the same feedback); or the watchdog's return to the law certified
+        before.
     reason : str
         The tuner's evidence, in words.
     law : ControlLaw
@@ -80,7 +83,7 @@ class OnlineSwitch:
     """
 
     time: float
-    kind: Literal["switch", "revert"]
+    kind: Literal["switch", "rescale", "revert"]
     reason: str
     law: ControlLaw
 
@@ -327,7 +330,7 @@ def run_online(
                 look_time.append(now)
                 estimates.append(event.estimate.theta)
                 errors.append(event.estimate.standard_errors)
-            if event.kind in ("switch", "revert") and event.law is not None:
+            if event.kind in ("switch", "rescale", "revert") and event.law is not None:
                 switches.append(OnlineSwitch(now, event.kind, event.reason, event.law))
                 pending = (switches[-1], len(switches) - 1)
         within = index % SEGMENT_CHUNKS

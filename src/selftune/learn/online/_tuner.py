@@ -22,9 +22,10 @@ torque channel rescaled (:meth:`~selftune.core.ControlLaw.scaled_reference`: the
 feedback, so the same loop and cost; the steady torque right again).
 
 **The watchdog**: a change detected within :attr:`OnlineSettings.probation` samples of a
-switch (the measured currents left the band the model in force predicts, just after the
-new law came in) reverts to the last law certified before it (a ``"revert"`` event), and
-the tuner learns the plant afresh.
+switch to a new feedback (the measured currents left the band the model in force
+predicts, just after the new law came in) reverts to the last law certified before it (a
+``"revert"`` event), and the tuner learns the plant afresh. A rescaled torque reference
+keeps the feedback: it is not on probation.
 
 Probing (a small exploration) is wanted while the estimates do not certify any law: at
 the start, after a change, and while the candidate is not stable with margin on every
@@ -170,17 +171,18 @@ class TunerEvent:
     ----------
     sample : int
         The samples fed before the look.
-    kind : {"change", "switch", "revert", "kept", "waiting"}
-        A change detected; a certified law to switch to (a new design, or the law in
-        force with its torque reference rescaled); the watchdog's return to the law
-        certified before the last switch; the law in force kept; no estimate yet (too
-        little data, or data that do not excite the plant).
+    kind : {"change", "switch", "rescale", "revert", "kept", "waiting"}
+        A change detected; a certified law to switch to; the law in force with its
+        torque reference rescaled for the flux (the same feedback); the watchdog's
+        return to the law certified before the last switch; the law in force kept; no
+        estimate acted on (too little data, or data that do not excite the plant).
     reason : str
         Why, in words.
     estimate : PhysicalEstimate or None
         The parameters the look used.
     law : ControlLaw or None
-        With ``"switch"`` and ``"revert"``: the law to switch to at the next sample.
+        With ``"switch"``, ``"rescale"`` and ``"revert"``: the law to switch to at the
+        next sample (an event with a law is one to switch to).
     certificate : Certificate or None
         The candidate's certificate.
     change : ChangeTest or None
@@ -188,7 +190,7 @@ class TunerEvent:
     """
 
     sample: int
-    kind: Literal["change", "switch", "revert", "kept", "waiting"]
+    kind: Literal["change", "switch", "rescale", "revert", "kept", "waiting"]
     reason: str
     estimate: PhysicalEstimate | None = None
     law: ControlLaw | None = None
@@ -333,8 +335,12 @@ class OnlineTuner:
             "the feedback kept"
         )
         law = self.law.scaled_reference(scales)
-        self._switch(law, kappa)
-        return [TunerEvent(self._sample, "switch", reason, estimate, law)]
+        self.law, self.law_flux = law, kappa  # the same feedback: no probation
+        if self._previous is not None:  # a return keeps the rescaled reference
+            before, flux = self._previous
+            scales[channel] = flux / kappa
+            self._previous = (before.scaled_reference(scales), kappa)
+        return [TunerEvent(self._sample, "rescale", reason, estimate, law)]
 
     def _look(self, w: Array) -> list[TunerEvent]:
         try:
