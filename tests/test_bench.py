@@ -36,6 +36,7 @@ SECTIONS = (
     "noise",
     "calibration",
     "refusals",
+    "online",
 )
 
 #: A numeric key must name its unit (or say it is a ratio, a count, a relative error...).
@@ -271,6 +272,7 @@ def test_markdown_has_every_table_and_says_which_targets_are_met(report: BenchRe
         "## 8. Calibration",
         "## 9. On a realistic drive",
         "## 10. Refusals and calibration",
+        "## 11. The online tuner on drives that heat",
     ):
         assert heading in text
     section = text.split("## Targets")[1].split("\n## ")[0]

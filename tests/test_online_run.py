@@ -373,3 +373,30 @@ def physical_estimate_at(structure: SpmsmStructure, theta: np.ndarray) -> np.nda
         minus = np.concatenate(structure(theta - step), axis=1).ravel(order="F")
         columns.append((plus - minus) / (2 * step[index]))
     return np.column_stack(columns)
+
+
+def test_a_recorded_log_replayed_gives_the_live_events(files: tuple[Path, Path]) -> None:
+    """The rows a run fed its tuner, written as CSV and read back, make a fresh tuner
+    decide what the live one did, at the same times."""
+    import io
+
+    from selftune.tuning import LOG_COLUMNS, online_settings, replay
+
+    config = load_motor_config(files[0])
+    assert config.drive is not None
+    settings = tuning_settings(config, 0, "digital")
+    online = load_online_config(files[1])
+    run = run_online(config.motor, settings, config.drive, online.profile, 1.0, keep_log=True)
+    assert run.log is not None and run.log.shape == (10_000, len(LOG_COLUMNS))
+    text = io.StringIO()
+    np.savetxt(text, run.log, fmt="%.17g", delimiter=",", header=",".join(LOG_COLUMNS))
+    log = np.loadtxt(io.StringIO(text.getvalue()), delimiter=",")
+    events, seconds = replay(log, online_settings(config.motor, settings, config.drive),
+                             run.cold.law, 100)  # fmt: skip
+    assert seconds > 0.0
+    live = [(t, e.kind, e.reason) for t, e in zip(run.events_time, run.events, strict=True)]
+    assert [(pytest.approx(t), k, r) for t, k, r in live] == [
+        (t, e.kind, e.reason) for t, e in events
+    ]
+    with pytest.raises(selftune.InputError, match="columns"):
+        replay(log[:, :5], online_settings(config.motor, settings, config.drive), run.cold.law, 100)

@@ -45,6 +45,9 @@ are the field names.
     exact dq simulator (noise, ADC, dead time), at several lengths and seeds:
     destabilizing results, results beyond 3 standard errors, entries within 1 and 3,
     false refusals, every refusal's message.
+11. :func:`measure_online` (:mod:`._online`): the online tuner on three motors through a
+    120 s warm-up and a loose connection, scored against the optimum of each instant;
+    a recorded log replayed.
 
 The learners never see a model; the model-based optimum and the exact closed-form
 solution are used only to score them.
@@ -71,6 +74,7 @@ from ._honesty import HazardTally, Honesty, HonestyCase, HonestyOutcome, measure
 from ._learning_cost import LearningCost, LearningDataset, LearningRun, measure_learning_cost
 from ._loop import SimulatorMeasurement
 from ._noise_study import ConsistencyRatio, NoiseCell, NoiseConfig, NoiseStudy, measure_noise
+from ._online import OnlineCase, OnlineReplay, OnlineStudy, markdown_online, measure_online
 from ._realistic_drive import (
     RealisticDriveComparison,
     markdown_realistic_drive,
@@ -128,6 +132,9 @@ __all__ = [
     "NoiseCell",
     "NoiseConfig",
     "NoiseStudy",
+    "OnlineCase",
+    "OnlineReplay",
+    "OnlineStudy",
     "RateErrors",
     "RealisticDriveComparison",
     "Refusals",
@@ -137,6 +144,7 @@ __all__ = [
     "SimulatorMeasurement",
     "TargetOutcome",
     "bench_command",
+    "markdown_online",
     "markdown_realistic_drive",
     "markdown_refusals",
     "measure_calibration",
@@ -145,6 +153,7 @@ __all__ = [
     "measure_honesty",
     "measure_learning_cost",
     "measure_noise",
+    "measure_online",
     "measure_realistic_drive",
     "measure_refusals",
     "measure_self_tuning_value",

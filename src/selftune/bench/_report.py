@@ -50,6 +50,7 @@ from ._honesty import Honesty, honesty_target, markdown_honesty, measure_honesty
 from ._learning_cost import LearningCost, markdown_learning, measure_learning_cost
 from ._noise_report import markdown_noise, noise_targets
 from ._noise_study import NoiseConfig, NoiseStudy, measure_noise
+from ._online import OnlineStudy, markdown_online, measure_online, online_targets
 from ._realistic_drive import (
     RealisticDriveComparison,
     markdown_realistic_drive,
@@ -164,6 +165,7 @@ class BenchReport:
     calibration : Calibration
     realistic_drive : RealisticDriveComparison
     refusals : Refusals
+    online : OnlineStudy
     """
 
     quick: bool
@@ -179,6 +181,7 @@ class BenchReport:
     calibration: Calibration
     realistic_drive: RealisticDriveComparison
     refusals: Refusals
+    online: OnlineStudy
 
     def targets(self) -> list[TargetOutcome]:
         """The bench's targets, each met or missed, with why."""
@@ -193,6 +196,7 @@ class BenchReport:
             calibration_target(self.calibration, self.quick),
             *self.realistic_drive.targets(),
             refusals_target(self.refusals, self.quick),
+            *online_targets(self.online),
         ]
 
     def to_json(self) -> dict[str, Any]:
@@ -332,6 +336,7 @@ def run_bench(quick: bool, progress: bool = True) -> BenchReport:
     calibration = measure_calibration(sizes.calibration_trials_count, progress)
     realistic_drive = measure_realistic_drive(quick, progress)
     refusals = measure_refusals(sizes.refusals, progress)
+    online = measure_online(quick, progress)
     return BenchReport(
         quick=quick,
         wall_seconds=time.perf_counter() - started,
@@ -346,6 +351,7 @@ def run_bench(quick: bool, progress: bool = True) -> BenchReport:
         calibration=calibration,
         realistic_drive=realistic_drive,
         refusals=refusals,
+        online=online,
     )
 
 
@@ -396,6 +402,7 @@ def _markdown(report: BenchReport) -> str:
         markdown_calibration(report.calibration),
         markdown_realistic_drive(report.realistic_drive),
         markdown_refusals(report.refusals),
+        markdown_online(report.online),
     ):
         lines += ["", *section]
     return "\n".join(lines) + "\n"

@@ -19,11 +19,14 @@ from ._knowledge import PAPER_PERTURBATION, known_flux_form, reference_perturbat
 from ._offpolicy import offpolicy
 from ._online import (
     CHUNK_SECONDS,
+    LOG_COLUMNS,
     PROBING_SHARE,
     SEGMENT_CHUNKS,
     TORQUE_LEVELS,
     OnlineRun,
     OnlineSwitch,
+    online_settings,
+    replay,
     run_online,
 )
 from ._onpolicy import algorithm1, algorithm2, algorithm3
@@ -35,6 +38,7 @@ __all__ = [
     "ALGORITHMS",
     "CHUNK_SECONDS",
     "DIVERGED_CURRENT",
+    "LOG_COLUMNS",
     "NOISE_FLOOR_FACTOR",
     "PAPER_PERTURBATION",
     "PROBING_SHARE",
@@ -54,7 +58,9 @@ __all__ = [
     "algorithm3",
     "known_flux_form",
     "offpolicy",
+    "online_settings",
     "reference_perturbation",
+    "replay",
     "run_algorithm",
     "run_online",
     "tuning_settings",

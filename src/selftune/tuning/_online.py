@@ -44,11 +44,14 @@ from ._settings import TuningSettings
 
 __all__ = [
     "CHUNK_SECONDS",
+    "LOG_COLUMNS",
     "PROBING_SHARE",
     "SEGMENT_CHUNKS",
     "TORQUE_LEVELS",
     "OnlineRun",
     "OnlineSwitch",
+    "online_settings",
+    "replay",
     "run_online",
 ]
 
@@ -62,6 +65,9 @@ CHUNK_SECONDS = 0.01
 SEGMENT_CHUNKS = 10
 #: The probing voltage's bound, a fraction of the DC-bus voltage.
 PROBING_SHARE = 0.005
+#: The columns of a recorded log (:attr:`OnlineRun.log`): time (s), the measured
+#: currents (A), the commanded voltages (V), the reference and the electrical angle (rad).
+LOG_COLUMNS = ("t", "x1", "x2", "u1", "u2", "w1", "w2", "angle")
 
 
 @dataclass(frozen=True)
@@ -148,6 +154,8 @@ class OnlineRun:
         CPU time the tuner took, s.
     drive_seconds : float
         CPU time the simulated drive took, s.
+    log : ndarray or None
+        With ``keep_log``: every row the tuner was fed, columns :data:`LOG_COLUMNS`.
     """
 
     motor: SPMSM
@@ -178,6 +186,7 @@ class OnlineRun:
     standard_errors: Array
     tuner_seconds: float
     drive_seconds: float
+    log: Array | None = None
 
     @property
     def real_time_factor(self) -> float:
@@ -214,10 +223,62 @@ def _last(commands: Array, count: int) -> Array:
     return commands[commands.shape[0] - count :]
 
 
-def _online_problem(motor: SPMSM, settings: TuningSettings) -> LearningProblem:
-    """The servo problem the commissioning learned, in the tuner's terms."""
+def online_settings(motor: SPMSM, settings: TuningSettings, drive: DriveSettings) -> OnlineSettings:
+    """What the tuner of an online run knows: the drive's sampling period, delay, hold
+    and dead time, the pole pairs and speed, and the servo problem the commissioning
+    learned (Q, R, the nameplate flux's F, the default integral weight).
+
+    Parameters
+    ----------
+    motor : SPMSM
+        The motor (its pole pairs and nameplate flux).
+    settings : TuningSettings
+        The commissioning's settings.
+    drive : DriveSettings
+        The drive.
+    """
     C, _, F, _ = known_flux_form(motor.p, settings.speed, settings.torque, motor.phi_pm)
-    return LearningProblem(settings.Q, settings.R, C=C, F=F, integral_action=True)
+    problem = LearningProblem(settings.Q, settings.R, C=C, F=F, integral_action=True)
+    return OnlineSettings(
+        settings.h, drive.input_delay, problem, motor.p * settings.speed, drive.voltage_hold,
+        dead_time=drive.dead_time > 0.0,
+    )  # fmt: skip
+
+
+def replay(
+    log: Array, settings: OnlineSettings, law: ControlLaw, chunk: int
+) -> tuple[list[tuple[float, TunerEvent]], float]:
+    """A recorded log fed to a fresh tuner in chunks, as the drive fed the live one.
+
+    Parameters
+    ----------
+    log : ndarray, shape (rows, 8)
+        The columns of :data:`LOG_COLUMNS` (an online run's :attr:`OnlineRun.log`, or
+        a drive's own record of the same quantities).
+    settings : OnlineSettings
+        What the tuner knows.
+    law : ControlLaw
+        The law in force at the log's first row.
+    chunk : int
+        Rows per chunk.
+
+    Returns
+    -------
+    events : list of (float, TunerEvent)
+        Each event with the time of the row that ended its chunk, s.
+    seconds : float
+        The tuner's CPU time, s.
+    """
+    if log.ndim != 2 or log.shape[1] != len(LOG_COLUMNS):
+        raise InputError(f"log: needs the {len(LOG_COLUMNS)} columns {', '.join(LOG_COLUMNS)}")
+    tuner = OnlineTuner(settings, law)
+    events: list[tuple[float, TunerEvent]] = []
+    started = clock.process_time()
+    for first in range(0, log.shape[0], chunk):
+        rows = log[first : first + chunk]
+        for event in tuner.feed(rows[:, 1:3], rows[:, 3:5], rows[:, 5:7], rows[:, 7]):
+            events.append((float(rows[-1, 0] + settings.h), event))
+    return events, clock.process_time() - started
 
 
 def run_online(
@@ -229,6 +290,7 @@ def run_online(
     *,
     seed: int = 0,
     progress: Callable[[float], None] | None = None,
+    keep_log: bool = False,
 ) -> OnlineRun:
     """Commission the drive, then run it through ``profile`` with the tuner in the loop.
 
@@ -250,6 +312,8 @@ def run_online(
         Seed of the commissioning, the noise and the probing.
     progress : callable, optional
         Called with the drive time reached after every chunk, s.
+    keep_log : bool
+        Keep every row the tuner was fed (:attr:`OnlineRun.log`: 64 bytes a row).
 
     Raises
     ------
@@ -268,15 +332,10 @@ def run_online(
         raise InputError(f"duration: must be a positive number of seconds, got {duration!r}")
     h = settings.h
     cold = run_algorithm("offpolicy", motor, settings, drive=drive)
-    problem = _online_problem(motor, settings)
+    tuner_settings = online_settings(motor, settings, drive)
+    problem = tuner_settings.problem
     plant = RealisticDrive(motor, settings.speed, h, drive)
-    tuner = OnlineTuner(
-        OnlineSettings(
-            h, drive.input_delay, problem, motor.p * settings.speed, drive.voltage_hold,
-            dead_time=drive.dead_time > 0.0,
-        ),
-        cold.law,
-    )  # fmt: skip
+    tuner = OnlineTuner(tuner_settings, cold.law)
     session = plant.start(cold.law, seed=seed, profile=profile)
     rng = np.random.default_rng([seed, 17])
     chunk = max(1, round(CHUNK_SECONDS / h))
@@ -291,6 +350,7 @@ def run_online(
     law_index, probing_on, switches = [], [], []
     events, events_time, look_time, estimates, errors = [], [], [], [], []
     tuner_seconds = drive_seconds = 0.0
+    logged: list[Array] = []
     pending: tuple[OnlineSwitch, int] | None = None
     x_next: Array | None = None
     current = -1
@@ -316,10 +376,12 @@ def run_online(
         started = clock.process_time()
         part = session.advance(chunk, w, probing=probe, **change)  # type: ignore[arg-type]
         fed = clock.process_time()
-        new_events = tuner.feed(
-            part.measured[:-1], part.commanded_voltages, np.tile(w, (chunk, 1)), part.angle[:-1]
-        )
+        rows = (part.measured[:-1], part.commanded_voltages, np.tile(w, (chunk, 1)))
+        new_events = tuner.feed(*rows, part.angle[:-1])
         tuner_seconds += clock.process_time() - fed
+        if keep_log:
+            times = part.start_time + settings.h * np.arange(chunk)
+            logged.append(np.column_stack([times, *rows, part.angle[:-1]]))
         drive_seconds += fed - started
         x_next = part.measured[-1]
         now = session.time
@@ -363,4 +425,5 @@ def run_online(
         look_time=np.array(look_time), estimates=np.array(estimates).reshape(-1, width),
         standard_errors=np.array(errors).reshape(-1, width),
         tuner_seconds=tuner_seconds, drive_seconds=drive_seconds,
+        log=np.concatenate(logged) if keep_log else None,
     )  # fmt: skip
