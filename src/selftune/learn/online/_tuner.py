@@ -125,7 +125,9 @@ class OnlineSettings:
         adds a transient; below 0.1% it is not seen in the torque).
     flux_tolerance : float
         The least change of the flux ratio, a fraction, for which the torque reference's
-        current is rescaled (the steady torque error it leaves; half of 0.1%).
+        current is rescaled (the steady torque error it leaves: a quarter of 0.1%, the
+        rest for the estimate's error and the current's noise; at half of it a 120 s
+        warm-up's largest steady error was 0.101%).
     probation : int
         Samples after a switch during which a detected change reverts it (the watchdog).
     drift_rates : (float, float, float, float)
@@ -152,7 +154,7 @@ class OnlineSettings:
     window: int = 500
     torque_channel: int | None = 1
     least_saving: float = 1e-3
-    flux_tolerance: float = 5e-4
+    flux_tolerance: float = 2.5e-4
     probation: int = 1000
     drift_rates: tuple[float, float, float, float] = (0.008, 0.001, 0.001, 0.01)
     least_change: float = 0.01
