@@ -3,6 +3,7 @@
 - :func:`dlqr`: the stabilizing solution of the discrete algebraic Riccati equation (DARE)
   with a cross weight, refined by one Hewer (discrete Kleinman) step;
 - :func:`dpolicy_value`: the value of a given policy (a discrete Lyapunov equation);
+  :func:`dpolicy_values`: the same on a stack of plants, one batched solve;
 - :func:`sampled_data_weights`: the continuous cost integrated exactly over one sample
   with the input held (Van Loan 1978);
 - :func:`delay_augmented`: the plant seen by a controller with a computation delay of d
@@ -41,12 +42,18 @@ __all__ = [
     "delay_augmented",
     "dlqr",
     "dpolicy_value",
+    "dpolicy_values",
     "integrator_augmented",
     "sampled_data_weights",
 ]
 
 #: An eigenvalue counts as on or outside the unit circle when ``|lambda| >= 1 - this``.
 _UNIT_CIRCLE_MARGIN = 1e-9
+
+#: The discrete Lyapunov equation of fewer states than this is solved directly (the
+#: Kronecker system of n^2 unknowns), of more by the bilinear transformation: scipy's
+#: choice in :func:`scipy.linalg.solve_discrete_lyapunov`.
+_DIRECT_SIZE = 10
 
 
 def _check_cost(
@@ -118,7 +125,29 @@ def _stage_weight(K: Array, Q: Array, R: Array, N: Array) -> Array:
 
 
 def _spectral_radius(M: Array) -> float:
-    return float(np.max(np.abs(np.linalg.eigvals(M)))) if M.size else 0.0
+    return float(_spectral_radii(M[np.newaxis])[0]) if M.size else 0.0
+
+
+def _spectral_radii(M: Array) -> Array:
+    """``max |eig|`` of each matrix of a stack ``(p, n, n)``, n >= 1 (one call)."""
+    return np.asarray(np.max(np.abs(np.linalg.eigvals(M)), axis=-1), dtype=np.float64)
+
+
+def _kronecker_stein(closed_loops: Array, weights: Array) -> tuple[Array, bool]:
+    """The direct solutions of ``P_i = A_i' P_i A_i + W_i`` for a stack ``(p, n, n)``, and
+    whether scipy warned about the conditioning of any of them.
+
+    The Kronecker system of scipy's direct discrete Lyapunov solve,
+    ``(I - A_i' (x) A_i') vec(P_i) = vec(W_i)``, one batched LU solve for the stack (the
+    same products and the same solver, slice by slice, as one call per matrix).
+    """
+    count, n = closed_loops.shape[0], closed_loops.shape[1]
+    transposed = closed_loops.transpose(0, 2, 1)
+    kronecker = np.einsum("pij,pkl->pikjl", transposed, transposed).reshape(count, n * n, n * n)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", scipy.linalg.LinAlgWarning)
+        solution = scipy.linalg.solve(np.eye(n * n) - kronecker, weights.reshape(count, n * n, 1))
+    return solution.reshape(count, n, n), bool(caught)
 
 
 def _stein(closed_loop: Array, weight: Array) -> Array:
@@ -127,22 +156,39 @@ def _stein(closed_loop: Array, weight: Array) -> Array:
     The direct (Kronecker) solve is the most accurate, but scipy warns about its
     conditioning whenever P's entries span many decades (an integrator beside fast
     currents); its residual is what counts, so it is checked, and the bilinear solve is
-    used when it is the better one.
+    used when it is the better one. From :data:`_DIRECT_SIZE` states on, the bilinear
+    solve is the one used (scipy's own choice).
     """
 
     def residual(P: Array) -> float:
         return float(np.linalg.norm(closed_loop.T @ P @ closed_loop - P + weight))
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", scipy.linalg.LinAlgWarning)
-        P = scipy.linalg.solve_discrete_lyapunov(closed_loop.T, weight)
-    if caught:
+    if closed_loop.shape[0] < _DIRECT_SIZE:
+        solutions, warned = _kronecker_stein(closed_loop[np.newaxis], weight[np.newaxis])
+        P = solutions[0]
+    else:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", scipy.linalg.LinAlgWarning)
+            P = scipy.linalg.solve_discrete_lyapunov(closed_loop.T, weight, method="bilinear")
+        warned = bool(caught)
+    if warned:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
             other = scipy.linalg.solve_discrete_lyapunov(closed_loop.T, weight, method="bilinear")
         if residual(other) < residual(P):
             P = other
     return np.asarray(0.5 * (P + P.T), dtype=np.float64)
+
+
+def _steins(closed_loops: Array, weights: Array) -> Array:
+    """:func:`_stein` of each pair of a stack ``(p, n, n)``: one batched direct solve; if
+    scipy warns about any of them (or the bilinear solve is the one used), each is solved
+    by :func:`_stein`, which checks the bilinear solve where its own direct solve warns."""
+    if closed_loops.shape[1] < _DIRECT_SIZE:
+        solutions, warned = _kronecker_stein(closed_loops, weights)
+        if not warned:
+            return np.asarray(0.5 * (solutions + solutions.transpose(0, 2, 1)), dtype=np.float64)
+    return np.array([_stein(A, W) for A, W in zip(closed_loops, weights, strict=True)])
 
 
 def _hewer_refined(A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array) -> Array:
@@ -262,14 +308,100 @@ def dpolicy_value(
     """
     A_, B_, Q_, R_, N_ = _check_cost(A, B, Q, R, N)
     K_ = as_matrix(K, "K", (B_.shape[1], A_.shape[0]))
-    closed_loop = A_ - B_ @ K_
-    radius = _spectral_radius(closed_loop)
-    if radius >= 1.0:
+    P, radii = _policy_values(A_[np.newaxis], B_[np.newaxis], K_, Q_, R_, N_)
+    if radii[0] >= 1.0:
         raise UnsolvableError(
             f"the policy does not stabilize the plant (spectral radius of A - BK is"
-            f" {radius:.6g} >= 1); its cost is infinite"
+            f" {radii[0]:.6g} >= 1); its cost is infinite"
         )
-    return _stein(closed_loop, _stage_weight(K_, Q_, R_, N_))
+    return P[0]
+
+
+def _policy_values(
+    A: Array, B: Array, K: Array, Q: Array, R: Array, N: Array
+) -> tuple[Array, Array]:
+    """The values of ``u = -K x`` on a stack of checked plants ``(p, n, n)``, ``(p, n, m)``
+    (``inf`` where it does not stabilize), and the spectral radii of ``A - BK``."""
+    closed_loops = A - B @ K
+    radii = _spectral_radii(closed_loops) if A.shape[1] else np.zeros(A.shape[0])
+    stable = radii < 1.0
+    P = np.full(closed_loops.shape, np.inf)
+    if np.any(stable):
+        weight = _stage_weight(K, Q, R, N)
+        P[stable] = _steins(closed_loops[stable], np.broadcast_to(weight, P[stable].shape))
+    return P, radii
+
+
+def _check_plants(A: ArrayLike, B: ArrayLike) -> tuple[Array, Array]:
+    """A stack of plants: ``(p, n, n)`` and ``(p, n, m)`` float arrays, p >= 1, finite (the
+    first plant's shapes checked, and named, as one plant's)."""
+    A_, B_ = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+    if A_.ndim != 3 or B_.ndim != 3 or A_.shape[0] != B_.shape[0] or A_.shape[0] == 0:
+        raise InputError(
+            f"A, B: expected stacks of p >= 1 plants, shapes (p, n, n) and (p, n, m), got"
+            f" {A_.shape} and {B_.shape}"
+        )
+    check_plant(A_[0], B_[0])
+    for name, stack in (("A", A_), ("B", B_)):
+        if not np.all(np.isfinite(stack)):
+            raise InputError(f"{name}: contains NaN or infinite values")
+    return A_, B_
+
+
+def _check_plant_or_stack(A: ArrayLike, B: ArrayLike) -> tuple[Array, Array]:
+    """One plant (:func:`check_plant`), or a stack of them given as 3-D ndarrays."""
+    if isinstance(A, np.ndarray) and A.ndim == 3:
+        return _check_plants(A, B)
+    return check_plant(A, B)
+
+
+def dpolicy_values(
+    A: ArrayLike,
+    B: ArrayLike,
+    K: ArrayLike,
+    Q: ArrayLike,
+    R: ArrayLike,
+    N: ArrayLike | None = None,
+) -> tuple[Array, Array]:
+    """:func:`dpolicy_value` of one policy on each of a stack of plants, in one solve.
+
+    The weights are checked once; the discrete Lyapunov equations of the stable closed
+    loops are solved as one batched Kronecker system (each plant's solution is the one
+    :func:`dpolicy_value` gives). A plant the policy does not stabilize is flagged by its
+    spectral radius (``>= 1``: the cost is infinite) instead of raising.
+
+    Parameters
+    ----------
+    A : array_like, shape (p, n, n)
+        State matrices of the discrete plants.
+    B : array_like, shape (p, n, m)
+        Input matrices of the discrete plants.
+    K : array_like, shape (m, n)
+        Feedback gain of the policy ``u_k = -K x_k``.
+    Q : array_like, shape (n, n)
+        State weight, symmetric positive semidefinite.
+    R : array_like, shape (m, m)
+        Input weight, symmetric positive definite.
+    N : array_like, shape (n, m), optional
+        Cross weight (default zero); ``[[Q, N], [N', R]]`` positive semidefinite.
+
+    Returns
+    -------
+    P : ndarray, shape (p, n, n)
+        Value matrix of the policy on each plant, symmetric; every entry ``inf`` on a
+        plant it does not stabilize.
+    radii : ndarray, shape (p,)
+        Spectral radius of each ``A - BK``: the policy stabilizes the plants below 1.
+
+    Raises
+    ------
+    InputError
+        If a shape is wrong, a value is not finite, or the weights are not as required.
+    """
+    A_, B_ = _check_plants(A, B)
+    _, _, Q_, R_, N_ = _check_cost(A_[0], B_[0], Q, R, N)
+    K_ = as_matrix(K, "K", (B_.shape[2], A_.shape[1]))
+    return _policy_values(A_, B_, K_, Q_, R_, N_)
 
 
 def sampled_data_weights(
@@ -350,36 +482,37 @@ def delay_augmented(Ad: ArrayLike, Bd: ArrayLike, d: int) -> tuple[Array, Array]
     Parameters
     ----------
     Ad : array_like, shape (n, n)
-        Discrete state matrix (exact ZOH, :func:`discretize`).
+        Discrete state matrix (exact ZOH, :func:`discretize`); or an ndarray of shape
+        ``(p, n, n)``, a stack of plants (then Bd one too), augmented each.
     Bd : array_like, shape (n, m)
-        Discrete input matrix (for the motor, A/V).
+        Discrete input matrix (for the motor, A/V); ``(p, n, m)`` with a stack.
     d : int
         Delay in samples, ``d >= 0``; ``d = 0`` returns ``(Ad, Bd)``.
 
     Returns
     -------
     Az : ndarray, shape (n + d m, n + d m)
-        State matrix of the augmented plant.
+        State matrix of the augmented plant (``(p, n + d m, n + d m)`` for a stack).
     Bz : ndarray, shape (n + d m, m)
-        Input matrix of the augmented plant.
+        Input matrix of the augmented plant (``(p, n + d m, m)`` for a stack).
 
     Raises
     ------
     InputError
         If a shape is wrong, a value is not finite, or d is not a whole number >= 0.
     """
-    Ad_, Bd_ = check_plant(Ad, Bd)
+    Ad_, Bd_ = _check_plant_or_stack(Ad, Bd)
     delay = positive_integer(d, "d", minimum=0)
     if delay == 0:
         return Ad_, Bd_
-    n, m = Bd_.shape
-    size = n + delay * m
-    Az = np.zeros((size, size))
-    Az[:n, :n] = Ad_
-    Az[:n, n : n + m] = Bd_
-    Az[n : size - m, n + m :] = np.eye((delay - 1) * m)
-    Bz = np.zeros((size, m))
-    Bz[size - m :] = np.eye(m)
+    n, m = Bd_.shape[-2:]
+    size, stack = n + delay * m, Ad_.shape[:-2]
+    Az = np.zeros((*stack, size, size))
+    Az[..., :n, :n] = Ad_
+    Az[..., :n, n : n + m] = Bd_
+    Az[..., n : size - m, n + m :] = np.eye((delay - 1) * m)
+    Bz = np.zeros((*stack, size, m))
+    Bz[..., size - m :, :] = np.eye(m)
     return Az, Bz
 
 
@@ -406,9 +539,12 @@ def integrator_augmented(
     Parameters
     ----------
     A : array_like, shape (n, n)
-        State matrix: continuous (1/s) without ``h``, discrete (dimensionless) with it.
+        State matrix: continuous (1/s) without ``h``, discrete (dimensionless) with it;
+        or an ndarray of shape ``(p, n, n)``, a stack of plants (then B one too),
+        augmented each.
     B : array_like, shape (n, m)
-        Input matrix of the same plant (for the motor, 1/H continuous, A/V discrete).
+        Input matrix of the same plant (for the motor, 1/H continuous, A/V discrete);
+        ``(p, n, m)`` with a stack.
     C : array_like, shape (r, n)
         Regulated output, ``e = C x`` (dimensionless for the motor's currents).
     h : float, optional
@@ -417,27 +553,27 @@ def integrator_augmented(
     Returns
     -------
     A_aug : ndarray, shape (n + r, n + r)
-        State matrix of ``[x; z]``.
+        State matrix of ``[x; z]`` (``(p, n + r, n + r)`` for a stack).
     B_aug : ndarray, shape (n + r, m)
-        Input matrix of ``[x; z]``.
+        Input matrix of ``[x; z]`` (``(p, n + r, m)`` for a stack).
 
     Raises
     ------
     InputError
         If a shape is wrong, a value is not finite, or h is not positive.
     """
-    A_, B_ = check_plant(A, B)
-    n, m = B_.shape
+    A_, B_ = _check_plant_or_stack(A, B)
+    n, m = B_.shape[-2:]
     C_ = as_matrix(C, "C", (None, n))
-    r = C_.shape[0]
-    A_aug = np.zeros((n + r, n + r))
-    A_aug[:n, :n] = A_
+    r, stack = C_.shape[0], A_.shape[:-2]
+    A_aug = np.zeros((*stack, n + r, n + r))
+    A_aug[..., :n, :n] = A_
     if h is None:
-        A_aug[n:, :n] = C_
+        A_aug[..., n:, :n] = C_
     else:
-        A_aug[n:, :n] = positive_finite(h, "h") * C_
-        A_aug[n:, n:] = np.eye(r)
-    return A_aug, np.vstack([B_, np.zeros((r, m))])
+        A_aug[..., n:, :n] = positive_finite(h, "h") * C_
+        A_aug[..., n:, n:] = np.eye(r)
+    return A_aug, np.concatenate([B_, np.zeros((*stack, r, m))], axis=-2)
 
 
 def _check_real_logarithm(Ad: Array, h: float) -> None:

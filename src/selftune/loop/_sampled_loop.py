@@ -58,6 +58,7 @@ from ..core import (
     delay_augmented,
     dlqr,
     dpolicy_value,
+    dpolicy_values,
     integrator_augmented,
     lqr,
     policy_value,
@@ -74,6 +75,14 @@ Cost = Literal["digital", "sampled"]
 #: What the drive holds over a sample: the dq voltage (``"rotor"``), or the stationary-frame
 #: voltage of a PWM inverter, which turns in dq as the rotor turns (``"stationary"``).
 Hold = Literal["rotor", "stationary"]
+
+
+def _stacked(plants: Sequence[tuple[ArrayLike, ArrayLike]]) -> tuple[Array, Array]:
+    """Several plants ``(Ad, Bd)`` as the stacks ``(p, n, n)`` and ``(p, n, m)``."""
+    return (
+        np.array([A for A, _ in plants], dtype=float),
+        np.array([B for _, B in plants], dtype=float),
+    )
 
 
 @dataclass(frozen=True)
@@ -231,22 +240,26 @@ class SampledLoop:
         Parameters
         ----------
         A : array_like, shape (n, n)
-            ``Ad`` of the sampled plant (A of the continuous plant when h = 0).
+            ``Ad`` of the sampled plant (A of the continuous plant when h = 0); or an
+            ndarray of shape ``(p, n, n)``, a stack of plants (then B one too).
         B : array_like, shape (n, m)
-            ``Bd``, the effect of the applied (held) voltage (B when h = 0).
+            ``Bd``, the effect of the applied (held) voltage (B when h = 0); ``(p, n, m)``
+            with a stack.
 
         Returns
         -------
         Az : ndarray, shape (nz, nz)
+            (``(p, nz, nz)`` for a stack.)
         Bz : ndarray, shape (nz, m)
+            (``(p, nz, m)`` for a stack.)
         """
         Az, Bz = delay_augmented(A, B, self.input_delay)
         if self.C is None:
             return Az, Bz
-        n = np.shape(A)[0]
+        n = np.shape(A)[-1]
         if self.C.shape[1] != n:
             raise InputError(f"C: has {self.C.shape[1]} columns, the plant has {n} states")
-        C_full = np.zeros((self.r, Az.shape[0]))
+        C_full = np.zeros((self.r, Az.shape[-1]))
         C_full[:, :n] = self.C
         return integrator_augmented(Az, Bz, C_full, None if self.continuous else self.h)
 
@@ -416,16 +429,20 @@ class SampledLoop:
         Parameters
         ----------
         plant : (Ad, Bd)
-            The sampled plant ((A, B) when h = 0: then ``s' = A_cl s + B_w w``).
+            The sampled plant ((A, B) when h = 0: then ``s' = A_cl s + B_w w``); or a
+            stack of them, ndarrays of shapes ``(p, n, n)`` and ``(p, n, m)``.
         law : ControlLaw
             The controller.
         Ed : array_like, shape (n, q), optional
-            The effect of the held reference on ``x_(k+1)`` (default zero).
+            The effect of the held reference on ``x_(k+1)`` (default zero; the same on
+            every plant of a stack).
 
         Returns
         -------
         A_cl : ndarray, shape (nz, nz)
+            (``(p, nz, nz)`` for a stack.)
         B_w : ndarray, shape (nz, q)
+            (``(p, nz, q)`` for a stack.)
         """
         Az, Bz = self.augmented(*plant)
         Kz = self.gain(law)
@@ -433,9 +450,9 @@ class SampledLoop:
         feed = law.U + law.K_x @ law.X + (law.K[:, n:] @ np.tile(law.U, (law.history, 1)))
         B_w = Bz @ feed
         if Ed is not None:
-            B_w[:n] += as_matrix(Ed, "Ed", (n, q))
+            B_w[..., :n, :] += as_matrix(Ed, "Ed", (n, q))
         if law.F is not None:
-            B_w[Az.shape[0] - law.r :] += (1.0 if self.continuous else self.h) * law.F
+            B_w[..., Az.shape[-1] - law.r :, :] += (1.0 if self.continuous else self.h) * law.F
         return Az - Bz @ Kz, B_w
 
     def spectral_radius(self, plant: tuple[ArrayLike, ArrayLike], law: ControlLaw) -> float:
@@ -469,7 +486,7 @@ class SampledLoop:
         """
         if self.continuous:
             raise InputError("h: the spectral radius is of a sampled loop (h > 0)")
-        A_cl = np.array([self.closed_loop(plant, law)[0] for plant in plants])
+        A_cl, _ = self.closed_loop(_stacked(plants), law)
         return np.asarray(np.max(np.abs(np.linalg.eigvals(A_cl)), axis=1), dtype=np.float64)
 
     def step_from_rest(self, X: ArrayLike, U: ArrayLike, w: ArrayLike) -> Array:
@@ -518,6 +535,45 @@ class SampledLoop:
             return policy_value(Az, Bz, Kz, weights.Qz, weights.Rz)
         P = dpolicy_value(Az, Bz, Kz, weights.Qz, weights.Rz, weights.Nz)
         return P + weights.first_stages
+
+    def values(
+        self,
+        plants: Sequence[tuple[ArrayLike, ArrayLike]],
+        law: ControlLaw,
+        weights: LoopWeights,
+    ) -> tuple[Array, Array]:
+        """:meth:`value` of ``law`` on each of several sampled plants, in one solve
+        (:func:`~selftune.core.dpolicy_values`: the weights checked once), with the
+        spectral radii that say where it is finite.
+
+        Parameters
+        ----------
+        plants : sequence of (Ad, Bd)
+            The sampled plants (at least one).
+        law : ControlLaw
+            The controller.
+        weights : LoopWeights
+            The cost (:meth:`weights`).
+
+        Returns
+        -------
+        P : ndarray, shape (len(plants), nz, nz)
+            The value matrices (the first stages included); every entry ``inf`` on a
+            plant the law does not stabilize (its cost is infinite).
+        radii : ndarray, shape (len(plants),)
+            The loop's spectral radius on each plant (:meth:`spectral_radii`): the law
+            stabilizes the plants below 1.
+
+        Raises
+        ------
+        InputError
+            On the continuous loop (h = 0), or as :meth:`value`.
+        """
+        if self.continuous:
+            raise InputError("h: the values of a stack of plants are of a sampled loop (h > 0)")
+        Az, Bz = self.augmented(*_stacked(plants))
+        P, radii = dpolicy_values(Az, Bz, self.gain(law), weights.Qz, weights.Rz, weights.Nz)
+        return P + weights.first_stages, radii
 
     def optimum(
         self, plant: tuple[ArrayLike, ArrayLike], weights: LoopWeights
