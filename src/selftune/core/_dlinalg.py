@@ -191,8 +191,11 @@ def _steins(closed_loops: Array, weights: Array) -> Array:
     return np.array([_stein(A, W) for A, W in zip(closed_loops, weights, strict=True)])
 
 
-def _hewer_refined(A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array) -> Array:
-    """One Hewer step from P (a discrete Lyapunov solve), kept if it lowers the residual.
+def _hewer_refined(
+    A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array
+) -> tuple[Array, Array]:
+    """One Hewer step from P (a discrete Lyapunov solve), kept if it lowers the residual;
+    the gain of the P kept, and P.
 
     Like the Kleinman-Newton step of the continuous LQR: scipy's generalized-Schur solution
     is accurate to about cond * eps, and one Newton step from there brings the relative
@@ -201,7 +204,7 @@ def _hewer_refined(A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array) -
     K = _gain(A, B, R, N, P)
     closed_loop = A - B @ K
     if _spectral_radius(closed_loop) >= 1.0:
-        return P
+        return K, P
     with warnings.catch_warnings():
         # a closed loop mixing scales (a delay and an integrator: V, A and A s) gives the
         # Kronecker system a tiny rcond even where the solve is accurate; the step is
@@ -209,14 +212,20 @@ def _hewer_refined(A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array) -
         warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
         refined = _stein(closed_loop, _stage_weight(K, Q, R, N))
     if not np.all(np.isfinite(refined)):
-        return P
+        return K, P
     if _riccati_residual(A, B, Q, R, N, refined) < _riccati_residual(A, B, Q, R, N, P):
-        return refined
-    return P
+        return _gain(A, B, R, N, refined), refined
+    return K, P
 
 
 def dlqr(
-    A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike, N: ArrayLike | None = None
+    A: ArrayLike,
+    B: ArrayLike,
+    Q: ArrayLike,
+    R: ArrayLike,
+    N: ArrayLike | None = None,
+    *,
+    checked: bool = False,
 ) -> tuple[Array, Array]:
     """Discrete-time LQR: the stabilizing solution of the discrete algebraic Riccati equation.
 
@@ -236,6 +245,11 @@ def dlqr(
     N : array_like, shape (n, m), optional
         Cross weight between state and input (default zero); the joint weight
         ``[[Q, N], [N', R]]`` must be positive semidefinite.
+    checked : bool, optional
+        Whether the caller has made the checks of the inputs below (``InputError``):
+        float ndarrays of these shapes, finite, Q psd, R pd and the joint weight psd, as
+        when they are built from weights already checked. Default False: they are made.
+        The stabilizability and detectability checks are made either way.
 
     Returns
     -------
@@ -253,7 +267,11 @@ def dlqr(
     InputError
         If a shape is wrong, a value is not finite, or the weights are not as required.
     """
-    A_, B_, Q_, R_, N_ = _check_cost(A, B, Q, R, N)
+    if checked:
+        A_, B_, Q_, R_ = (np.asarray(M, dtype=np.float64) for M in (A, B, Q, R))
+        N_ = np.zeros(B_.shape) if N is None else np.asarray(N, dtype=np.float64)
+    else:
+        A_, B_, Q_, R_, N_ = _check_cost(A, B, Q, R, N)
     _check_stabilizable(A_, B_)
     _check_detectable(A_, B_, Q_, R_, N_)
     try:
@@ -262,8 +280,7 @@ def dlqr(
         raise UnsolvableError(
             f"the discrete Riccati equation has no stabilizing solution ({exc})"
         ) from None
-    P = _hewer_refined(A_, B_, Q_, R_, N_, 0.5 * (P + P.T))
-    return _gain(A_, B_, R_, N_, P), P
+    return _hewer_refined(A_, B_, Q_, R_, N_, 0.5 * (P + P.T))
 
 
 def dpolicy_value(

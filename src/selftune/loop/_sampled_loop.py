@@ -576,7 +576,7 @@ class SampledLoop:
         return P + weights.first_stages, radii
 
     def optimum(
-        self, plant: tuple[ArrayLike, ArrayLike], weights: LoopWeights
+        self, plant: tuple[ArrayLike, ArrayLike], weights: LoopWeights, *, checked: bool = False
     ) -> tuple[Array, Array]:
         """The optimal gain over ``zeta`` and its value (the Riccati equation of the
         augmented plant; the first stages added to the value).
@@ -587,6 +587,10 @@ class SampledLoop:
             The sampled plant ((A, B) when h = 0).
         weights : LoopWeights
             The cost (:meth:`weights`).
+        checked : bool, optional
+            Whether the weights are known to be as :func:`~selftune.core.dlqr` requires
+            (the digital cost of a Q and R already checked, and the loop's ``Q_i``): the
+            sampled loop's Riccati solve does not check them again. Default False.
 
         Returns
         -------
@@ -602,7 +606,7 @@ class SampledLoop:
         try:
             if self.continuous:
                 return lqr(Az, Bz, weights.Qz, weights.Rz)
-            Kz, P = dlqr(Az, Bz, weights.Qz, weights.Rz, weights.Nz)
+            Kz, P = dlqr(Az, Bz, weights.Qz, weights.Rz, weights.Nz, checked=checked)
         except UnsolvableError as exc:
             raise UnsolvableError(f"{self.describe()}: {exc}") from None
         P = P + weights.first_stages

@@ -73,10 +73,8 @@ def _step_costs(
 ) -> Array:
     """``zeta_0' P zeta_0`` of the law on each model; inf where it does not stabilize it."""
     P, radii = loop.values([(model.Ad, model.Bd) for model in models], law, weights)
-    costs = np.full(len(models), np.inf)
-    stable = radii < 1.0
-    costs[stable] = (zeta0 @ P[stable]) @ zeta0
-    return costs
+    return np.array([zeta0 @ value @ zeta0 if radius < 1.0 else np.inf
+                     for value, radius in zip(P, radii, strict=True)])  # fmt: skip
 
 
 def _savings(
