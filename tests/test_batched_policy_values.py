@@ -214,3 +214,36 @@ def test_the_loops_values_are_each_plants_value() -> None:
         loop.value(plants[-1], law, weights)
     with pytest.raises(InputError, match="sampled loop"):
         SampledLoop(0.0).values(plants, law, weights)
+
+
+def test_one_gain_per_plant_gives_each_plants_value() -> None:
+    """A stack of gains, one per plant: each plant's value under its own gain, equal;
+    a stack of gains of the wrong shape is refused."""
+    rng = np.random.default_rng(9)
+    A, B, K = _stable_stack(rng, 5, 4, 2)
+    Q, R, N = _weights(rng, 4, 2)
+    gains = np.array([K * factor for factor in (1.0, 0.98, 1.02, 0.99, 1.01)])
+    P, radii = dpolicy_values(A, B, gains, Q, R, N)
+    for i in range(5):
+        if radii[i] < 1.0:
+            np.testing.assert_array_equal(P[i], dpolicy_value(A[i], B[i], gains[i], Q, R, N))
+        else:
+            assert np.all(np.isinf(P[i]))
+    with pytest.raises(InputError, match="one per plant"):
+        dpolicy_values(A, B, gains[:3], Q, R, N)
+
+
+def test_the_loop_values_one_law_per_plant() -> None:
+    """SampledLoop.values with a law per plant: each pair's value; as many laws as
+    plants, or refused."""
+    loop = SampledLoop(1e-4, 1, C=np.eye(2), F=-np.eye(2), Q_i=np.eye(2))
+    plants = _motor_plants(3)[:3]
+    laws = [_law(loop, plant) for plant in plants]
+    weights = loop.weights(1e3 * np.eye(2), np.eye(2))
+    P, radii = loop.values(plants + plants, laws + laws[::-1], weights)
+    pairs = list(zip(plants + plants, laws + laws[::-1], strict=True))
+    for i, (plant, law) in enumerate(pairs):
+        assert radii[i] < 1.0
+        np.testing.assert_array_equal(P[i], loop.value(plant, law, weights))
+    with pytest.raises(InputError, match="2 laws for 3 plants"):
+        loop.values(plants, laws[:2], weights)

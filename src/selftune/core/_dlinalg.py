@@ -119,9 +119,11 @@ def _riccati_residual(A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array
 
 
 def _stage_weight(K: Array, Q: Array, R: Array, N: Array) -> Array:
-    """``Q - N K - K'N' + K'RK``: the stage cost of ``u = -K x`` as a quadratic form in x."""
-    weight = Q - N @ K - K.T @ N.T + K.T @ R @ K
-    return np.asarray(0.5 * (weight + weight.T), dtype=np.float64)
+    """``Q - N K - K'N' + K'RK``: the stage cost of ``u = -K x`` as a quadratic form in x
+    (of each gain of a stack ``(p, m, n)``)."""
+    K_T = np.swapaxes(K, -1, -2)
+    weight = Q - N @ K - K_T @ N.T + K_T @ R @ K
+    return np.asarray(0.5 * (weight + np.swapaxes(weight, -1, -2)), dtype=np.float64)
 
 
 def _spectral_radius(M: Array) -> float:
@@ -337,15 +339,16 @@ def dpolicy_value(
 def _policy_values(
     A: Array, B: Array, K: Array, Q: Array, R: Array, N: Array
 ) -> tuple[Array, Array]:
-    """The values of ``u = -K x`` on a stack of checked plants ``(p, n, n)``, ``(p, n, m)``
-    (``inf`` where it does not stabilize), and the spectral radii of ``A - BK``."""
+    """The values of ``u = -K x`` (one gain, or one per plant) on a stack of checked plants
+    ``(p, n, n)``, ``(p, n, m)`` (``inf`` where it does not stabilize), and the spectral
+    radii of ``A - BK``."""
     closed_loops = A - B @ K
     radii = _spectral_radii(closed_loops) if A.shape[1] else np.zeros(A.shape[0])
     stable = radii < 1.0
     P = np.full(closed_loops.shape, np.inf)
     if np.any(stable):
-        weight = _stage_weight(K, Q, R, N)
-        P[stable] = _steins(closed_loops[stable], np.broadcast_to(weight, P[stable].shape))
+        weights = np.broadcast_to(_stage_weight(K, Q, R, N), closed_loops.shape)
+        P[stable] = _steins(closed_loops[stable], weights[stable])
     return P, radii
 
 
@@ -380,7 +383,8 @@ def dpolicy_values(
     R: ArrayLike,
     N: ArrayLike | None = None,
 ) -> tuple[Array, Array]:
-    """:func:`dpolicy_value` of one policy on each of a stack of plants, in one solve.
+    """:func:`dpolicy_value` of one policy (or one per plant) on each of a stack of plants,
+    in one solve.
 
     The weights are checked once; the discrete Lyapunov equations of the stable closed
     loops are solved as one batched Kronecker system (each plant's solution is the one
@@ -393,8 +397,8 @@ def dpolicy_values(
         State matrices of the discrete plants.
     B : array_like, shape (p, n, m)
         Input matrices of the discrete plants.
-    K : array_like, shape (m, n)
-        Feedback gain of the policy ``u_k = -K x_k``.
+    K : array_like, shape (m, n) or (p, m, n)
+        Feedback gain of the policy ``u_k = -K x_k``: one for every plant, or one each.
     Q : array_like, shape (n, n)
         State weight, symmetric positive semidefinite.
     R : array_like, shape (m, m)
@@ -417,7 +421,16 @@ def dpolicy_values(
     """
     A_, B_ = _check_plants(A, B)
     _, _, Q_, R_, N_ = _check_cost(A_[0], B_[0], Q, R, N)
-    K_ = as_matrix(K, "K", (B_.shape[2], A_.shape[1]))
+    count, n, m = B_.shape
+    if np.ndim(K) == 3:
+        K_ = np.asarray(K, dtype=float)
+        if K_.shape != (count, m, n) or not np.all(np.isfinite(K_)):
+            raise InputError(
+                f"K: expected one finite gain of shape ({m}, {n}) or one per plant"
+                f" ({count}, {m}, {n}), got shape {K_.shape}"
+            )
+    else:
+        K_ = as_matrix(K, "K", (m, n))
     return _policy_values(A_, B_, K_, Q_, R_, N_)
 
 

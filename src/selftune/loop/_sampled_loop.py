@@ -539,7 +539,7 @@ class SampledLoop:
     def values(
         self,
         plants: Sequence[tuple[ArrayLike, ArrayLike]],
-        law: ControlLaw,
+        law: ControlLaw | Sequence[ControlLaw],
         weights: LoopWeights,
     ) -> tuple[Array, Array]:
         """:meth:`value` of ``law`` on each of several sampled plants, in one solve
@@ -550,8 +550,8 @@ class SampledLoop:
         ----------
         plants : sequence of (Ad, Bd)
             The sampled plants (at least one).
-        law : ControlLaw
-            The controller.
+        law : ControlLaw or sequence of ControlLaw
+            The controller on every plant, or one controller per plant.
         weights : LoopWeights
             The cost (:meth:`weights`).
 
@@ -572,7 +572,13 @@ class SampledLoop:
         if self.continuous:
             raise InputError("h: the values of a stack of plants are of a sampled loop (h > 0)")
         Az, Bz = self.augmented(*_stacked(plants))
-        P, radii = dpolicy_values(Az, Bz, self.gain(law), weights.Qz, weights.Rz, weights.Nz)
+        if isinstance(law, ControlLaw):
+            Kz = self.gain(law)
+        else:
+            if len(law) != len(plants):
+                raise InputError(f"law: {len(law)} laws for {len(plants)} plants")
+            Kz = np.array([self.gain(each) for each in law])
+        P, radii = dpolicy_values(Az, Bz, Kz, weights.Qz, weights.Rz, weights.Nz)
         return P + weights.first_stages, radii
 
     def optimum(

@@ -64,19 +64,6 @@ class Certificate:
     saving_spread: float
 
 
-def _step_costs(
-    loop: SampledLoop,
-    models: list[DiscreteModel],
-    law: ControlLaw,
-    weights: LoopWeights,
-    zeta0: Array,
-) -> Array:
-    """``zeta_0' P zeta_0`` of the law on each model; inf where it does not stabilize it."""
-    P, radii = loop.values([(model.Ad, model.Bd) for model in models], law, weights)
-    return np.array([zeta0 @ value @ zeta0 if radius < 1.0 else np.inf
-                     for value, radius in zip(P, radii, strict=True)])  # fmt: skip
-
-
 def _savings(
     loop: SampledLoop,
     models: list[DiscreteModel],
@@ -84,10 +71,16 @@ def _savings(
     weights: LoopWeights,
     zeta0: Array,
 ) -> Array:
-    """``1 - J_candidate / J_current`` on each model (1 where the law in force does not
-    stabilize it)."""
-    new, old = (_step_costs(loop, models, law, weights, zeta0) for law in laws)
-    savings = np.ones(len(models))
+    """``1 - J_candidate / J_current`` on each model, ``J = zeta_0' P zeta_0`` (1 where the
+    law in force does not stabilize it; J infinite where a law does not): both laws on
+    all the models in one solve."""
+    count = len(models)
+    plants = [(model.Ad, model.Bd) for model in models]
+    P, radii = loop.values(plants + plants, [laws[0]] * count + [laws[1]] * count, weights)
+    costs = np.array([zeta0 @ value @ zeta0 if radius < 1.0 else np.inf
+                      for value, radius in zip(P, radii, strict=True)])  # fmt: skip
+    new, old = costs[:count], costs[count:]
+    savings = np.ones(count)
     finite = np.isfinite(old)
     savings[finite] = 1.0 - new[finite] / old[finite]
     return savings
