@@ -355,7 +355,10 @@ def _policy_values(
 def _check_plants(A: ArrayLike, B: ArrayLike) -> tuple[Array, Array]:
     """A stack of plants: ``(p, n, n)`` and ``(p, n, m)`` float arrays, p >= 1, finite (the
     first plant's shapes checked, and named, as one plant's)."""
-    A_, B_ = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+    try:
+        A_, B_ = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise InputError(f"A, B: not numeric stacks of matrices ({exc})") from None
     if A_.ndim != 3 or B_.ndim != 3 or A_.shape[0] != B_.shape[0] or A_.shape[0] == 0:
         raise InputError(
             f"A, B: expected stacks of p >= 1 plants, shapes (p, n, n) and (p, n, m), got"
@@ -397,8 +400,9 @@ def dpolicy_values(
         State matrices of the discrete plants.
     B : array_like, shape (p, n, m)
         Input matrices of the discrete plants.
-    K : array_like, shape (m, n) or (p, m, n)
-        Feedback gain of the policy ``u_k = -K x_k``: one for every plant, or one each.
+    K : array_like, shape (m, n)
+        Feedback gain of the policy ``u_k = -K x_k`` on every plant; or an ndarray of
+        shape ``(p, m, n)``, one gain per plant.
     Q : array_like, shape (n, n)
         State weight, symmetric positive semidefinite.
     R : array_like, shape (m, m)
@@ -422,7 +426,7 @@ def dpolicy_values(
     A_, B_ = _check_plants(A, B)
     _, _, Q_, R_, N_ = _check_cost(A_[0], B_[0], Q, R, N)
     count, n, m = B_.shape
-    if np.ndim(K) == 3:
+    if isinstance(K, np.ndarray) and K.ndim == 3:
         K_ = np.asarray(K, dtype=float)
         if K_.shape != (count, m, n) or not np.all(np.isfinite(K_)):
             raise InputError(
