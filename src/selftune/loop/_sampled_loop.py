@@ -66,8 +66,9 @@ from ..core import (
     sampled_data_weights,
 )
 from ..errors import InputError, UnsolvableError
+from ._weights import LoopWeights
 
-__all__ = ["Cost", "Hold", "LoopWeights", "SampledLoop"]
+__all__ = ["Cost", "Hold", "SampledLoop"]
 
 #: The costs of a loop (see the module docstring).
 Cost = Literal["digital", "sampled"]
@@ -79,33 +80,7 @@ Hold = Literal["rotor", "stationary"]
 
 def _stacked(plants: Sequence[tuple[ArrayLike, ArrayLike]]) -> tuple[Array, Array]:
     """Several plants ``(Ad, Bd)`` as the stacks ``(p, n, n)`` and ``(p, n, m)``."""
-    return (
-        np.array([A for A, _ in plants], dtype=float),
-        np.array([B for _, B in plants], dtype=float),
-    )
-
-
-@dataclass(frozen=True)
-class LoopWeights:
-    """The weights of a loop's cost over ``(zeta_k, ubar_k)``.
-
-    Attributes
-    ----------
-    Qz : ndarray, shape (nz, nz)
-        Weight of the augmented state.
-    Rz : ndarray, shape (m, m)
-        Weight of the computed input's deviation.
-    Nz : ndarray, shape (nz, m)
-        Cross weight.
-    first_stages : ndarray, shape (nz, nz)
-        The value of the stages no decision changes (the first d of the sampled cost), a
-        quadratic form in ``zeta_0``; zero otherwise.
-    """
-
-    Qz: Array
-    Rz: Array
-    Nz: Array
-    first_stages: Array
+    return np.array([A for A, _ in plants], float), np.array([B for _, B in plants], float)
 
 
 @dataclass(frozen=True, init=False)
@@ -240,18 +215,15 @@ class SampledLoop:
         Parameters
         ----------
         A : array_like, shape (n, n)
-            ``Ad`` of the sampled plant (A of the continuous plant when h = 0); or an
-            ndarray of shape ``(p, n, n)``, a stack of plants (then B one too).
+            ``Ad`` of the sampled plant (A of the continuous plant when h = 0); or a
+            stack of them, ``(p, n, n)`` (then B too, and the result, one more axis).
         B : array_like, shape (n, m)
-            ``Bd``, the effect of the applied (held) voltage (B when h = 0); ``(p, n, m)``
-            with a stack.
+            ``Bd``, the effect of the applied (held) voltage (B when h = 0).
 
         Returns
         -------
         Az : ndarray, shape (nz, nz)
-            (``(p, nz, nz)`` for a stack.)
         Bz : ndarray, shape (nz, m)
-            (``(p, nz, m)`` for a stack.)
         """
         Az, Bz = delay_augmented(A, B, self.input_delay)
         if self.C is None:
@@ -430,19 +402,16 @@ class SampledLoop:
         ----------
         plant : (Ad, Bd)
             The sampled plant ((A, B) when h = 0: then ``s' = A_cl s + B_w w``); or a
-            stack of them, ndarrays of shapes ``(p, n, n)`` and ``(p, n, m)``.
+            stack of them (:meth:`augmented`; then the result has one more axis).
         law : ControlLaw
             The controller.
         Ed : array_like, shape (n, q), optional
-            The effect of the held reference on ``x_(k+1)`` (default zero; the same on
-            every plant of a stack).
+            The effect of the held reference on ``x_(k+1)`` (default zero).
 
         Returns
         -------
         A_cl : ndarray, shape (nz, nz)
-            (``(p, nz, nz)`` for a stack.)
         B_w : ndarray, shape (nz, q)
-            (``(p, nz, q)`` for a stack.)
         """
         Az, Bz = self.augmented(*plant)
         Kz = self.gain(law)
@@ -542,9 +511,9 @@ class SampledLoop:
         law: ControlLaw | Sequence[ControlLaw],
         weights: LoopWeights,
     ) -> tuple[Array, Array]:
-        """:meth:`value` of ``law`` on each of several sampled plants, in one solve
-        (:func:`~selftune.core.dpolicy_values`: the weights checked once), with the
-        spectral radii that say where it is finite.
+        """:meth:`value` on each of several sampled plants in one solve (the weights checked
+        once, :func:`~selftune.core.dpolicy_values`), and the loop's spectral radii: the
+        value is finite below 1, every entry ``inf`` otherwise (InputError on h = 0).
 
         Parameters
         ----------
@@ -558,26 +527,15 @@ class SampledLoop:
         Returns
         -------
         P : ndarray, shape (len(plants), nz, nz)
-            The value matrices (the first stages included); every entry ``inf`` on a
-            plant the law does not stabilize (its cost is infinite).
         radii : ndarray, shape (len(plants),)
-            The loop's spectral radius on each plant (:meth:`spectral_radii`): the law
-            stabilizes the plants below 1.
-
-        Raises
-        ------
-        InputError
-            On the continuous loop (h = 0), or as :meth:`value`.
         """
         if self.continuous:
             raise InputError("h: the values of a stack of plants are of a sampled loop (h > 0)")
         Az, Bz = self.augmented(*_stacked(plants))
-        if isinstance(law, ControlLaw):
-            Kz = self.gain(law)
-        else:
-            if len(law) != len(plants):
-                raise InputError(f"law: {len(law)} laws for {len(plants)} plants")
-            Kz = np.array([self.gain(each) for each in law])
+        laws = [law] * len(plants) if isinstance(law, ControlLaw) else law
+        if len(laws) != len(plants):
+            raise InputError(f"law: {len(laws)} laws for {len(plants)} plants")
+        Kz = np.array([self.gain(each) for each in laws])
         P, radii = dpolicy_values(Az, Bz, Kz, weights.Qz, weights.Rz, weights.Nz)
         return P + weights.first_stages, radii
 
@@ -594,9 +552,8 @@ class SampledLoop:
         weights : LoopWeights
             The cost (:meth:`weights`).
         checked : bool, optional
-            Whether the weights are known to be as :func:`~selftune.core.dlqr` requires
-            (the digital cost of a Q and R already checked, and the loop's ``Q_i``): the
-            sampled loop's Riccati solve does not check them again. Default False.
+            The weights are known to be as :func:`~selftune.core.dlqr` requires (the
+            digital cost of a checked Q and R): not checked again (default False).
 
         Returns
         -------
