@@ -19,6 +19,7 @@ from ._dlinalg import (
     delay_augmented,
     dlqr,
     dpolicy_value,
+    dpolicy_values,
     integrator_augmented,
     sampled_data_weights,
 )
@@ -108,6 +109,7 @@ __all__ = [
     "discretize",
     "dlqr",
     "dpolicy_value",
+    "dpolicy_values",
     "expm_stack",
     "finite_float",
     "finite_or_null",

@@ -3,6 +3,7 @@
 - :func:`dlqr`: the stabilizing solution of the discrete algebraic Riccati equation (DARE)
   with a cross weight, refined by one Hewer (discrete Kleinman) step;
 - :func:`dpolicy_value`: the value of a given policy (a discrete Lyapunov equation);
+  :func:`dpolicy_values`: the same on a stack of plants, one batched solve;
 - :func:`sampled_data_weights`: the continuous cost integrated exactly over one sample
   with the input held (Van Loan 1978);
 - :func:`delay_augmented`: the plant seen by a controller with a computation delay of d
@@ -27,6 +28,7 @@ from numpy.typing import ArrayLike
 from ..errors import InputError, UnsolvableError
 from ._discretize import augmented
 from ._linalg import check_plant, format_eigenvalue, pbh_rank_loss, unique_eigenvalues
+from ._stein import _policy_values, _spectral_radius, _stage_weight, _stein
 from ._validation import (
     Array,
     as_matrix,
@@ -41,6 +43,7 @@ __all__ = [
     "delay_augmented",
     "dlqr",
     "dpolicy_value",
+    "dpolicy_values",
     "integrator_augmented",
     "sampled_data_weights",
 ]
@@ -111,42 +114,11 @@ def _riccati_residual(A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array
     return float(np.linalg.norm(residual) / max(scale, 1e-300))
 
 
-def _stage_weight(K: Array, Q: Array, R: Array, N: Array) -> Array:
-    """``Q - N K - K'N' + K'RK``: the stage cost of ``u = -K x`` as a quadratic form in x."""
-    weight = Q - N @ K - K.T @ N.T + K.T @ R @ K
-    return np.asarray(0.5 * (weight + weight.T), dtype=np.float64)
-
-
-def _spectral_radius(M: Array) -> float:
-    return float(np.max(np.abs(np.linalg.eigvals(M)))) if M.size else 0.0
-
-
-def _stein(closed_loop: Array, weight: Array) -> Array:
-    """The solution of ``P = closed_loop' P closed_loop + weight``, symmetrized.
-
-    The direct (Kronecker) solve is the most accurate, but scipy warns about its
-    conditioning whenever P's entries span many decades (an integrator beside fast
-    currents); its residual is what counts, so it is checked, and the bilinear solve is
-    used when it is the better one.
-    """
-
-    def residual(P: Array) -> float:
-        return float(np.linalg.norm(closed_loop.T @ P @ closed_loop - P + weight))
-
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", scipy.linalg.LinAlgWarning)
-        P = scipy.linalg.solve_discrete_lyapunov(closed_loop.T, weight)
-    if caught:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
-            other = scipy.linalg.solve_discrete_lyapunov(closed_loop.T, weight, method="bilinear")
-        if residual(other) < residual(P):
-            P = other
-    return np.asarray(0.5 * (P + P.T), dtype=np.float64)
-
-
-def _hewer_refined(A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array) -> Array:
-    """One Hewer step from P (a discrete Lyapunov solve), kept if it lowers the residual.
+def _hewer_refined(
+    A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array
+) -> tuple[Array, Array]:
+    """One Hewer step from P (a discrete Lyapunov solve), kept if it lowers the residual;
+    the gain of the P kept, and P.
 
     Like the Kleinman-Newton step of the continuous LQR: scipy's generalized-Schur solution
     is accurate to about cond * eps, and one Newton step from there brings the relative
@@ -155,7 +127,7 @@ def _hewer_refined(A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array) -
     K = _gain(A, B, R, N, P)
     closed_loop = A - B @ K
     if _spectral_radius(closed_loop) >= 1.0:
-        return P
+        return K, P
     with warnings.catch_warnings():
         # a closed loop mixing scales (a delay and an integrator: V, A and A s) gives the
         # Kronecker system a tiny rcond even where the solve is accurate; the step is
@@ -163,14 +135,20 @@ def _hewer_refined(A: Array, B: Array, Q: Array, R: Array, N: Array, P: Array) -
         warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
         refined = _stein(closed_loop, _stage_weight(K, Q, R, N))
     if not np.all(np.isfinite(refined)):
-        return P
+        return K, P
     if _riccati_residual(A, B, Q, R, N, refined) < _riccati_residual(A, B, Q, R, N, P):
-        return refined
-    return P
+        return _gain(A, B, R, N, refined), refined
+    return K, P
 
 
 def dlqr(
-    A: ArrayLike, B: ArrayLike, Q: ArrayLike, R: ArrayLike, N: ArrayLike | None = None
+    A: ArrayLike,
+    B: ArrayLike,
+    Q: ArrayLike,
+    R: ArrayLike,
+    N: ArrayLike | None = None,
+    *,
+    checked: bool = False,
 ) -> tuple[Array, Array]:
     """Discrete-time LQR: the stabilizing solution of the discrete algebraic Riccati equation.
 
@@ -190,6 +168,11 @@ def dlqr(
     N : array_like, shape (n, m), optional
         Cross weight between state and input (default zero); the joint weight
         ``[[Q, N], [N', R]]`` must be positive semidefinite.
+    checked : bool, optional
+        Whether the caller has made the checks of the inputs below (``InputError``):
+        float ndarrays of these shapes, finite, Q psd, R pd and the joint weight psd, as
+        when they are built from weights already checked. Default False: they are made.
+        The stabilizability and detectability checks are made either way.
 
     Returns
     -------
@@ -207,7 +190,11 @@ def dlqr(
     InputError
         If a shape is wrong, a value is not finite, or the weights are not as required.
     """
-    A_, B_, Q_, R_, N_ = _check_cost(A, B, Q, R, N)
+    if checked:
+        A_, B_, Q_, R_ = (np.asarray(M, dtype=np.float64) for M in (A, B, Q, R))
+        N_ = np.zeros(B_.shape) if N is None else np.asarray(N, dtype=np.float64)
+    else:
+        A_, B_, Q_, R_, N_ = _check_cost(A, B, Q, R, N)
     _check_stabilizable(A_, B_)
     _check_detectable(A_, B_, Q_, R_, N_)
     try:
@@ -216,8 +203,7 @@ def dlqr(
         raise UnsolvableError(
             f"the discrete Riccati equation has no stabilizing solution ({exc})"
         ) from None
-    P = _hewer_refined(A_, B_, Q_, R_, N_, 0.5 * (P + P.T))
-    return _gain(A_, B_, R_, N_, P), P
+    return _hewer_refined(A_, B_, Q_, R_, N_, 0.5 * (P + P.T))
 
 
 def dpolicy_value(
@@ -262,14 +248,99 @@ def dpolicy_value(
     """
     A_, B_, Q_, R_, N_ = _check_cost(A, B, Q, R, N)
     K_ = as_matrix(K, "K", (B_.shape[1], A_.shape[0]))
-    closed_loop = A_ - B_ @ K_
-    radius = _spectral_radius(closed_loop)
-    if radius >= 1.0:
+    P, radii = _policy_values(A_[np.newaxis], B_[np.newaxis], K_, Q_, R_, N_)
+    if radii[0] >= 1.0:
         raise UnsolvableError(
             f"the policy does not stabilize the plant (spectral radius of A - BK is"
-            f" {radius:.6g} >= 1); its cost is infinite"
+            f" {radii[0]:.6g} >= 1); its cost is infinite"
         )
-    return _stein(closed_loop, _stage_weight(K_, Q_, R_, N_))
+    return P[0]
+
+
+def _check_plants(A: ArrayLike, B: ArrayLike) -> tuple[Array, Array]:
+    """A stack of plants: ``(p, n, n)`` and ``(p, n, m)`` float arrays, p >= 1, finite (the
+    first plant's shapes checked, and named, as one plant's)."""
+    try:
+        A_, B_ = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise InputError(f"A, B: not numeric stacks of matrices ({exc})") from None
+    if A_.ndim != 3 or B_.ndim != 3 or A_.shape[0] != B_.shape[0] or A_.shape[0] == 0:
+        raise InputError(
+            f"A, B: expected stacks of p >= 1 plants, shapes (p, n, n) and (p, n, m), got"
+            f" {A_.shape} and {B_.shape}"
+        )
+    check_plant(A_[0], B_[0])
+    for name, stack in (("A", A_), ("B", B_)):
+        if not np.all(np.isfinite(stack)):
+            raise InputError(f"{name}: contains NaN or infinite values")
+    return A_, B_
+
+
+def _check_plant_or_stack(A: ArrayLike, B: ArrayLike) -> tuple[Array, Array]:
+    """One plant (:func:`check_plant`), or a stack of them given as 3-D ndarrays."""
+    if isinstance(A, np.ndarray) and A.ndim == 3:
+        return _check_plants(A, B)
+    return check_plant(A, B)
+
+
+def dpolicy_values(
+    A: ArrayLike,
+    B: ArrayLike,
+    K: ArrayLike,
+    Q: ArrayLike,
+    R: ArrayLike,
+    N: ArrayLike | None = None,
+) -> tuple[Array, Array]:
+    """:func:`dpolicy_value` of one policy (or one per plant) on each of a stack of plants,
+    in one solve.
+
+    The weights are checked once; the discrete Lyapunov equations of the stable closed
+    loops are solved as one batched Kronecker system (each plant's solution is the one
+    :func:`dpolicy_value` gives). A plant the policy does not stabilize is flagged by its
+    spectral radius (``>= 1``: the cost is infinite) instead of raising.
+
+    Parameters
+    ----------
+    A : array_like, shape (p, n, n)
+        State matrices of the discrete plants.
+    B : array_like, shape (p, n, m)
+        Input matrices of the discrete plants.
+    K : array_like, shape (m, n)
+        Feedback gain of the policy ``u_k = -K x_k`` on every plant; or an ndarray of
+        shape ``(p, m, n)``, one gain per plant.
+    Q : array_like, shape (n, n)
+        State weight, symmetric positive semidefinite.
+    R : array_like, shape (m, m)
+        Input weight, symmetric positive definite.
+    N : array_like, shape (n, m), optional
+        Cross weight (default zero); ``[[Q, N], [N', R]]`` positive semidefinite.
+
+    Returns
+    -------
+    P : ndarray, shape (p, n, n)
+        Value matrix of the policy on each plant, symmetric; every entry ``inf`` on a
+        plant it does not stabilize.
+    radii : ndarray, shape (p,)
+        Spectral radius of each ``A - BK``: the policy stabilizes the plants below 1.
+
+    Raises
+    ------
+    InputError
+        If a shape is wrong, a value is not finite, or the weights are not as required.
+    """
+    A_, B_ = _check_plants(A, B)
+    _, _, Q_, R_, N_ = _check_cost(A_[0], B_[0], Q, R, N)
+    count, n, m = B_.shape
+    if isinstance(K, np.ndarray) and K.ndim == 3:
+        K_ = np.asarray(K, dtype=float)
+        if K_.shape != (count, m, n) or not np.all(np.isfinite(K_)):
+            raise InputError(
+                f"K: expected one finite gain of shape ({m}, {n}) or one per plant"
+                f" ({count}, {m}, {n}), got shape {K_.shape}"
+            )
+    else:
+        K_ = as_matrix(K, "K", (m, n))
+    return _policy_values(A_, B_, K_, Q_, R_, N_)
 
 
 def sampled_data_weights(
@@ -350,36 +421,37 @@ def delay_augmented(Ad: ArrayLike, Bd: ArrayLike, d: int) -> tuple[Array, Array]
     Parameters
     ----------
     Ad : array_like, shape (n, n)
-        Discrete state matrix (exact ZOH, :func:`discretize`).
+        Discrete state matrix (exact ZOH, :func:`discretize`); or an ndarray of shape
+        ``(p, n, n)``, a stack of plants (then Bd one too), augmented each.
     Bd : array_like, shape (n, m)
-        Discrete input matrix (for the motor, A/V).
+        Discrete input matrix (for the motor, A/V); ``(p, n, m)`` with a stack.
     d : int
         Delay in samples, ``d >= 0``; ``d = 0`` returns ``(Ad, Bd)``.
 
     Returns
     -------
     Az : ndarray, shape (n + d m, n + d m)
-        State matrix of the augmented plant.
+        State matrix of the augmented plant (``(p, n + d m, n + d m)`` for a stack).
     Bz : ndarray, shape (n + d m, m)
-        Input matrix of the augmented plant.
+        Input matrix of the augmented plant (``(p, n + d m, m)`` for a stack).
 
     Raises
     ------
     InputError
         If a shape is wrong, a value is not finite, or d is not a whole number >= 0.
     """
-    Ad_, Bd_ = check_plant(Ad, Bd)
+    Ad_, Bd_ = _check_plant_or_stack(Ad, Bd)
     delay = positive_integer(d, "d", minimum=0)
     if delay == 0:
         return Ad_, Bd_
-    n, m = Bd_.shape
-    size = n + delay * m
-    Az = np.zeros((size, size))
-    Az[:n, :n] = Ad_
-    Az[:n, n : n + m] = Bd_
-    Az[n : size - m, n + m :] = np.eye((delay - 1) * m)
-    Bz = np.zeros((size, m))
-    Bz[size - m :] = np.eye(m)
+    n, m = Bd_.shape[-2:]
+    size, stack = n + delay * m, Ad_.shape[:-2]
+    Az = np.zeros((*stack, size, size))
+    Az[..., :n, :n] = Ad_
+    Az[..., :n, n : n + m] = Bd_
+    Az[..., n : size - m, n + m :] = np.eye((delay - 1) * m)
+    Bz = np.zeros((*stack, size, m))
+    Bz[..., size - m :, :] = np.eye(m)
     return Az, Bz
 
 
@@ -406,9 +478,12 @@ def integrator_augmented(
     Parameters
     ----------
     A : array_like, shape (n, n)
-        State matrix: continuous (1/s) without ``h``, discrete (dimensionless) with it.
+        State matrix: continuous (1/s) without ``h``, discrete (dimensionless) with it;
+        or an ndarray of shape ``(p, n, n)``, a stack of plants (then B one too),
+        augmented each.
     B : array_like, shape (n, m)
-        Input matrix of the same plant (for the motor, 1/H continuous, A/V discrete).
+        Input matrix of the same plant (for the motor, 1/H continuous, A/V discrete);
+        ``(p, n, m)`` with a stack.
     C : array_like, shape (r, n)
         Regulated output, ``e = C x`` (dimensionless for the motor's currents).
     h : float, optional
@@ -417,27 +492,27 @@ def integrator_augmented(
     Returns
     -------
     A_aug : ndarray, shape (n + r, n + r)
-        State matrix of ``[x; z]``.
+        State matrix of ``[x; z]`` (``(p, n + r, n + r)`` for a stack).
     B_aug : ndarray, shape (n + r, m)
-        Input matrix of ``[x; z]``.
+        Input matrix of ``[x; z]`` (``(p, n + r, m)`` for a stack).
 
     Raises
     ------
     InputError
         If a shape is wrong, a value is not finite, or h is not positive.
     """
-    A_, B_ = check_plant(A, B)
-    n, m = B_.shape
+    A_, B_ = _check_plant_or_stack(A, B)
+    n, m = B_.shape[-2:]
     C_ = as_matrix(C, "C", (None, n))
-    r = C_.shape[0]
-    A_aug = np.zeros((n + r, n + r))
-    A_aug[:n, :n] = A_
+    r, stack = C_.shape[0], A_.shape[:-2]
+    A_aug = np.zeros((*stack, n + r, n + r))
+    A_aug[..., :n, :n] = A_
     if h is None:
-        A_aug[n:, :n] = C_
+        A_aug[..., n:, :n] = C_
     else:
-        A_aug[n:, :n] = positive_finite(h, "h") * C_
-        A_aug[n:, n:] = np.eye(r)
-    return A_aug, np.vstack([B_, np.zeros((r, m))])
+        A_aug[..., n:, :n] = positive_finite(h, "h") * C_
+        A_aug[..., n:, n:] = np.eye(r)
+    return A_aug, np.concatenate([B_, np.zeros((*stack, r, m))], axis=-2)
 
 
 def _check_real_logarithm(Ad: Array, h: float) -> None:

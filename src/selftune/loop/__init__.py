@@ -10,6 +10,7 @@ ask it (an import contract keeps the order).
 
 from __future__ import annotations
 
-from ._sampled_loop import Cost, Hold, LoopWeights, SampledLoop
+from ._sampled_loop import Cost, Hold, SampledLoop
+from ._weights import LoopWeights
 
 __all__ = ["Cost", "Hold", "LoopWeights", "SampledLoop"]

@@ -58,6 +58,7 @@ from ..core import (
     delay_augmented,
     dlqr,
     dpolicy_value,
+    dpolicy_values,
     integrator_augmented,
     lqr,
     policy_value,
@@ -65,8 +66,9 @@ from ..core import (
     sampled_data_weights,
 )
 from ..errors import InputError, UnsolvableError
+from ._weights import LoopWeights
 
-__all__ = ["Cost", "Hold", "LoopWeights", "SampledLoop"]
+__all__ = ["Cost", "Hold", "SampledLoop"]
 
 #: The costs of a loop (see the module docstring).
 Cost = Literal["digital", "sampled"]
@@ -76,27 +78,9 @@ Cost = Literal["digital", "sampled"]
 Hold = Literal["rotor", "stationary"]
 
 
-@dataclass(frozen=True)
-class LoopWeights:
-    """The weights of a loop's cost over ``(zeta_k, ubar_k)``.
-
-    Attributes
-    ----------
-    Qz : ndarray, shape (nz, nz)
-        Weight of the augmented state.
-    Rz : ndarray, shape (m, m)
-        Weight of the computed input's deviation.
-    Nz : ndarray, shape (nz, m)
-        Cross weight.
-    first_stages : ndarray, shape (nz, nz)
-        The value of the stages no decision changes (the first d of the sampled cost), a
-        quadratic form in ``zeta_0``; zero otherwise.
-    """
-
-    Qz: Array
-    Rz: Array
-    Nz: Array
-    first_stages: Array
+def _stacked(plants: Sequence[tuple[ArrayLike, ArrayLike]]) -> tuple[Array, Array]:
+    """Several plants ``(Ad, Bd)`` as the stacks ``(p, n, n)`` and ``(p, n, m)``."""
+    return np.array([A for A, _ in plants], float), np.array([B for _, B in plants], float)
 
 
 @dataclass(frozen=True, init=False)
@@ -231,7 +215,8 @@ class SampledLoop:
         Parameters
         ----------
         A : array_like, shape (n, n)
-            ``Ad`` of the sampled plant (A of the continuous plant when h = 0).
+            ``Ad`` of the sampled plant (A of the continuous plant when h = 0); or a
+            stack of them, ``(p, n, n)`` (then B too, and the result, one more axis).
         B : array_like, shape (n, m)
             ``Bd``, the effect of the applied (held) voltage (B when h = 0).
 
@@ -243,10 +228,10 @@ class SampledLoop:
         Az, Bz = delay_augmented(A, B, self.input_delay)
         if self.C is None:
             return Az, Bz
-        n = np.shape(A)[0]
+        n = np.shape(A)[-1]
         if self.C.shape[1] != n:
             raise InputError(f"C: has {self.C.shape[1]} columns, the plant has {n} states")
-        C_full = np.zeros((self.r, Az.shape[0]))
+        C_full = np.zeros((self.r, Az.shape[-1]))
         C_full[:, :n] = self.C
         return integrator_augmented(Az, Bz, C_full, None if self.continuous else self.h)
 
@@ -416,7 +401,8 @@ class SampledLoop:
         Parameters
         ----------
         plant : (Ad, Bd)
-            The sampled plant ((A, B) when h = 0: then ``s' = A_cl s + B_w w``).
+            The sampled plant ((A, B) when h = 0: then ``s' = A_cl s + B_w w``); or a
+            stack of them (:meth:`augmented`; then the result has one more axis).
         law : ControlLaw
             The controller.
         Ed : array_like, shape (n, q), optional
@@ -433,9 +419,9 @@ class SampledLoop:
         feed = law.U + law.K_x @ law.X + (law.K[:, n:] @ np.tile(law.U, (law.history, 1)))
         B_w = Bz @ feed
         if Ed is not None:
-            B_w[:n] += as_matrix(Ed, "Ed", (n, q))
+            B_w[..., :n, :] += as_matrix(Ed, "Ed", (n, q))
         if law.F is not None:
-            B_w[Az.shape[0] - law.r :] += (1.0 if self.continuous else self.h) * law.F
+            B_w[..., Az.shape[-1] - law.r :, :] += (1.0 if self.continuous else self.h) * law.F
         return Az - Bz @ Kz, B_w
 
     def spectral_radius(self, plant: tuple[ArrayLike, ArrayLike], law: ControlLaw) -> float:
@@ -469,7 +455,7 @@ class SampledLoop:
         """
         if self.continuous:
             raise InputError("h: the spectral radius is of a sampled loop (h > 0)")
-        A_cl = np.array([self.closed_loop(plant, law)[0] for plant in plants])
+        A_cl, _ = self.closed_loop(_stacked(plants), law)
         return np.asarray(np.max(np.abs(np.linalg.eigvals(A_cl)), axis=1), dtype=np.float64)
 
     def step_from_rest(self, X: ArrayLike, U: ArrayLike, w: ArrayLike) -> Array:
@@ -519,8 +505,42 @@ class SampledLoop:
         P = dpolicy_value(Az, Bz, Kz, weights.Qz, weights.Rz, weights.Nz)
         return P + weights.first_stages
 
+    def values(
+        self,
+        plants: Sequence[tuple[ArrayLike, ArrayLike]],
+        law: ControlLaw | Sequence[ControlLaw],
+        weights: LoopWeights,
+    ) -> tuple[Array, Array]:
+        """:meth:`value` on each of several sampled plants in one solve (the weights checked
+        once, :func:`~selftune.core.dpolicy_values`), and the loop's spectral radii: the
+        value is finite below 1, every entry ``inf`` otherwise (InputError on h = 0).
+
+        Parameters
+        ----------
+        plants : sequence of (Ad, Bd)
+            The sampled plants (at least one).
+        law : ControlLaw or sequence of ControlLaw
+            The controller on every plant, or one controller per plant.
+        weights : LoopWeights
+            The cost (:meth:`weights`).
+
+        Returns
+        -------
+        P : ndarray, shape (len(plants), nz, nz)
+        radii : ndarray, shape (len(plants),)
+        """
+        if self.continuous:
+            raise InputError("h: the values of a stack of plants are of a sampled loop (h > 0)")
+        Az, Bz = self.augmented(*_stacked(plants))
+        laws = [law] * len(plants) if isinstance(law, ControlLaw) else law
+        if len(laws) != len(plants):
+            raise InputError(f"law: {len(laws)} laws for {len(plants)} plants")
+        Kz = np.array([self.gain(each) for each in laws])
+        P, radii = dpolicy_values(Az, Bz, Kz, weights.Qz, weights.Rz, weights.Nz)
+        return P + weights.first_stages, radii
+
     def optimum(
-        self, plant: tuple[ArrayLike, ArrayLike], weights: LoopWeights
+        self, plant: tuple[ArrayLike, ArrayLike], weights: LoopWeights, *, checked: bool = False
     ) -> tuple[Array, Array]:
         """The optimal gain over ``zeta`` and its value (the Riccati equation of the
         augmented plant; the first stages added to the value).
@@ -531,6 +551,9 @@ class SampledLoop:
             The sampled plant ((A, B) when h = 0).
         weights : LoopWeights
             The cost (:meth:`weights`).
+        checked : bool, optional
+            The weights are known to be as :func:`~selftune.core.dlqr` requires (the
+            digital cost of a checked Q and R): not checked again (default False).
 
         Returns
         -------
@@ -546,7 +569,7 @@ class SampledLoop:
         try:
             if self.continuous:
                 return lqr(Az, Bz, weights.Qz, weights.Rz)
-            Kz, P = dlqr(Az, Bz, weights.Qz, weights.Rz, weights.Nz)
+            Kz, P = dlqr(Az, Bz, weights.Qz, weights.Rz, weights.Nz, checked=checked)
         except UnsolvableError as exc:
             raise UnsolvableError(f"{self.describe()}: {exc}") from None
         P = P + weights.first_stages

@@ -74,7 +74,10 @@ def design_digital(
     """
     loop = problem.loop(model.h, delay)
     plant = (model.Ad, model.Bd)
-    K, P = loop.optimum(plant, loop.weights(problem.Q, problem.R, cost, plant=plant))
+    # the problem checked Q and R, its loop Q_i: the digital cost's weights, h Q, h Q_i
+    # and h R on their blocks, are as the Riccati solve requires; Van Loan's are checked
+    weights = loop.weights(problem.Q, problem.R, cost, plant=plant)
+    K, P = loop.optimum(plant, weights, checked=cost == "digital")
     held = np.zeros((problem.q, problem.q))
     X, U = _regulator(problem, model.Ad - np.eye(problem.n), model.Bd, model.Ed, held)
     return LearnedController(

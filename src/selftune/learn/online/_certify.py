@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core import Array, ControlLaw
-from ...errors import InputError, UnsolvableError
+from ...errors import InputError
 from ...loop import LoopWeights, SampledLoop
 from ..evidence._discrete_model import DiscreteModel
 from ..evidence._spmsm_structure import SpmsmStructure
@@ -64,28 +64,26 @@ class Certificate:
     saving_spread: float
 
 
-def _step_cost(
-    loop: SampledLoop, model: DiscreteModel, law: ControlLaw, weights: LoopWeights, zeta0: Array
-) -> float:
-    """``zeta_0' P zeta_0`` of the law on the model; inf if it does not stabilize it."""
-    try:
-        P = loop.value((model.Ad, model.Bd), law, weights)
-    except UnsolvableError:
-        return float("inf")
-    return float(zeta0 @ P @ zeta0)
-
-
-def _saving(
+def _savings(
     loop: SampledLoop,
-    model: DiscreteModel,
+    models: list[DiscreteModel],
     laws: tuple[ControlLaw, ControlLaw],
     weights: LoopWeights,
     zeta0: Array,
-) -> float:
-    """``1 - J_candidate / J_current`` on the model (1 where the law in force does not
-    stabilize it)."""
-    new, old = (_step_cost(loop, model, law, weights, zeta0) for law in laws)
-    return 1.0 if not np.isfinite(old) else 1.0 - new / old
+) -> Array:
+    """``1 - J_candidate / J_current`` on each model, ``J = zeta_0' P zeta_0`` (1 where the
+    law in force does not stabilize it; J infinite where a law does not): both laws on
+    all the models in one solve."""
+    count = len(models)
+    plants = [(model.Ad, model.Bd) for model in models]
+    P, radii = loop.values(plants + plants, [laws[0]] * count + [laws[1]] * count, weights)
+    costs = np.array([zeta0 @ value @ zeta0 if radius < 1.0 else np.inf
+                      for value, radius in zip(P, radii, strict=True)])  # fmt: skip
+    new, old = costs[:count], costs[count:]
+    savings = np.ones(count)
+    finite = np.isfinite(old)
+    savings[finite] = 1.0 - new[finite] / old[finite]
+    return savings
 
 
 def certify(
@@ -124,7 +122,11 @@ def certify(
     limit = largest_radius(radius)
     cost = loop.weights(*weights, "digital")
     zeta0 = loop.step_from_rest(candidate.X, candidate.U, w)
-    first = _saving(loop, nominal, (candidate, current), cost, zeta0) if radius < 1.0 else 0.0
+    first = (
+        float(_savings(loop, [nominal], (candidate, current), cost, zeta0)[0])
+        if radius < 1.0
+        else 0.0
+    )
     if radius < 1.0 and not first > least_saving:  # no sweep needed to keep the law
         reason = (
             f"the step's cost on the estimated plant changes by {-first:+.3%}, not beyond "
@@ -149,9 +151,8 @@ def certify(
             f"(spectral radius up to {float(np.max(radii)):.6f}, at most {limit:.6f})"
         )
         return Certificate(False, reason, radii, limit, float("nan"), float("nan"))
-    savings = [first] + [
-        _saving(loop, model, (candidate, current), cost, zeta0) for model in models[1:]
-    ]
+    swept = _savings(loop, models[1:], (candidate, current), cost, zeta0)
+    savings = np.concatenate([[first], swept])
     saving, spread = float(np.mean(savings)), float(np.std(savings, ddof=1))
     certified = saving > max(spread, least_saving)
     change = "falls" if saving > 0.0 else "rises" if saving < 0.0 else "changes"
