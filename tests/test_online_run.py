@@ -375,28 +375,117 @@ def physical_estimate_at(structure: SpmsmStructure, theta: np.ndarray) -> np.nda
     return np.column_stack(columns)
 
 
-def test_a_recorded_log_replayed_gives_the_live_events(files: tuple[Path, Path]) -> None:
-    """The rows a run fed its tuner, written as CSV and read back, make a fresh tuner
-    decide what the live one did, at the same times."""
-    import io
-
-    from selftune.tuning import LOG_COLUMNS, online_settings, replay
-
+@pytest.fixture(scope="module")
+def logged(
+    files: tuple[Path, Path], tmp_path_factory: pytest.TempPathFactory
+) -> tuple[OnlineRun, Path, Path]:
+    """A 1 s run with its log, written as CSV, and its cold law as a JSON result."""
     config = load_motor_config(files[0])
     assert config.drive is not None
     settings = tuning_settings(config, 0, "digital")
     online = load_online_config(files[1])
     run = run_online(config.motor, settings, config.drive, online.profile, 1.0, keep_log=True)
-    assert run.log is not None and run.log.shape == (10_000, len(LOG_COLUMNS))
-    text = io.StringIO()
-    np.savetxt(text, run.log, fmt="%.17g", delimiter=",", header=",".join(LOG_COLUMNS))
-    log = np.loadtxt(io.StringIO(text.getvalue()), delimiter=",")
-    events, seconds = replay(log, online_settings(config.motor, settings, config.drive),
-                             run.cold.law, 100)  # fmt: skip
+    directory = tmp_path_factory.mktemp("log")
+    assert run.log is not None
+    from selftune.tuning import LOG_COLUMNS
+
+    log, law = directory / "log.csv", directory / "law.json"
+    np.savetxt(log, run.log, fmt="%.17g", delimiter=",", header=",".join(LOG_COLUMNS),
+               comments="")  # fmt: skip
+    law.write_text(json.dumps(selftune.core.to_jsonable({"control_law": run.cold.law.document()})))
+    return run, log, law
+
+
+def test_a_recorded_log_replayed_gives_the_live_events(
+    files: tuple[Path, Path], logged: tuple[OnlineRun, Path, Path]
+) -> None:
+    """The rows a run fed its tuner, written as CSV and read back, make a fresh tuner
+    decide what the live one did, at the same times."""
+    from selftune.tuning import LOG_COLUMNS, online_settings, replay
+
+    run, path, _ = logged
+    config = load_motor_config(files[0])
+    assert config.drive is not None and run.log is not None
+    assert run.log.shape == (10_000, len(LOG_COLUMNS))
+    settings = online_settings(config.motor, tuning_settings(config, 0, "digital"), config.drive)
+    log = np.loadtxt(path, delimiter=",", skiprows=1)
+    events, seconds = replay(log, settings, run.cold.law, 100)
     assert seconds > 0.0
     live = [(t, e.kind, e.reason) for t, e in zip(run.events_time, run.events, strict=True)]
     assert [(pytest.approx(t), k, r) for t, k, r in live] == [
         (t, e.kind, e.reason) for t, e in events
     ]
     with pytest.raises(selftune.InputError, match="columns"):
-        replay(log[:, :5], online_settings(config.motor, settings, config.drive), run.cold.law, 100)
+        replay(log[:, :5], settings, run.cold.law, 100)
+
+
+def test_follow_prints_the_live_events_from_a_file_or_standard_input(
+    files: tuple[Path, Path],
+    logged: tuple[OnlineRun, Path, Path],
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``selftune follow`` on the log (a file, then standard input): one JSON line per
+    event, the live run's kinds and reasons; a law handed over with every matrix."""
+    import io
+
+    run, log, law = logged
+    live = [(e.kind, e.reason) for e in run.events]
+    for source in (str(log), "-"):
+        if source == "-":
+            monkeypatch.setattr("sys.stdin", io.StringIO(log.read_text()))
+        assert main(["follow", source, "--motor", str(files[0]), "--law", str(law)]) == 0
+        lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+        assert [(line["kind"], line["reason"]) for line in lines] == live
+        for line in lines:
+            if line["kind"] in ("switch", "rescale", "revert"):
+                assert {"K", "X", "U", "K_i", "F", "h"} <= set(line["control_law"])
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda text: text.replace(",theta", ",angle", 1), "line 1, column 8"),
+        (lambda text: "\n".join(line.rsplit(",", 1)[0] for line in text.splitlines()),
+         "the columns must be t,x1,x2,u1,u2,w1,w2,theta"),
+        (lambda text: text.replace("\n", "\n0,nan,0,0,0,0,0,0\n", 1), "line 2"),
+        (lambda text: "\n".join(text.splitlines()[:50] + text.splitlines()[40:]), "line 51"),
+    ],
+)  # fmt: skip
+def test_follow_names_the_bad_line_and_column(
+    files: tuple[Path, Path],
+    logged: tuple[OnlineRun, Path, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    edit: object,
+    message: str,
+) -> None:
+    _, log, law = logged
+    bad = tmp_path / "bad.csv"
+    bad.write_text(edit(log.read_text()))  # type: ignore[operator]
+    assert main(["follow", str(bad), "--motor", str(files[0]), "--law", str(law)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and str(bad) in error and message in error, error
+
+
+def test_follow_refuses_a_law_that_does_not_fit(
+    files: tuple[Path, Path],
+    logged: tuple[OnlineRun, Path, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    run, log, _ = logged
+    cases = {
+        "none.json": ({"result": 1}, "control_law: missing"),
+        "nodelay.json": ({"control_law": {**run.cold.law.document(), "history": 0,
+                                          "K": run.cold.law.K[:, :2]}}, "law: it feeds back 0"),
+        "garbled.json": ("{", "not a JSON file"),
+    }  # fmt: skip
+    for name, (content, message) in cases.items():
+        path = tmp_path / name
+        text = content if isinstance(content, str) else json.dumps(
+            selftune.core.to_jsonable(content))  # fmt: skip
+        path.write_text(text)
+        assert main(["follow", str(log), "--motor", str(files[0]), "--law", str(path)]) == 2
+        error = capsys.readouterr().err.strip()
+        assert len(error.splitlines()) == 1 and message in error, (name, error)

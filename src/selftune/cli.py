@@ -324,6 +324,40 @@ def _run_tune(args: argparse.Namespace) -> int:
     )
 
 
+def _add_follow(subparsers: _Subparsers) -> None:
+    parser = _add_command(
+        subparsers,
+        "follow",
+        _run_follow,
+        help="run the online tuner on a drive's log as it arrives (a CSV file or standard input)",
+        description=(
+            "Feed a drive's log, as it arrives, to the online tuner: LOG.csv (or - for"
+            " standard input) with the columns t,x1,x2,u1,u2,w1,w2 and, with dead time,"
+            " theta (u the voltage commanded at each row). MOTOR.toml says what the tuner"
+            " knows (pole pairs, speed, torque reference, nameplate flux, cost, the [drive]"
+            " table's period, delay and dead time); --law the controller in force at the"
+            " first row (a selftune JSON result). Prints one JSON line per event: a change"
+            " detected, a law to switch to (certified, rescaled for the flux, or the"
+            " watchdog's return) with every matrix, or why the law in force stays."
+        ),
+    )
+    parser.add_argument("log", metavar="LOG.csv", help="the log, or - for standard input")
+    parser.add_argument("--motor", metavar="MOTOR.toml", required=True, help="the motor file")
+    parser.add_argument(
+        "--law",
+        metavar="RESULT.json",
+        required=True,
+        help="the controller in force at the first row: a selftune tune or learn JSON",
+    )
+
+
+def _run_follow(args: argparse.Namespace) -> int:
+    from .commands import follow_command
+    from .config import load_motor_config
+
+    return follow_command(load_motor_config(args.motor), args.law, args.log)
+
+
 def _add_bench(subparsers: _Subparsers) -> None:
     parser = _add_command(
         subparsers,
@@ -355,6 +389,7 @@ _COMMANDS: tuple[Callable[[_Subparsers], None], ...] = (
     _add_tune,
     _add_solve,
     _add_learn,
+    _add_follow,
     _add_bench,
 )
 

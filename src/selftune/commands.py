@@ -480,6 +480,58 @@ def online_command(
     return 0
 
 
+def follow_command(config: MotorConfig, law_path: str, log_path: str) -> int:
+    """``selftune follow``: the online tuner's events on a drive's log as it arrives,
+    one JSON line each on standard output.
+
+    Parameters
+    ----------
+    config : MotorConfig
+        What the tuner knows (the motor file; without a ``[drive]`` table, the ideal
+        drive at the ``[learning]`` sampling period).
+    law_path : str
+        The JSON result whose controller is in force at the log's first row.
+    log_path : str
+        The CSV log, or ``-`` for standard input.
+    """
+    import io
+
+    from .config import load_control_law
+    from .core._atomic import open_regular_file
+    from .learn import read_csv_chunks
+    from .learn.online import OnlineTuner
+    from .sim import DriveSettings
+    from .tuning import CHUNK_SECONDS, follow, online_settings, tuning_settings
+
+    settings = tuning_settings(config, 0, "digital")
+    drive = config.drive if config.drive is not None else DriveSettings()
+    tuner = online_settings(config.motor, settings, drive)
+    law = load_control_law(law_path)
+    try:  # the law must fit the drive: said of the file that gave it
+        OnlineTuner(tuner, law)
+    except InputError as exc:
+        raise DataFileError(f"{law_path}: {exc}") from None
+    rows = max(1, round(CHUNK_SECONDS / settings.h))
+    if log_path == STANDARD_OUTPUT:
+        stream, source = sys.stdin, "standard input"
+    else:
+        stream = io.TextIOWrapper(open_regular_file(log_path), encoding="utf-8", newline="")
+        source = log_path
+    names = tuner.structure.names(tuner.dead_time)
+    with stream:
+        for time, event in follow(tuner, law, read_csv_chunks(stream, source, rows), source):
+            line: dict[str, Any] = {"time": time, "kind": event.kind, "reason": event.reason}
+            if event.law is not None:
+                line["control_law"] = event.law.document()
+            if event.estimate is not None:
+                line["estimate"] = dict(zip(names, event.estimate.theta, strict=True))
+                line["standard_errors"] = dict(
+                    zip(names, event.estimate.standard_errors, strict=True)
+                )
+            print(json.dumps(finite_or_null(to_jsonable(line))), flush=True)
+    return 0
+
+
 def reproduce_command(out: str, seed: int) -> int:
     """``selftune reproduce``: the paper's Section V into ``out``, with progress on a
     terminal.

@@ -7,11 +7,14 @@
 - :func:`load_learn_config` -> :class:`LearnConfig`: what ``selftune learn`` needs
   besides the data (:mod:`._learn_file`);
 - :func:`load_online_config` -> :class:`OnlineConfig`: an online run's duration and the
-  profile of the motor's R_s, L_s and phi_pm over time (:mod:`._online_file`).
+  profile of the motor's R_s, L_s and phi_pm over time (:mod:`._online_file`);
+- :func:`load_control_law` -> :class:`~selftune.core.ControlLaw`: the controller a JSON
+  result names (:mod:`._law_file`).
 """
 
 from __future__ import annotations
 
+from ._law_file import load_control_law
 from ._learn_file import LEARN_TABLES, LearnConfig, load_learn_config
 from ._motor_file import MOTOR_TABLES, MotorConfig, load_motor_config
 from ._online_file import ONLINE_TABLES, PROFILE_KEYS, OnlineConfig, load_online_config
@@ -28,6 +31,7 @@ __all__ = [
     "LearnConfig",
     "MotorConfig",
     "OnlineConfig",
+    "load_control_law",
     "load_learn_config",
     "load_motor_config",
     "load_online_config",

@@ -32,7 +32,16 @@ from __future__ import annotations
 from ._pipeline import aligned_trajectory, assess, learn_controller
 from ._problem import LearningOptions, LearningProblem, Method, Target
 from ._result import DiscountStage, Formulation, LearnedController
-from .data._io import load_csv, load_npz, load_trajectory, save_csv, save_npz, save_trajectory
+from .data._io import (
+    CsvHeader,
+    load_csv,
+    load_npz,
+    load_trajectory,
+    read_csv_chunks,
+    save_csv,
+    save_npz,
+    save_trajectory,
+)
 from .data._trajectory import Trajectory, as_trajectories
 from .evidence._alignment import (
     CANDIDATE_SHIFTS,
@@ -96,6 +105,7 @@ __all__ = [
     "TOO_LITTLE_DATA",
     "Alignment",
     "ConsistencyTest",
+    "CsvHeader",
     "DigitalTransitions",
     "DiscountStage",
     "DiscreteModel",
@@ -150,6 +160,7 @@ __all__ = [
     "phase_signs",
     "policy_iteration",
     "policy_step",
+    "read_csv_chunks",
     "regression",
     "sampling_period",
     "save_csv",

@@ -25,15 +25,15 @@ each instant is the report's (:mod:`selftune.report`), computed from this record
 from __future__ import annotations
 
 import time as clock
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..errors import InputError
-from ..learn import LearningProblem
+from ..errors import DataFileError, InputError
+from ..learn import CsvHeader, LearningProblem
 from ..learn.online import OnlineSettings, OnlineTuner, TunerEvent
 from ..model import SPMSM
 from ..sim import DriveSettings, ParameterProfile, RealisticDrive
@@ -50,6 +50,7 @@ __all__ = [
     "TORQUE_LEVELS",
     "OnlineRun",
     "OnlineSwitch",
+    "follow",
     "online_settings",
     "replay",
     "run_online",
@@ -67,7 +68,7 @@ SEGMENT_CHUNKS = 10
 PROBING_SHARE = 0.005
 #: The columns of a recorded log (:attr:`OnlineRun.log`): time (s), the measured
 #: currents (A), the commanded voltages (V), the reference and the electrical angle (rad).
-LOG_COLUMNS = ("t", "x1", "x2", "u1", "u2", "w1", "w2", "angle")
+LOG_COLUMNS = ("t", "x1", "x2", "u1", "u2", "w1", "w2", "theta")
 
 
 @dataclass(frozen=True)
@@ -245,6 +246,17 @@ def online_settings(motor: SPMSM, settings: TuningSettings, drive: DriveSettings
     )  # fmt: skip
 
 
+def _events(
+    tuner: OnlineTuner, tables: Iterable[Array], h: float
+) -> Iterator[tuple[float, TunerEvent]]:
+    """Feed ``tables`` (rows of :data:`LOG_COLUMNS`) to ``tuner``, chunk by chunk; each
+    event with the time of the sample after its chunk's last row, s."""
+    for rows in tables:
+        angle = rows[:, 7] if rows.shape[1] > 7 else None
+        for event in tuner.feed(rows[:, 1:3], rows[:, 3:5], rows[:, 5:7], angle):
+            yield float(rows[-1, 0] + h), event
+
+
 def replay(
     log: Array, settings: OnlineSettings, law: ControlLaw, chunk: int
 ) -> tuple[list[tuple[float, TunerEvent]], float]:
@@ -265,20 +277,65 @@ def replay(
     Returns
     -------
     events : list of (float, TunerEvent)
-        Each event with the time of the row that ended its chunk, s.
+        Each event with the time of the sample after its chunk, s.
     seconds : float
         The tuner's CPU time, s.
     """
     if log.ndim != 2 or log.shape[1] != len(LOG_COLUMNS):
         raise InputError(f"log: needs the {len(LOG_COLUMNS)} columns {', '.join(LOG_COLUMNS)}")
     tuner = OnlineTuner(settings, law)
-    events: list[tuple[float, TunerEvent]] = []
     started = clock.process_time()
-    for first in range(0, log.shape[0], chunk):
-        rows = log[first : first + chunk]
-        for event in tuner.feed(rows[:, 1:3], rows[:, 3:5], rows[:, 5:7], rows[:, 7]):
-            events.append((float(rows[-1, 0] + settings.h), event))
+    tables = (log[first : first + chunk] for first in range(0, log.shape[0], chunk))
+    events = list(_events(tuner, tables, settings.h))
     return events, clock.process_time() - started
+
+
+def follow(
+    settings: OnlineSettings,
+    law: ControlLaw,
+    chunks: Iterable[tuple[CsvHeader, Array]],
+    source: str,
+) -> Iterator[tuple[float, TunerEvent]]:
+    """The tuner's events as a drive's log arrives (``selftune follow``).
+
+    Parameters
+    ----------
+    settings : OnlineSettings
+        What the tuner knows.
+    law : ControlLaw
+        The law in force at the log's first row.
+    chunks : iterable of (CsvHeader, ndarray)
+        The log's rows as they arrive (:func:`selftune.learn.read_csv_chunks`): columns
+        ``t,x1,x2,u1,u2,w1,w2`` and, with dead time, ``theta``; ``u`` the voltage
+        commanded at each row (applied ``settings.input_delay`` rows later).
+    source : str
+        The log's name, for messages.
+
+    Yields
+    ------
+    (float, TunerEvent)
+        Each event, with the time of the sample after the chunk that raised it, s.
+
+    Raises
+    ------
+    DataFileError
+        Naming the log, if its columns are not those.
+    """
+    tuner = OnlineTuner(settings, law)
+    wanted = ",".join(LOG_COLUMNS if settings.dead_time else LOG_COLUMNS[:-1])
+
+    def tables() -> Iterator[Array]:
+        for header, table in chunks:
+            if (header.n, header.m, header.q) != (2, 2, 2) or (
+                settings.dead_time and not header.angle
+            ):
+                got = ",".join(header.names)
+                reason = "; the dead-time model needs theta" if settings.dead_time else ""
+                raise DataFileError(f"{source}: line 1: the columns must be {wanted}, got {got}"
+                                    f"{reason}")  # fmt: skip
+            yield table
+
+    yield from _events(tuner, tables(), settings.h)
 
 
 def run_online(

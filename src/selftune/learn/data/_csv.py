@@ -3,11 +3,13 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
+from collections.abc import Iterator
 from io import BytesIO
 from pathlib import Path
-from typing import NamedTuple
+from typing import IO, NamedTuple
 
 import numpy as np
 
@@ -25,7 +27,7 @@ from ._data_file import (
 )
 from ._trajectory import Trajectory
 
-__all__ = ["csv_dimensions", "load_csv", "save_csv"]
+__all__ = ["CsvHeader", "csv_dimensions", "load_csv", "read_csv_chunks", "save_csv"]
 
 _CSV_CHUNK_ROWS = 10_000
 # Bytes of data lines checked and parsed at a time (a block ends at a line end): what
@@ -43,7 +45,8 @@ _ANGLE = "theta"  # the column of the electrical rotor angle (Trajectory.angle)
 
 
 class CsvHeader(NamedTuple):
-    """The column names of a CSV file and what they hold."""
+    """The column names of a CSV file and what they hold: the names, n, m, q, and
+    whether the last column is the rotor angle ``theta``."""
 
     names: list[str]
     n: int
@@ -192,10 +195,11 @@ def csv_dimensions(path: Path) -> tuple[int, int, int]:
     return parsed.n, parsed.m, parsed.q
 
 
-def _locate_csv_error(path: Path, lines: list[str], names: list[str]) -> None:
-    """Find the first malformed data line or field and raise a DataFileError about it."""
+def _locate_csv_error(path: Path, lines: list[str], names: list[str], first: int = 2) -> None:
+    """Find the first malformed data line or field and raise a DataFileError about it
+    (``lines`` start at line ``first`` of the file; the header is line 1)."""
     for index, line in enumerate(lines):
-        number = index + 2  # the header is line 1
+        number = index + first
         fields = line.split(",")
         if len(fields) != len(names):
             what = "an empty line" if not line.strip(_FIELD_WHITESPACE) else f"{len(fields)}"
@@ -210,6 +214,74 @@ def _locate_csv_error(path: Path, lines: list[str], names: list[str]) -> None:
                 raise file_error(path, f"{place}: not a finite number: {quote(field)}")
             if value is None or _BAD_FIELD_CHARACTER.search(field):
                 raise file_error(path, f"{place}: not a number: {quote(field)}")
+
+
+#: Characters a data line read as it arrives may hold (the file reader's grammar).
+_STREAM_BAD = re.compile(r"[^0-9eE.+\-, \t\r\n]")
+
+
+def read_csv_chunks(stream: IO[str], source: str, rows: int) -> Iterator[tuple[CsvHeader, Array]]:
+    """The rows of a CSV trajectory (the format of :func:`load_csv`) as they arrive,
+    ``rows`` at a time: a pipe or standard input is read line by line, never whole.
+
+    Parameters
+    ----------
+    stream : text stream
+        The file or standard input, at its start.
+    source : str
+        Its name, for messages.
+    rows : int
+        Rows per chunk (the last may have fewer).
+
+    Yields
+    ------
+    header : CsvHeader
+        The columns.
+    table : ndarray, shape (rows, columns)
+        The next rows, in the header's order.
+
+    Raises
+    ------
+    DataFileError
+        As :func:`load_csv`, naming the line and the column, when the bad line arrives.
+    """
+    path = Path(source)
+    line = stream.readline()
+    if not line:
+        raise file_error(path, f"empty: expected the header line {_HEADER}")
+    header = _parse_header(path, line.lstrip("\ufeff").rstrip("\r\n"))
+    number, last_time = 2, -math.inf
+    while True:
+        lines = [text.rstrip("\r\n") for text in itertools.islice(stream, rows)]
+        while lines and not lines[-1].strip(_FIELD_WHITESPACE):  # trailing blank lines
+            lines.pop()
+        if not lines:
+            return
+        try:
+            if _STREAM_BAD.search("".join(lines)):
+                raise ValueError
+            table = np.array([text.split(",") for text in lines], dtype=float)
+            if table.shape != (len(lines), len(header.names)):
+                raise ValueError
+        except ValueError:
+            _locate_csv_error(path, lines, header.names, number)
+            raise file_error(path, f"line {number}: malformed data rows") from None
+        beyond = first_beyond(table)
+        if beyond is not None:
+            (row, column), what = beyond
+            place = f"line {number + row}, column {column + 1} ({header.names[column]})"
+            raise file_error(path, f"{place}: {what}")
+        times = np.concatenate([[last_time], table[:, 0]])
+        k = first_non_increasing(times)
+        if k is not None:
+            raise file_error(
+                path,
+                f"line {number + k}, column 1 (t): time {float(times[k + 1])!r} is not "
+                f"greater than {float(times[k])!r}; times must be strictly increasing",
+            )
+        last_time = float(table[-1, 0])
+        number += len(lines)
+        yield header, table
 
 
 def _decode(path: Path, raw: bytes, first_line: int) -> str:

@@ -47,15 +47,17 @@ from __future__ import annotations
 from pathlib import Path
 
 from ...core._validation import LIMITS
-from ._csv import csv_dimensions, load_csv, save_csv
+from ._csv import CsvHeader, csv_dimensions, load_csv, read_csv_chunks, save_csv
 from ._data_file import PathLike, file_error
 from ._npz import load_npz, npz_dimensions, save_npz
 from ._trajectory import Trajectory
 
 __all__ = [
+    "CsvHeader",
     "load_csv",
     "load_npz",
     "load_trajectory",
+    "read_csv_chunks",
     "save_csv",
     "save_npz",
     "save_trajectory",

@@ -35,6 +35,7 @@ plausible plant.
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -215,6 +216,12 @@ class OnlineTuner:
         (:meth:`~selftune.learn.SpmsmStructure.initial`).
     law_flux : float
         The flux ratio (to the flux of ``settings.problem``'s F) the law in force assumes.
+
+    Raises
+    ------
+    InputError
+        If the law does not fit the drive: its dimensions, its past inputs against the
+        delay, or no integrator at the drive's sampling period.
     """
 
     def __init__(
@@ -224,12 +231,28 @@ class OnlineTuner:
         start: Array | None = None,
         law_flux: float = 1.0,
     ) -> None:
+        problem = settings.problem
+        if (law.n, law.m, law.q) != (problem.n, problem.m, problem.q):
+            raise InputError(
+                f"law: it maps {law.n} states, {law.q} references to {law.m} inputs; the "
+                f"tuner's problem has {problem.n}, {problem.q} and {problem.m}"
+            )
+        if law.history != settings.input_delay:
+            raise InputError(
+                f"law: it feeds back {law.history} past inputs; the drive's delay is "
+                f"{settings.input_delay} samples"
+            )
+        if law.K_i is None or law.h is None or not math.isclose(law.h, settings.h, rel_tol=1e-9):
+            raise InputError(
+                f"law: the tuner switches servo laws with an integrator at the drive's "
+                f"period h = {settings.h:g} s; this one has "
+                + ("none" if law.K_i is None else f"h = {law.h:g} s")
+            )
         self.settings = settings
         self.law = law
         self.law_flux = float(law_flux)
         self._previous: tuple[ControlLaw, float] | None = None
         self._probation_end = -1
-        problem = settings.problem
         self._model = OnlineModel(
             settings.h, settings.memories, problem.n, problem.m, problem.q, settings.dead_time
         )
