@@ -52,6 +52,7 @@ from ._model import OnlineModel
 from ._physical import ChangeTest, ChangeWatch, PhysicalEstimate, physical_estimate
 
 __all__ = [
+    "DESIGN_MOVE",
     "DRIFT_DOUBT",
     "JUMP",
     "RESTART_SHARE",
@@ -73,6 +74,11 @@ RESTART_SHARE = 0.1
 #: ramp it left 8% of the lag in R_s, and up to 30% in the flux where the torque
 #: reference's current followed the flux (the regressors moved with the drift).
 DRIFT_DOUBT = 0.3
+
+#: The least move of a parameter, a fraction of it, for which a look designs a new law
+#: (a 1% change of R_s or L_s moves the digital optimum's cost by far less than the 0.1%
+#: a switch must save).
+DESIGN_MOVE = 0.01
 
 #: The most R_s, L_s or the flux ratio may move between consecutive looks, a fraction
 #: of itself, for the estimate to be acted on (:meth:`OnlineTuner._doubt`). In standard
@@ -492,13 +498,18 @@ class OnlineTuner:
         )
 
     def _designed_near(self, estimate: PhysicalEstimate) -> bool:
-        """Whether the last design's estimate is within half a standard error of this
-        one in every parameter and was certified stable (a new design would give the
-        same law)."""
+        """Whether the last design's estimate (certified stable) is near this one: every
+        parameter within half a standard error or :data:`DESIGN_MOVE` of itself (the
+        flux's moves are the rescale's, not a design's). A new design would give the
+        same law: with the instruments' weight the standard errors are so small that a
+        bound in them alone redesigned at nearly every look, to no switch."""
         last = self._designed
         if last is None or self.probing:
             return False
-        return bool(np.all(np.abs(estimate.theta - last.theta) <= 0.5 * estimate.standard_errors))
+        bound = np.maximum(0.5 * estimate.standard_errors, DESIGN_MOVE * np.abs(last.theta))
+        moved = np.abs(estimate.theta - last.theta)
+        moved[2] = 0.0  # the flux ratio: rescaled, not redesigned
+        return bool(np.all(moved <= bound))
 
     def _scaled_problem(self, estimate: PhysicalEstimate) -> LearningProblem:
         """The problem with the torque reference's current for the estimated flux."""
