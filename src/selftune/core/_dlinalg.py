@@ -261,7 +261,7 @@ def _check_plants(A: ArrayLike, B: ArrayLike) -> tuple[Array, Array]:
     """A stack of plants: ``(p, n, n)`` and ``(p, n, m)`` float arrays, p >= 1, finite (the
     first plant's shapes checked, and named, as one plant's)."""
     try:
-        A_, B_ = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+        A_, B_ = np.array(A, dtype=float), np.array(B, dtype=float)
     except (TypeError, ValueError, OverflowError) as exc:
         raise InputError(f"A, B: not numeric stacks of matrices ({exc})") from None
     if A_.ndim != 3 or B_.ndim != 3 or A_.shape[0] != B_.shape[0] or A_.shape[0] == 0:
