@@ -84,8 +84,38 @@ REPLAY_SECONDS = 3.0
 
 @dataclass(frozen=True)
 class OnlineCase:
-    """One online run, scored against the truth (percentages of the optimum's cost and
-    of the operating point's torque; counts; seconds)."""
+    """One online run, scored against the truth.
+
+    Attributes
+    ----------
+    motor_text, profile_text : str
+        The motor and the profile.
+    seed : int
+        The commissioning's, noise's and probing's seed.
+    duration_seconds : float
+        Drive time run, s.
+    excess_cost_percent, cold_excess_cost_percent : float
+        The law in force's and the cold law's cost over the optimum of each instant,
+        averaged over time, %.
+    steady_torque_error_max_percent : float
+        The largest steady torque error of a reference step, % of the operating point's.
+    bad_switches_count : int
+        Switches that raised the true cost or destabilized.
+    switches_count, rescales_count, reverts_count : int
+        New laws, rescaled torque references and the watchdog's returns.
+    step_seconds : float or None
+        The profile's step (None without one), s.
+    step_delay_seconds : float or None
+        Its detection's delay (None if not detected or no step), s.
+    false_changes_count : int
+        Changes reported that no step explains.
+    probing_share_percent : float
+        The probing's share of the time after the first certification, %.
+    real_time_factor : float
+        Drive time over the tuner's CPU time.
+    tuner_seconds, drive_seconds : float
+        The tuner's and the simulated drive's CPU time, s.
+    """
 
     motor_text: str
     profile_text: str
@@ -109,9 +139,21 @@ class OnlineCase:
 
 @dataclass(frozen=True)
 class OnlineReplay:
-    """A recorded log written as CSV, read back and replayed through a fresh tuner (its
-    rows, the events that differ from the live run's, the replay's CPU seconds and
-    speed)."""
+    """A recorded log written as CSV, read back and replayed through a fresh tuner.
+
+    Attributes
+    ----------
+    rows_count : int
+        The log's rows.
+    differing_events_count : int
+        Events that differ from the live run's (0: the same decisions at the same times).
+    events_count : int
+        The replay's events.
+    replay_seconds : float
+        The replay's CPU time, s.
+    real_time_factor : float
+        The log's duration over that time.
+    """
 
     rows_count: int
     differing_events_count: int
