@@ -170,7 +170,7 @@ def test_the_command_writes_the_json_and_the_report(
     short.write_text(PROFILE_FILE.replace("duration = 3.0", "duration = 0.3"))
     out, report = tmp_path / "run.json", tmp_path / "report"
     args = ["tune", "--motor", str(motor), "--online", str(short), "--json", str(out)]
-    assert main([*args, "--report", str(report)]) == 0
+    assert main([*args, "--report", str(report), "--relearn", "adp"]) == 0
     printed = capsys.readouterr().out
     assert "Online tuning on" in printed and f"wrote {report}/" in printed
     assert sorted(p.name for p in report.iterdir()) == sorted(ONLINE_REPORT_FILES)
@@ -186,6 +186,7 @@ def test_the_command_writes_the_json_and_the_report(
     ("extra", "message"),
     [
         (["--report", "REPORT"], "--report: needs --online"),
+        (["--relearn", "adp"], "--relearn: needs --online"),
         (["--online", "PROFILE", "--algorithm", "1"], "--online: the drive is commissioned"),
         (["--online", "PROFILE", "--target", "continuous"], "--online: the drive is"),
         (["--online", "missing.toml"], "missing.toml"),

@@ -298,6 +298,7 @@ def _add_tune(subparsers: _Subparsers) -> None:
         default=None,
         help="with --online: write its figures, JSON and printed report into DIR",
     )
+    _add_relearn_option(parser)
     _add_seed_option(parser)
     _add_json_option(parser)
 
@@ -310,6 +311,8 @@ def _run_tune(args: argparse.Namespace) -> int:
     if args.online is None:
         if args.report is not None:
             raise InputError("--report: needs --online PROFILE.toml (the online run's report)")
+        if args.relearn != "identify":
+            raise InputError("--relearn: needs --online PROFILE.toml (the online tuner's)")
         return tune_command(
             load_motor_config(args.motor), args.algorithm or "offpolicy", args.seed, args.json,
             target=args.target,
@@ -320,7 +323,22 @@ def _run_tune(args: argparse.Namespace) -> int:
             " target; leave out --algorithm and --target (or give offpolicy, digital)"
         )
     return online_command(
-        load_motor_config(args.motor), args.online, args.seed, args.json, args.report
+        load_motor_config(args.motor), args.online, args.seed, args.json, args.report,
+        args.relearn,
+    )  # fmt: skip
+
+
+def _add_relearn_option(parser: argparse.ArgumentParser) -> None:
+    """``--relearn``: how the online tuner learns its candidates."""
+    parser.add_argument(
+        "--relearn",
+        choices=["identify", "adp"],
+        default="identify",
+        help=(
+            "how the online tuner learns a candidate law: identify-then-design on the"
+            " motor's estimated parameters, or the paper's ADP on the last second of the"
+            " log (either is certified before a switch; default: %(default)s)"
+        ),
     )
 
 
@@ -349,13 +367,14 @@ def _add_follow(subparsers: _Subparsers) -> None:
         required=True,
         help="the controller in force at the first row: a selftune tune or learn JSON",
     )
+    _add_relearn_option(parser)
 
 
 def _run_follow(args: argparse.Namespace) -> int:
     from .commands import follow_command
     from .config import load_motor_config
 
-    return follow_command(load_motor_config(args.motor), args.law, args.log)
+    return follow_command(load_motor_config(args.motor), args.law, args.log, args.relearn)
 
 
 def _add_bench(subparsers: _Subparsers) -> None:

@@ -414,6 +414,7 @@ def online_command(
     seed: int,
     json_path: str | None,
     report_dir: str | None,
+    learner: str = "identify",
 ) -> int:
     """``selftune tune --online``: commission the drive of ``config``, then run it
     through the profile with the online tuner in the loop; print, and write the JSON and
@@ -432,6 +433,8 @@ def online_command(
         Where to write the JSON (``-``: standard output, without the report).
     report_dir : str or None
         Where to write the figures, the JSON and the printed report as one set.
+    learner : {"identify", "adp"}
+        How the tuner re-learns.
     """
     from tqdm import tqdm
 
@@ -465,7 +468,7 @@ def online_command(
 
         run = run_online(
             config.motor, settings, drive, online.profile, online.duration, seed=seed,
-            progress=progress,
+            progress=progress, learner=learner,  # type: ignore[arg-type]
         )  # fmt: skip
         evaluation = evaluate_online(run)
     _check_numerics(config.source, caught, run.cold.P, run.cold.K)
@@ -480,7 +483,9 @@ def online_command(
     return 0
 
 
-def follow_command(config: MotorConfig, law_path: str, log_path: str) -> int:
+def follow_command(
+    config: MotorConfig, law_path: str, log_path: str, learner: str = "identify"
+) -> int:
     """``selftune follow``: the online tuner's events on a drive's log as it arrives,
     one JSON line each on standard output.
 
@@ -493,6 +498,8 @@ def follow_command(config: MotorConfig, law_path: str, log_path: str) -> int:
         The JSON result whose controller is in force at the log's first row.
     log_path : str
         The CSV log, or ``-`` for standard input.
+    learner : {"identify", "adp"}
+        How the tuner re-learns.
     """
     import io
 
@@ -505,7 +512,7 @@ def follow_command(config: MotorConfig, law_path: str, log_path: str) -> int:
 
     settings = tuning_settings(config, 0, "digital")
     drive = config.drive if config.drive is not None else DriveSettings()
-    tuner = online_settings(config.motor, settings, drive)
+    tuner = online_settings(config.motor, settings, drive, learner)  # type: ignore[arg-type]
     law = load_control_law(law_path)
     try:  # the law must fit the drive: said of the file that gave it
         OnlineTuner(tuner, law)

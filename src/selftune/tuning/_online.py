@@ -224,7 +224,12 @@ def _last(commands: Array, count: int) -> Array:
     return commands[commands.shape[0] - count :]
 
 
-def online_settings(motor: SPMSM, settings: TuningSettings, drive: DriveSettings) -> OnlineSettings:
+def online_settings(
+    motor: SPMSM,
+    settings: TuningSettings,
+    drive: DriveSettings,
+    learner: Literal["identify", "adp"] = "identify",
+) -> OnlineSettings:
     """What the tuner of an online run knows: the drive's sampling period, delay, hold
     and dead time, the pole pairs and speed, and the servo problem the commissioning
     learned (Q, R, the nameplate flux's F, the default integral weight).
@@ -237,12 +242,14 @@ def online_settings(motor: SPMSM, settings: TuningSettings, drive: DriveSettings
         The commissioning's settings.
     drive : DriveSettings
         The drive.
+    learner : {"identify", "adp"}
+        How the tuner re-learns (:attr:`~selftune.learn.online.OnlineSettings.learner`).
     """
     C, _, F, _ = known_flux_form(motor.p, settings.speed, settings.torque, motor.phi_pm)
     problem = LearningProblem(settings.Q, settings.R, C=C, F=F, integral_action=True)
     return OnlineSettings(
         settings.h, drive.input_delay, problem, motor.p * settings.speed, drive.voltage_hold,
-        dead_time=drive.dead_time > 0.0,
+        dead_time=drive.dead_time > 0.0, learner=learner,
     )  # fmt: skip
 
 
@@ -348,6 +355,7 @@ def run_online(
     seed: int = 0,
     progress: Callable[[float], None] | None = None,
     keep_log: bool = False,
+    learner: Literal["identify", "adp"] = "identify",
 ) -> OnlineRun:
     """Commission the drive, then run it through ``profile`` with the tuner in the loop.
 
@@ -371,6 +379,8 @@ def run_online(
         Called with the drive time reached after every chunk, s.
     keep_log : bool
         Keep every row the tuner was fed (:attr:`OnlineRun.log`: 64 bytes a row).
+    learner : {"identify", "adp"}
+        How the tuner re-learns: identify-then-design or the paper's ADP.
 
     Raises
     ------
@@ -389,7 +399,7 @@ def run_online(
         raise InputError(f"duration: must be a positive number of seconds, got {duration!r}")
     h = settings.h
     cold = run_algorithm("offpolicy", motor, settings, drive=drive)
-    tuner_settings = online_settings(motor, settings, drive)
+    tuner_settings = online_settings(motor, settings, drive, learner)
     problem = tuner_settings.problem
     plant = RealisticDrive(motor, settings.speed, h, drive)
     tuner = OnlineTuner(tuner_settings, cold.law)

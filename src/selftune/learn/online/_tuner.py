@@ -42,7 +42,7 @@ from typing import Literal
 import numpy as np
 
 from ...core import Array, ControlLaw
-from ...errors import InputError, UnsolvableError
+from ...errors import InputError, Refusal, UnsolvableError
 from .._problem import LearningProblem
 from ..evidence._discrete_model import DiscreteModel
 from ..evidence._spmsm_structure import SpmsmStructure
@@ -143,6 +143,14 @@ class OnlineSettings:
         the magnets' 0.1%/K at up to 1 K/s): drift this fast over the slow memory is not
         a change (:class:`~._physical.ChangeWatch`'s allowance, over the time a
         reference is used: until the next look, and the window).
+    learner : {"identify", "adp"}
+        How a look learns its candidate: identify-then-design (the digital optimum of
+        the estimated motor), or the paper's ADP, model-free (the digital learner of
+        :func:`~selftune.learn.learn_controller` on the last ``adp_window`` of the log,
+        from the law in force's feedback). Either candidate is certified the same way.
+    adp_window : float
+        The log the ADP learner takes, s (a sliding window: memory independent of the
+        run's length).
     least_change : (float, float, float, float)
         The least change of ``R_s``, ``L_s``, the flux ratio and the dead-time voltage
         alone, fractions of each, that the change watch reports: what the model leaves
@@ -170,6 +178,8 @@ class OnlineSettings:
     probation: int = 1000
     drift_rates: tuple[float, float, float, float] = (0.008, 0.001, 0.001, 0.01)
     least_change: tuple[float, float, float, float] = (0.02, 0.1, 0.01, 0.2)
+    learner: Literal["identify", "adp"] = "identify"
+    adp_window: float = 1.0
 
     @property
     def structure(self) -> SpmsmStructure:
@@ -269,6 +279,8 @@ class OnlineTuner:
         )
         self._theta = None if start is None else np.asarray(start, dtype=float)
         self._pending = np.zeros((settings.input_delay, problem.m))
+        # the ADP learner's sliding window: [x, u commanded, w, angle] rows
+        self._window: list[Array] = []
         self._sample = 0
         self._next_look = settings.look_every
         self._watch = ChangeWatch(settings.window, settings.false_alarm)
@@ -296,6 +308,8 @@ class OnlineTuner:
         angle : ndarray, shape (T,), optional
             Electrical angle, rad (with dead time).
         """
+        if self.settings.learner == "adp":
+            self._keep(x, u, w, angle)
         commands = np.vstack([self._pending, u])  # row k is applied d rows later
         applied, self._pending = commands[: u.shape[0]], commands[u.shape[0] :]
         rows = self._model.add(x, applied, w, angle)
@@ -429,7 +443,7 @@ class OnlineTuner:
         self._designed = estimate
         try:
             candidate = self._design(estimate)
-        except UnsolvableError as failure:
+        except (UnsolvableError, Refusal) as failure:
             self.probing = True
             return [TunerEvent(self._sample, "kept", f"no law designed: {failure}", estimate)]
         settings = self.settings
@@ -529,8 +543,40 @@ class OnlineTuner:
             integral_action=weight is not None, integral_weight=weight,
         )  # fmt: skip
 
+    def _keep(self, x: Array, u: Array, w: Array, angle: Array | None) -> None:
+        """Add a chunk's rows to the ADP learner's window, dropping what falls out."""
+        angles = np.zeros(x.shape[0]) if angle is None else angle
+        self._window.append(np.column_stack([x, u, w, angles]))
+        keep = round(self.settings.adp_window / self.settings.h)
+        while sum(part.shape[0] for part in self._window[1:]) >= keep:
+            self._window.pop(0)
+
+    def _learned(self, estimate: PhysicalEstimate) -> ControlLaw:
+        """The paper's ADP (the digital target) on the window, from the law in force's
+        feedback: model-free; the estimate gives only the flux of the torque reference."""
+        from .._pipeline import learn_controller  # the pipeline imports this package
+        from .._problem import LearningOptions
+        from ..data._trajectory import Trajectory
+
+        settings, problem = self.settings, self.settings.problem
+        rows = np.concatenate(self._window)
+        n, m, q = problem.n, problem.m, problem.q
+        x, u, w = rows[:, :n], rows[:, n : n + m], rows[:, n + m : n + m + q]
+        log = Trajectory(
+            settings.h * np.arange(rows.shape[0]), x, u[:-1], w,
+            angle=rows[:, -1] if settings.dead_time else None,
+        )  # fmt: skip
+        options = LearningOptions(
+            target="digital", method="adp", input_delay=settings.input_delay,
+            logged_input="commanded", dead_time=settings.dead_time,
+            electrical_speed=settings.electrical_speed, voltage_hold=settings.hold,
+        )  # fmt: skip
+        return learn_controller(log, self._scaled_problem(estimate), self.law.K_x, options).law
+
     def _design(self, estimate: PhysicalEstimate) -> ControlLaw:
-        """The digital optimum of the estimated motor."""
+        """The candidate: the digital optimum of the estimated motor, or the ADP's."""
+        if self.settings.learner == "adp":
+            return self._learned(estimate)
         settings = self.settings
         Ad, Bd, Ed = settings.structure(estimate.theta)
         Ed = Ed[:, : settings.problem.q]  # the reference's channels, not the signs'
