@@ -361,8 +361,13 @@ def online_lines(source: str, run: OnlineRun, evaluation: OnlineEvaluation) -> l
         "largest steady torque error: "
         + ("-" if torque is None else f"{torque:.3%}")
         + f"; switches that raised the true cost or destabilized: {evaluation.bad_switches}",
-        f"probing on {_probing_share(run):.1%} of the time after the first certification "
-        f"({run.first_certified:.2f} s)",
+        (
+            f"probing on {_probing_share(run):.1%} of the time after the first certification "
+            f"({run.first_certified:.2f} s)"
+            if np.isfinite(run.first_certified)
+            else f"the tuner acted on no estimate in {run.duration:g} s (it waits for a few "
+            "reference steps of data): the probing was on all along"
+        ),
         f"tuner: {run.tuner_seconds:.2f} s of CPU for {run.duration:g} s of drive time "
         f"({run.real_time_factor:.1f}x real time); the simulated drive took "
         f"{run.drive_seconds:.1f} s",
