@@ -422,7 +422,7 @@ def _figure(run: OnlineRun, evaluation: OnlineEvaluation) -> Any:
         panel.legend(loc="best", fontsize=8, frameon=False)
     figure.suptitle(
         "Online tuning: estimates, excess cost over the optimum of each instant, steady "
-        "torque error (vertical lines: switches to a new law; red: the watchdog's returns)",
+        "torque error\n(vertical lines: switches to a new law; red: the watchdog's returns)",
         fontsize=9,
     )
     return figure
