@@ -105,6 +105,10 @@ BAD_FILES = [
     ),
     (replaced("duration = 120.0", "duration = -1.0"), "[online] duration: must be positive"),
     (replaced("duration = 120.0", "duration = 130.0"), "[online] duration: 130 s is beyond"),
+    (
+        replaced("duration = 120.0", "duration = 1e9").replace("time = 120.0", "time = 1e9"),
+        "[online] duration: 1e+09 s is more than 3600 s of drive time",
+    ),
     (replaced("duration = 120.0        # s of drive time\n", ""), "[online] duration: missing"),
     (replaced("duration = 120.0", "duration = 120.0\nlength = 3"), "[online] length: unknown key"),
     ("[online]\nduration = 1.0\n", "[online] profile: missing"),

@@ -36,10 +36,12 @@ from ..errors import DataFileError, InputError
 from ..sim import ParameterFactors, ParameterProfile
 from ._toml import ConfigFile, ConfigTable, _clip, _type_name, one_line
 
-__all__ = ["ONLINE_TABLES", "PROFILE_KEYS", "OnlineConfig", "load_online_config"]
+__all__ = ["MAX_DURATION", "ONLINE_TABLES", "PROFILE_KEYS", "OnlineConfig", "load_online_config"]
 
 #: The tables of a profile file and their keys.
 ONLINE_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType({"online": ("duration", "profile")})
+#: The longest run a profile may ask for, s of drive time.
+MAX_DURATION = 3600.0
 #: The keys of a ``[[online.profile]]`` row.
 PROFILE_KEYS = ("time", "R_s", "phi_pm", "L_s")
 
@@ -116,6 +118,12 @@ def load_online_config(path: str | os.PathLike[str]) -> OnlineConfig:
     config = ConfigFile(path, ONLINE_TABLES)
     online = config.table("online", required=True)
     duration = online.positive("duration")
+    if duration > MAX_DURATION:
+        raise online.error(
+            "duration",
+            f"{duration:g} s is more than {MAX_DURATION:g} s of drive time (the simulated "
+            "hardware-like drive runs at about twice real time: an hour takes half an hour)",
+        )
     rows = online.data.get("profile")
     if rows is None:
         raise online.error(
