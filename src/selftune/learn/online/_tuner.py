@@ -437,8 +437,9 @@ class OnlineTuner:
         if self._designed_near(estimate):
             self.probing = False
             return self._flux_update(estimate) or [
-                TunerEvent(self._sample, "kept", "the estimate has not moved by half a "
-                           "standard error since the last design", estimate)
+                TunerEvent(self._sample, "kept", "R_s, L_s and the dead-time voltage have "
+                           f"not moved by half a standard error or {DESIGN_MOVE:.0%} since "
+                           "the last design", estimate)
             ]  # fmt: skip
         self._designed = estimate
         try:
