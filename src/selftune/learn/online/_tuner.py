@@ -3,12 +3,17 @@
 The drive feeds its log in chunks (:meth:`OnlineTuner.feed`). Every
 :attr:`OnlineSettings.look_every` samples the tuner looks:
 
-1. the slow model (:class:`~._model.OnlineModel`) gives the motor's parameters
-   (:func:`~._physical.physical_estimate`) and becomes the change watch's reference;
-2. the digital optimum of the estimated motor is designed (identify-then-design on the
-   structured model, the torque reference's current scaled by the estimated flux) and
-   certified against the law in force (:func:`~._certify.certify`); a certified law
-   replaces it, and the event carries it for the drive to switch to.
+1. the two slow memories' lag-free model (:meth:`~._model.OnlineModel.drift_free`)
+   gives the motor's parameters (:func:`~._physical.physical_estimate`, weighed by the
+   instruments, with the drift correction's doubt in their covariance);
+2. the estimate is not acted on while the slow memory is young (:data:`YOUNG_SHARE`), or
+   if it is not a motor or jumped (:meth:`OnlineTuner._doubt`); else the structured
+   model becomes the change watch's reference;
+3. where R_s, L_s or the dead-time voltage moved (:data:`DESIGN_MOVE`), a candidate is
+   learned (:attr:`OnlineSettings.learner`: the digital optimum of the estimated motor,
+   or the paper's ADP on a window of the log) and certified against the law in force
+   (:func:`~._certify.certify`); a certified law replaces it, and the event carries it
+   for the drive to switch to.
 
 Between looks every chunk is scored against the reference (:class:`~._physical.ChangeWatch`):
 on an alarm the slow memory restarts from a share of the fast one's (the old plant's
