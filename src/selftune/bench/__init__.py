@@ -74,7 +74,15 @@ from ._honesty import HazardTally, Honesty, HonestyCase, HonestyOutcome, measure
 from ._learning_cost import LearningCost, LearningDataset, LearningRun, measure_learning_cost
 from ._loop import SimulatorMeasurement
 from ._noise_study import ConsistencyRatio, NoiseCell, NoiseConfig, NoiseStudy, measure_noise
-from ._online import OnlineCase, OnlineReplay, OnlineStudy, markdown_online, measure_online
+from ._online import (
+    ONLINE_MOTORS,
+    ONLINE_PROFILES,
+    OnlineCase,
+    OnlineReplay,
+    OnlineStudy,
+    markdown_online,
+    measure_online,
+)
 from ._realistic_drive import (
     RealisticDriveComparison,
     markdown_realistic_drive,
@@ -98,6 +106,8 @@ __all__ = [
     "COST_HORIZON_SECONDS",
     "EXACT_RELATIVE_ERROR",
     "MISMATCH",
+    "ONLINE_MOTORS",
+    "ONLINE_PROFILES",
     "TARGET_DATA_RATIO",
     "TARGET_RELATIVE_ERROR",
     "TARGET_SPEEDUP",

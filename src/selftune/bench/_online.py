@@ -34,6 +34,7 @@ from ._targets import TargetOutcome
 
 __all__ = [
     "ONLINE_MOTORS",
+    "ONLINE_PROFILES",
     "OnlineCase",
     "OnlineReplay",
     "OnlineStudy",
@@ -58,7 +59,7 @@ ONLINE_MOTORS: tuple[tuple[str, SPMSM, float, float, float, float], ...] = (
 )
 
 #: The profiles (name, profile): 120 s warm-ups, one with a +20% R_s step at 60 s.
-PROFILES = (
+ONLINE_PROFILES = (
     ("warm-up", ParameterProfile([0.0, 120.0], R_s=[1.0, 1.4], phi_pm=[1.0, 0.92])),
     (
         "warm-up, R_s +20% at 60 s",
@@ -274,7 +275,7 @@ def measure_online(quick: bool, progress: bool = True, seeds: int = 2) -> Online
         cases = [
             (index, profile, seed)
             for index in range(len(ONLINE_MOTORS))
-            for profile in PROFILES
+            for profile in ONLINE_PROFILES
             for seed in range(seeds)
         ]
     started = time.perf_counter()
@@ -327,7 +328,7 @@ def online_targets(study: OnlineStudy) -> list[TargetOutcome]:
                       "on while the model is young or doubted"),
         TargetOutcome("online speed", ">= 20x real time",
                       f"{_range(speed, '.1f')}x", min(speed) >= 20.0,
-                      "the looks' fits, designs and certifications"),
+                      "the per-chunk moments and the looks' parameter fits"),
         TargetOutcome("online replay", "a recorded log replayed gives the same events",
                       f"{study.replay.events_count} events, "
                       + (f"{study.replay.differing_events_count} differ"),
