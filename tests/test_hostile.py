@@ -1584,3 +1584,24 @@ if __name__ == "__main__":  # the corpus's composition: python tests/test_hostil
     print(f"{len(CASES)} generated command lines")
     for label, cases in kinds.items():
         print(f"  {len(cases):4d} {label}")
+
+
+def test_a_cleanup_interrupted_runs_to_its_end_then_raises() -> None:
+    """A KeyboardInterrupt that lands in a temporary's removal (a second Ctrl-C, or the
+    one re-delivered after Python lost the first) does not stop the removal halfway: it
+    is run again to its end, and the first interrupt raised after."""
+    from selftune._interrupts import despite_interrupts
+
+    calls: list[int] = []
+
+    def removal() -> None:
+        calls.append(1)
+        if len(calls) < 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        despite_interrupts(removal)
+    assert len(calls) == 3
+    done: list[int] = []
+    despite_interrupts(lambda: done.append(1))
+    assert done == [1]

@@ -12,21 +12,19 @@ needs them turns a numerical one into an error naming the input.
 
 from __future__ import annotations
 
-import _thread
 import argparse
 import dataclasses
 import math
 import os
 import re
-import signal
 import sys
-import threading
 import warnings
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, NoReturn, TypeAlias
 
 from . import __version__
-from .errors import INTERRUPTED, InputError, SelftuneDeprecationWarning, SelftuneError
+from ._interrupts import Interrupts, caused_by_interrupt
+from .errors import InputError, SelftuneDeprecationWarning, SelftuneError
 
 if TYPE_CHECKING:
     from .config import MotorConfig
@@ -489,7 +487,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         ``argv`` (the process's own command line), an interrupt ends the process at once
         with code 130, without finalizing the interpreter.
     """
-    with _Interrupts() as interrupts:
+    with Interrupts() as interrupts:
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("ignore")  # numerical warnings never on the terminal
@@ -508,7 +506,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             # After Ctrl-C, whatever the interrupted code raised is its consequence: a C
             # extension's import fails with an ImportError, a binding's argument
             # conversion with a TypeError.
-            if not (interrupts.received or _caused_by_interrupt(exc)):
+            if not (interrupts.received or caused_by_interrupt(exc)):
                 raise
             interrupts.received = True
     if not interrupts.received:
@@ -517,82 +515,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv is None:  # the process's own command line: end it now (see _exit_now)
         _exit_now(EXIT_INTERRUPTED)
     return EXIT_INTERRUPTED
-
-
-class _Interrupts:
-    """Ctrl-C while a command runs, however it surfaces.
-
-    SIGINT raises KeyboardInterrupt, as by default, and is remembered. An exception Python
-    cannot raise (in a finalizer or a weak-reference callback: ``sys.unraisablehook``) is
-    not printed; a KeyboardInterrupt that landed there (matplotlib runs many weak-reference
-    callbacks while it draws) would be lost and the command would go on to write its
-    outputs, so it is remembered and raised again in the main thread a millisecond later,
-    once the hook has returned (raised in the hook itself, it would be lost again). Every
-    interrupt also sets :data:`selftune.errors.INTERRUPTED`, which output is checked
-    against before it is put in place: Python can lose a KeyboardInterrupt in other ways
-    too.
-    """
-
-    def __init__(self) -> None:
-        self.received = False
-        self._hook: Any = None
-        self._handler: Any = None
-        self._in_hook = False
-        self._timers: list[threading.Timer] = []
-
-    def __enter__(self) -> _Interrupts:
-        INTERRUPTED.clear()
-        self._hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
-        if threading.current_thread() is threading.main_thread():
-            self._handler = signal.signal(signal.SIGINT, self._signal)
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        for timer in self._timers:
-            timer.cancel()
-        sys.unraisablehook = self._hook
-        if self._handler is not None:
-            signal.signal(signal.SIGINT, self._handler)
-        INTERRUPTED.clear()
-
-    def _signal(self, signum: int, frame: object) -> None:
-        self.received = True
-        INTERRUPTED.set()
-        if self._in_hook:
-            self._raise_soon()
-            return
-        raise KeyboardInterrupt
-
-    def _unraisable(self, unraisable: Any) -> None:
-        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
-            return
-        self.received = True
-        INTERRUPTED.set()
-        self._in_hook = True
-        try:
-            self._raise_soon()
-        finally:
-            self._in_hook = False
-
-    def _raise_soon(self) -> None:
-        """Deliver SIGINT to the main thread again, from a timer thread."""
-        if self._handler is None:  # not the main thread: nothing to deliver it to
-            return
-        timer = threading.Timer(1e-3, _thread.interrupt_main)
-        timer.daemon = True
-        self._timers.append(timer)
-        timer.start()
-
-
-def _caused_by_interrupt(exc: BaseException) -> bool:
-    seen: set[int] = set()
-    current: BaseException | None = exc
-    while current is not None and id(current) not in seen:
-        if isinstance(current, KeyboardInterrupt):
-            return True
-        seen.add(id(current))
-        current = current.__cause__ or current.__context__
-    return False
 
 
 def _interrupted() -> None:

@@ -34,6 +34,7 @@ from typing import IO, Any, BinaryIO
 import numpy as np
 from numpy.typing import NDArray
 
+from .._interrupts import despite_interrupts
 from ..errors import DataFileError, InputError, raise_if_interrupted
 from ._temporaries import CREATE_NEW, remove_stale_temporaries, temporary_path
 
@@ -338,13 +339,12 @@ def atomic_path(path: str | os.PathLike[str], suffix: str = "") -> Iterator[Path
         raise_if_interrupted()  # a Ctrl-C that Python lost still stops the write
         os.replace(temporary, target)
     except BaseException:
-        temporary.unlink(missing_ok=True)
+        despite_interrupts(lambda: temporary.unlink(missing_ok=True))
         raise
 
 
 def _mode_for(target: Path) -> int:
-    """The permissions a plain ``open(target, "w")`` would give: the existing file's, or
-    0666 less the umask (mkstemp's temporary files are 0600)."""
+    """What a plain ``open(target, "w")`` gives: the file's mode, or 0666 less the umask."""
     try:
         return target.stat().st_mode & 0o777
     except FileNotFoundError:
@@ -519,8 +519,8 @@ def output_directory(
                 os.chmod(temporary, _directory_mode())
                 os.rename(temporary, target)
     except BaseException:
-        if temporary.is_dir() and temporary != target:
-            shutil.rmtree(temporary, ignore_errors=True)
+        if temporary != target:
+            despite_interrupts(lambda: shutil.rmtree(temporary, ignore_errors=True))
         raise
 
 
