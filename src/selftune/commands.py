@@ -408,6 +408,16 @@ def tune_command(
     return 0
 
 
+def _online_drive(config: MotorConfig, seed: int) -> tuple[Any, Any]:
+    """The digital servo settings and the drive an online tuner works with (the motor
+    file's ``[drive]``, or the ideal drive at the ``[learning]`` sampling period)."""
+    from .sim import DriveSettings
+    from .tuning import tuning_settings
+
+    drive = config.drive if config.drive is not None else DriveSettings()
+    return tuning_settings(config, seed, "digital"), drive
+
+
 def online_command(
     config: MotorConfig,
     profile_path: str,
@@ -446,15 +456,13 @@ def online_command(
         online_lines,
         write_online_report,
     )
-    from .sim import DriveSettings
-    from .tuning import run_online, tuning_settings
+    from .tuning import run_online
 
     _check_json_target(json_path)
     if report_dir is not None:
         check_output_directory(report_dir, ONLINE_REPORT_FILES, "online report")
     online = load_online_config(profile_path)
-    settings = tuning_settings(config, seed, "digital")
-    drive = config.drive if config.drive is not None else DriveSettings()
+    settings, drive = _online_drive(config, seed)
     with (
         tqdm(
             total=round(online.duration, 3), desc="online", unit=" s", file=sys.stderr,
@@ -507,11 +515,9 @@ def follow_command(
     from .core._atomic import open_regular_file
     from .learn import read_csv_chunks
     from .learn.online import OnlineTuner
-    from .sim import DriveSettings
-    from .tuning import CHUNK_SECONDS, follow, online_settings, tuning_settings
+    from .tuning import CHUNK_SECONDS, follow, online_settings
 
-    settings = tuning_settings(config, 0, "digital")
-    drive = config.drive if config.drive is not None else DriveSettings()
+    settings, drive = _online_drive(config, 0)
     tuner = online_settings(config.motor, settings, drive, learner)  # type: ignore[arg-type]
     law = load_control_law(law_path)
     try:  # the law must fit the drive: said of the file that gave it

@@ -206,8 +206,6 @@ def _case(index: int, profile: tuple[str, ParameterProfile], seed: int, quick: b
     summary = online_summary(run, evaluation)
     steps = summary["steps_detected"]
     delay = steps[0]["delay"] if steps else None
-    true_changes = [step["time"] + step["delay"] for step in steps if np.isfinite(step["delay"])]
-    false = [t for t in summary["changes_detected"] if t not in true_changes]
     torque = summary["steady_torque_error_max"]
     return OnlineCase(
         motor_text=config.source, profile_text=name, seed=seed, duration_seconds=run.duration,
@@ -218,7 +216,7 @@ def _case(index: int, profile: tuple[str, ParameterProfile], seed: int, quick: b
         rescales_count=summary["rescales"], reverts_count=summary["reverts"],
         step_seconds=steps[0]["time"] if steps else None,
         step_delay_seconds=None if delay is None or not np.isfinite(delay) else delay,
-        false_changes_count=len(false),
+        false_changes_count=len(summary["changes_unexplained"]),
         probing_share_percent=100 * summary["probing_share_after_first_certified"],
         real_time_factor=run.real_time_factor, tuner_seconds=run.tuner_seconds,
         drive_seconds=run.drive_seconds,

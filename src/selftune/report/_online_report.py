@@ -43,6 +43,7 @@ __all__ = [
     "online_lines",
     "online_summary",
     "steps_detected",
+    "unexplained_changes",
     "write_online_report",
 ]
 
@@ -196,6 +197,22 @@ def steps_detected(run: OnlineRun) -> list[tuple[float, float]]:
     return found
 
 
+def unexplained_changes(run: OnlineRun) -> Array:
+    """The changes the tuner reported that no step of the profile explains (a change
+    explained is the first detection at or after a step): false alarms, s.
+
+    Parameters
+    ----------
+    run : OnlineRun
+        The run.
+    """
+    explained = [
+        int(np.searchsorted(run.detections, step)) for step, delay in steps_detected(run)
+        if np.isfinite(delay)
+    ]  # fmt: skip
+    return np.delete(run.detections, explained)
+
+
 def _steady_errors(run: OnlineRun) -> Array:
     errors = run.torque_error
     return errors[np.isfinite(errors)]
@@ -228,6 +245,7 @@ def online_summary(run: OnlineRun, evaluation: OnlineEvaluation) -> dict[str, An
         "reverts": kinds.count("revert"),
         "bad_switches": evaluation.bad_switches,
         "changes_detected": [float(t) for t in run.detections],
+        "changes_unexplained": [float(t) for t in unexplained_changes(run)],
         "steps_detected": [{"time": step, "delay": delay} for step, delay in steps_detected(run)],
         "first_certified": run.first_certified,
         "probing_share_after_first_certified": _probing_share(run),

@@ -19,7 +19,7 @@ from ...core import Array, positive_finite
 from ...errors import InputError
 from ..evidence._dead_time import phase_signs
 from ..evidence._discrete_model import DiscreteModel
-from ._moments import ForgettingMoments
+from ._moments import ForgettingMoments, transposed_order
 
 __all__ = ["OnlineModel"]
 
@@ -196,7 +196,5 @@ class OnlineModel:
 def _row_major_covariance(covariance: Array, shape: tuple[int, int]) -> Array:
     """The covariance of ``vec(Theta)`` (Theta (p, n), column-major) as that of
     ``vec(Theta')`` = ``vec([Ad, Bd, Ed])`` (column-major), the model's order."""
-    p, n = shape
-    # vec(Theta) index j p + i is Theta[i, j] = M[j, i], vec(M) index i n + j
-    order = np.arange(p * n).reshape(n, p).T.ravel()  # position in vec(Theta) of vec(M)
+    order = transposed_order(*shape)
     return covariance[np.ix_(order, order)]

@@ -33,11 +33,12 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ...core import Array
 from ...errors import InputError
 
-__all__ = ["ForgettingMoments"]
+__all__ = ["ForgettingMoments", "transposed_order"]
 
 
 @dataclass
@@ -198,7 +199,7 @@ class ForgettingMoments:
         G = self.cross[:, :p]
         information = G.T @ np.linalg.solve(self.squared, G)
         weight = np.kron(np.linalg.inv(self.noise(Theta)[0]), information)
-        order = np.arange(p * n).reshape(n, p).T.ravel()  # vec(Theta) index of vec(Theta')
+        order = transposed_order(p, n)
         return np.asarray(weight[np.ix_(order, order)], dtype=np.float64)
 
     def estimate(self) -> tuple[Array, Array, Array]:
@@ -242,6 +243,20 @@ def _chunk_weights(forgetting: float, count: int) -> tuple[Array, float]:
     weights = forgetting ** np.arange(count - 1, -1, -1, dtype=float)
     weights.setflags(write=False)
     return weights, float(np.sum(weights))
+
+
+def transposed_order(p: int, n: int) -> NDArray[np.intp]:
+    """Where each entry of ``vec(Theta')`` sits in ``vec(Theta)`` (``Theta`` (p, n), both
+    ``vec`` column-major): ``vec(Theta')`` is ``vec(Theta)[order]``; a covariance turns
+    with ``[np.ix_(order, order)]``, and back with ``np.argsort(order)``.
+
+    Parameters
+    ----------
+    p, n : int
+        Theta's rows and columns.
+    """
+    # vec(Theta) index j p + i is Theta[i, j] = Theta'[j, i], vec(Theta') index i n + j
+    return np.arange(p * n).reshape(n, p).T.ravel()
 
 
 def _semidefinite(M: Array) -> Array:

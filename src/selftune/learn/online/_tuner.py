@@ -54,6 +54,7 @@ from ..evidence._spmsm_structure import SpmsmStructure
 from ..learners._identify import design_digital
 from ._certify import Certificate, certify
 from ._model import OnlineModel
+from ._moments import transposed_order
 from ._physical import ChangeTest, ChangeWatch, PhysicalEstimate, physical_estimate
 
 __all__ = [
@@ -433,9 +434,8 @@ class OnlineTuner:
         # the structured model: its errors are the few parameters', J C J'
         structured = np.concatenate(settings.structure(estimate.theta), axis=1).T  # (p, n)
         J = estimate.sensitivities  # d vec(Theta') / d theta
-        p, n = structured.shape
-        order = np.arange(p * n).reshape(p, n).T.ravel()  # vec(Theta') index of vec(Theta)
-        entries = (J @ estimate.covariance @ J.T)[np.ix_(order, order)]
+        back = np.argsort(transposed_order(*structured.shape))  # vec(Theta') to vec(Theta)
+        entries = (J @ estimate.covariance @ J.T)[np.ix_(back, back)]
         least = np.array(settings.least_change[: estimate.theta.size]) * np.abs(estimate.theta)
         self._watch.reference(structured, slow.noise(structured), J, entries, allowance, least)
         self.estimate = estimate
