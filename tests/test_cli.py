@@ -269,7 +269,7 @@ def test_numerical_trouble_is_an_error_not_wrong_numbers(
         warnings.warn("overflow encountered in matmul", RuntimeWarning, stacklevel=1)
         return selftune.solve_optimal_regulation(*args, **kwargs)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(commands, "solve_optimal_regulation", overflowing)
+    monkeypatch.setattr(commands._solve, "solve_optimal_regulation", overflowing)
     output = tmp_path / "out.json"
     code, out, err = run(["solve", "--json", str(output)])
     line = assert_clean_failure(code, err, "paper preset", "not numerically meaningful")

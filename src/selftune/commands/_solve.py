@@ -1,0 +1,137 @@
+"""``selftune solve``: the model-based optimum, checked against its own equations."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..config import MotorConfig
+from ..core import compact, matrix_block, vector
+from ..errors import InputError
+from ..model import ModelBasedSolution, solve_optimal_regulation
+from ._output import _check_json_target, _check_numerics, _numerics, _print_report, _write_json
+
+#: Relative residual of the Riccati and regulator equations above which the model-based
+#: solution is not trusted (it is about 1e-15 on any motor in the plausible ranges).
+RESIDUAL_TOLERANCE = 1e-6
+
+
+def _check_residuals(config: MotorConfig, solution: ModelBasedSolution) -> None:
+    """Raise unless the solution satisfies its equations to :data:`RESIDUAL_TOLERANCE`."""
+    problem = solution.problem
+    A, B, P, X = problem.A, problem.B, solution.P, solution.X
+    equations = {
+        "Riccati": [A.T @ P, P @ A, -P @ B @ solution.K, config.Q],
+        "regulator": [A @ X, B @ solution.U, problem.D, -X @ problem.E],
+        "output": [problem.C @ X, problem.F],
+    }
+    for name, terms in equations.items():
+        residual = float(np.linalg.norm(sum(terms)))
+        scale = sum(float(np.linalg.norm(term)) for term in terms)
+        if not residual <= RESIDUAL_TOLERANCE * scale:
+            raise InputError(
+                f"{config.source}: the model-based solution is not numerically meaningful"
+                f" (relative residual of the {name} equation {residual / scale:.1e}): the"
+                " cost weights Q, R and the motor's parameters are too far apart in scale"
+            )
+
+
+def model_based(config: MotorConfig) -> ModelBasedSolution:
+    """The model-based optimum of ``config``; any failure names ``config.source``.
+
+    For every command that needs the truth (``solve``, and those comparing against it).
+
+    Parameters
+    ----------
+    config : MotorConfig
+        The motor, operating point and weights.
+    """
+    with _numerics(config.source) as caught:
+        solution = solve_optimal_regulation(config.regulation_problem(), config.Q, config.R)
+        w = config.exogenous()
+        steady_state = (solution.X @ w, solution.U @ w)
+    _check_numerics(config.source, caught, solution.theta, *steady_state)
+    _check_residuals(config, solution)
+    return solution
+
+
+def solve_report(config: MotorConfig, solution: ModelBasedSolution) -> str:
+    """The human-readable report that ``selftune solve`` prints.
+
+    Parameters
+    ----------
+    config : MotorConfig
+        The motor, operating point and weights that were solved.
+    solution : ModelBasedSolution
+        The result of :func:`~selftune.model.solve_optimal_regulation`.
+
+    Returns
+    -------
+    str
+        Several lines, numbers to 4 decimals.
+    """
+    motor = config.motor
+    w = config.exogenous()
+    x_e, u_e = solution.X @ w, solution.U @ w
+    state, inputs = ("i_d", "i_q"), ("u_d", "u_q")
+    exogenous = ("w_1", "w_2")
+    inertia = "" if motor.J is None else f", J = {motor.J:g} kg m^2"
+    lines = [
+        f"Model-based optimal torque control ({config.source})",
+        f"  motor: R_s = {motor.R_s:g} ohm, L_s = {motor.L_s:g} H,"
+        f" phi_pm = {motor.phi_pm:g} Wb, p = {motor.p}{inertia}",
+        f"  operating point: speed = {config.speed:g} rad/s (mechanical),"
+        f" torque = {config.torque:g} N m",
+        f"  cost weights: Q = {compact(config.Q)}, R = {compact(config.R)}",
+        "  state x = [i_d, i_q] (A), input u = [u_d, u_q] (V),",
+        f"  exogenous w = [p speed phi_pm (V), T* (N m)] = {vector(w)}",
+        "  control u = -K* (x - X* w) + U* w",
+        "",
+        *matrix_block("K*  optimal feedback gain, V/A", solution.K, inputs, state),
+        "",
+        *matrix_block(
+            "P*  value matrix: optimal cost-to-go (x - X* w)' P* (x - X* w)",
+            solution.P,
+            state,
+            state,
+        ),
+        "",
+        *matrix_block(
+            "X*  steady-state map, x_e = X* w (A/V, A/(N m))", solution.X, state, exogenous
+        ),
+        "",
+        *matrix_block(
+            "U*  feedforward map, u_e = U* w (V/V, V/(N m))", solution.U, inputs, exogenous
+        ),
+        "",
+        "Theta* = [vecs(P*); vec(K*); vec((D + A X*)' P*)]  (unknowns of the data equation)",
+        f"  {vector(solution.theta)}",
+        "",
+        "Operating point",
+        f"  x_e = X* w = {vector(x_e)} A  [i_d, i_q]",
+        f"  u_e = U* w = {vector(u_e)} V  [u_d, u_q]",
+    ]
+    return "\n".join(lines)
+
+
+def solve_command(config: MotorConfig, json_path: str | None) -> int:
+    """``selftune solve``: print the model-based optimum of ``config``; write its JSON.
+
+    Parameters
+    ----------
+    config : MotorConfig
+        The motor, operating point and weights.
+    json_path : str or None
+        Where to write the JSON (``-``: standard output, without the report).
+    """
+    _check_json_target(json_path)
+    solution = model_based(config)
+    w = config.exogenous()
+    if json_path is not None:
+        document = {name: getattr(solution, name) for name in ("K", "P", "X", "U", "theta")}
+        document.update({"x_e": solution.X @ w, "u_e": solution.U @ w, "w": w})
+        document.update({"motor": config.motor})
+        document.update({"operating_point": {"speed": config.speed, "torque": config.torque}})
+        document.update({"cost": {"Q": config.Q, "R": config.R}})
+        _write_json(json_path, document)
+    _print_report([solve_report(config, solution)], json_path)
+    return 0

@@ -1,0 +1,201 @@
+"""``selftune tune`` (offline and ``--online``) and ``selftune follow``: the tuner on
+the simulated drive, and the online tuner on a drive's log."""
+
+from __future__ import annotations
+
+import json
+import sys
+from typing import Any
+
+from ..config import MotorConfig
+from ..core import finite_or_null, to_jsonable
+from ..core._atomic import check_output_directory
+from ..errors import DataFileError, InputError
+from ._output import (
+    STANDARD_OUTPUT,
+    _check_json_target,
+    _check_numerics,
+    _numerics,
+    _print_report,
+    _write_json,
+)
+
+
+def tune_command(
+    config: MotorConfig,
+    algorithm: str,
+    seed: int,
+    json_path: str | None,
+    target: str | None = None,
+) -> int:
+    """``selftune tune``: a self-tuning session on the simulated drive of ``config``.
+
+    The drive is the ideal one, or the realistic one of the file's ``[drive]`` table; the
+    report gives the controller a drive can run, its quality, and what it does on the
+    simulated drive (steady torque, also after R_s rose 40%).
+
+    Parameters
+    ----------
+    config : MotorConfig
+        The motor file's content (its [learning] table gives the settings).
+    algorithm : str
+        ``"1"``, ``"2"``, ``"3"`` or ``"offpolicy"``.
+    seed : int
+        Exploration seed.
+    json_path : str or None
+        Where to write the JSON (``-``: standard output, without the report).
+    target : {"continuous", "digital"}, optional
+        Overrides the motor file's target.
+    """
+    from ..report import evaluate, torque_check, tune_document, tune_lines
+    from ..tuning import run_algorithm, tuning_settings
+
+    _check_json_target(json_path)
+    settings = tuning_settings(config, seed, target)
+    with _numerics(config.source) as caught:
+        result = run_algorithm(algorithm, config.motor, settings, drive=config.drive)  # type: ignore[arg-type]
+        evaluation = evaluate(result, config.motor, settings, config.drive)
+        torque = torque_check(config.motor, settings, result, config.drive)
+    _check_numerics(config.source, caught, result.P, result.K)
+    lines = tune_lines(config.source, result, evaluation, torque, config.drive)
+    if json_path is not None:
+        _write_json(json_path, tune_document(config.motor, settings, result, evaluation, torque))
+    _print_report(lines, json_path)
+    return 0
+
+
+def _online_drive(config: MotorConfig, seed: int) -> tuple[Any, Any]:
+    """The digital servo settings and the drive an online tuner works with (the motor
+    file's ``[drive]``, or the ideal drive at the ``[learning]`` sampling period)."""
+    from ..sim import DriveSettings
+    from ..tuning import tuning_settings
+
+    drive = config.drive if config.drive is not None else DriveSettings()
+    return tuning_settings(config, seed, "digital"), drive
+
+
+def online_command(
+    config: MotorConfig,
+    profile_path: str,
+    seed: int,
+    json_path: str | None,
+    report_dir: str | None,
+    learner: str = "identify",
+) -> int:
+    """``selftune tune --online``: commission the drive of ``config``, then run it
+    through the profile with the online tuner in the loop; print, and write the JSON and
+    the report's figures.
+
+    Parameters
+    ----------
+    config : MotorConfig
+        The motor file's content (its ``[drive]`` table: the drive; without one, the
+        ideal drive at the ``[learning]`` sampling period).
+    profile_path : str
+        PROFILE.toml (:func:`selftune.config.load_online_config`).
+    seed : int
+        The seed of the commissioning, the noise and the probing.
+    json_path : str or None
+        Where to write the JSON (``-``: standard output, without the report).
+    report_dir : str or None
+        Where to write the figures, the JSON and the printed report as one set.
+    learner : {"identify", "adp"}
+        How the tuner re-learns.
+    """
+    from tqdm import tqdm
+
+    from ..config import load_online_config
+    from ..report import (
+        ONLINE_REPORT_FILES,
+        evaluate_online,
+        online_document,
+        online_lines,
+        write_online_report,
+    )
+    from ..tuning import run_online
+
+    _check_json_target(json_path)
+    if report_dir is not None:
+        check_output_directory(report_dir, ONLINE_REPORT_FILES, "online report")
+    online = load_online_config(profile_path)
+    settings, drive = _online_drive(config, seed)
+    with (
+        tqdm(
+            total=round(online.duration, 3), desc="online", unit=" s", file=sys.stderr,
+            disable=None, leave=False, bar_format="{desc}: {n:.1f}/{total} s {bar} {elapsed}",
+        ) as bar,
+        _numerics(config.source) as caught,
+    ):  # fmt: skip
+
+        def progress(now: float) -> None:
+            bar.update(now - bar.n)
+
+        run = run_online(
+            config.motor, settings, drive, online.profile, online.duration, seed=seed,
+            progress=progress, learner=learner,  # type: ignore[arg-type]
+        )  # fmt: skip
+        evaluation = evaluate_online(run)
+    _check_numerics(config.source, caught, run.cold.P, run.cold.K)
+    lines = online_lines(config.source, run, evaluation)
+    if json_path is not None:
+        _write_json(json_path, online_document(run, evaluation))
+    if report_dir is not None:
+        write_online_report(run, evaluation, lines, report_dir)
+    _print_report(lines, json_path)
+    if report_dir is not None and json_path != STANDARD_OUTPUT:
+        print(f"wrote {report_dir}/ ({', '.join(ONLINE_REPORT_FILES)})")
+    return 0
+
+
+def follow_command(
+    config: MotorConfig, law_path: str, log_path: str, learner: str = "identify"
+) -> int:
+    """``selftune follow``: the online tuner's events on a drive's log as it arrives,
+    one JSON line each on standard output.
+
+    Parameters
+    ----------
+    config : MotorConfig
+        What the tuner knows (the motor file; without a ``[drive]`` table, the ideal
+        drive at the ``[learning]`` sampling period).
+    law_path : str
+        The JSON result whose controller is in force at the log's first row.
+    log_path : str
+        The CSV log, or ``-`` for standard input.
+    learner : {"identify", "adp"}
+        How the tuner re-learns.
+    """
+    import io
+
+    from ..config import load_control_law
+    from ..core._atomic import open_regular_file
+    from ..learn import read_csv_chunks
+    from ..learn.online import OnlineTuner
+    from ..tuning import CHUNK_SECONDS, follow, online_settings
+
+    settings, drive = _online_drive(config, 0)
+    tuner = online_settings(config.motor, settings, drive, learner)  # type: ignore[arg-type]
+    law = load_control_law(law_path)
+    try:  # the law must fit the drive: said of the file that gave it
+        OnlineTuner(tuner, law)
+    except InputError as exc:
+        raise DataFileError(f"{law_path}: {exc}") from None
+    rows = max(1, round(CHUNK_SECONDS / settings.h))
+    if log_path == STANDARD_OUTPUT:
+        stream, source = sys.stdin, "standard input"
+    else:
+        stream = io.TextIOWrapper(open_regular_file(log_path), encoding="utf-8", newline="")
+        source = log_path
+    names = tuner.structure.names(tuner.dead_time)
+    with stream:
+        for time, event in follow(tuner, law, read_csv_chunks(stream, source, rows), source):
+            line: dict[str, Any] = {"time": time, "kind": event.kind, "reason": event.reason}
+            if event.law is not None:
+                line["control_law"] = event.law.document()
+            if event.estimate is not None:
+                line["estimate"] = dict(zip(names, event.estimate.theta, strict=True))
+                line["standard_errors"] = dict(
+                    zip(names, event.estimate.standard_errors, strict=True)
+                )
+            print(json.dumps(finite_or_null(to_jsonable(line))), flush=True)
+    return 0
