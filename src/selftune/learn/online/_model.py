@@ -5,7 +5,9 @@
 from :class:`~._moments.ForgettingMoments`: instruments ``[x_(k-1), a_k, w_k]`` (and the
 signs of ``x_(k-1)`` at row k's angle), so that neither the noise on ``x_k`` nor the signs
 it flips near zero current bias the estimate. A chunk's rows join the previous chunk's:
-any chunking gives the same moments.
+any chunking gives the same moments. The transitions wait until the moments are read
+(or :data:`PENDING_ROWS` of them are waiting), and are then added in one product: the
+work of a product is mostly its call, not its rows.
 """
 
 from __future__ import annotations
@@ -19,12 +21,16 @@ from ...core import Array, positive_finite
 from ...errors import InputError
 from ..evidence._dead_time import phase_signs
 from ..evidence._discrete_model import DiscreteModel
-from ._moments import ForgettingMoments, transposed_order
+from ._moments import ForgettingMoments, add_samples, transposed_order
 
 __all__ = ["OnlineModel"]
 
 #: Rows a transition needs besides its own: the one before (the instrument) and after.
 _TAIL = 2
+
+#: The most transitions that wait to be added to the moments (the memory it takes is
+#: bounded whoever reads the moments, and how seldom).
+PENDING_ROWS = 4096
 
 
 @dataclass
@@ -50,8 +56,9 @@ class OnlineModel:
     m: int
     q: int
     dead_time: bool = False
-    moments: list[ForgettingMoments] = field(init=False, repr=False)
+    _memories: list[ForgettingMoments] = field(init=False, repr=False)
     _tail: tuple[Array, Array] | None = field(init=False, default=None, repr=False)
+    _pending: list[tuple[Array, Array, Array]] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.h = positive_finite(self.h, "h")
@@ -59,9 +66,20 @@ class OnlineModel:
             raise InputError("memories: give at least one time constant, s")
         self.memories = tuple(positive_finite(value, "memories") for value in self.memories)
         size = self.n + self.m + self.q + (2 if self.dead_time else 0)
-        self.moments = [
+        self._memories = [
             ForgettingMoments(math.exp(-self.h / memory), size, self.n) for memory in self.memories
         ]
+        self._pending = []
+
+    @property
+    def moments(self) -> list[ForgettingMoments]:
+        """Each memory's moments, with every transition added so far (the list itself:
+        a memory may be replaced in it, as after a change)."""
+        if self._pending:
+            rows = [np.concatenate(parts) for parts in zip(*self._pending, strict=True)]
+            self._pending.clear()
+            add_samples(self._memories, *rows)
+        return self._memories
 
     @property
     def channels(self) -> int:
@@ -94,16 +112,19 @@ class OnlineModel:
             angles = np.concatenate([self._tail[1], angles])
         self._tail = (data[-_TAIL:], angles[-_TAIL:])
         if data.shape[0] < _TAIL + 1:
-            size = self.moments[0].regressors
+            size = self._memories[0].regressors
             return np.zeros((0, size)), np.zeros((0, size)), np.zeros((0, self.n))
         n, now = self.n, slice(1, -1)  # transitions k -> k + 1 with a row k - 1 before
         z, zeta = data[now], np.concatenate([data[:-2, :n], data[now, n:]], axis=1)
         if self.dead_time:
-            z = np.hstack([z, phase_signs(data[now, :n], angles[now])])
-            zeta = np.hstack([zeta, phase_signs(data[:-2, :n], angles[now])])
+            # the signs of x_k and of x_(k-1), both at row k's angle: one call
+            signs = phase_signs(np.vstack([data[now, :n], data[:-2, :n]]), np.tile(angles[now], 2))
+            z = np.hstack([z, signs[: z.shape[0]]])
+            zeta = np.hstack([zeta, signs[z.shape[0] :]])
         rows = (zeta, z, data[2:, :n])
-        for moments in self.moments:
-            moments.add(*rows)
+        self._pending.append(rows)
+        if sum(part[0].shape[0] for part in self._pending) >= PENDING_ROWS:
+            self.moments  # noqa: B018 (adds what waits)
         return rows
 
     def model(self, index: int = 0) -> DiscreteModel:
@@ -135,7 +156,7 @@ class OnlineModel:
             Bd=M[:, n : n + m].copy(),
             Ed=M[:, n + m :].copy(),
             h=self.h,
-            residual_rms=np.sqrt(np.diag(Sigma)),
+            residual_rms=np.sqrt(np.maximum(np.diag(Sigma), 0.0)),
             relative_residual=float("nan"),
             condition=float(np.linalg.cond(moments.cross[:, : Theta.shape[0]])),
             transitions=moments.count,
@@ -185,7 +206,7 @@ class OnlineModel:
         if not b - a > 0.1 * b:
             model = self._discrete(self.moments[older], Theta_b, Sigma, covariance)
             return model, Theta_b, covariance, b * self.h
-        Theta_a, *_ = self.moments[recent].estimate()
+        Theta_a = self.moments[recent].coefficients()
         c_a, c_b = b / (b - a), -a / (b - a)
         scale = 2 * b * (c_a**2 / (2 * a) + c_b**2 / (2 * b) + 2 * c_a * c_b / (a + b))
         Theta = c_a * Theta_a + c_b * Theta_b

@@ -29,6 +29,7 @@ errors nearly cancel in the sums: counting them white would overstate the errors
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -38,7 +39,7 @@ from numpy.typing import NDArray
 from ...core import Array
 from ...errors import InputError
 
-__all__ = ["ForgettingMoments", "transposed_order"]
+__all__ = ["ForgettingMoments", "add_samples", "transposed_order"]
 
 
 @dataclass
@@ -56,18 +57,19 @@ class ForgettingMoments:
     outputs : int
         n, the size of ``y``.
 
-    The moments change through :meth:`add` and :meth:`forget` only: :meth:`estimate` is
-    kept until the next of them (a look asks for it twice).
+    The moments change through :meth:`add` (or :func:`add_samples`, several memories of
+    one stream at once) and :meth:`forget` only: :meth:`estimate` is kept until the next
+    of them (a look asks for it twice). They are blocks of two weighed sums of products:
+    ``sum w_k [zeta_k; v_k; v_(k-1)] v_k'`` (``v_k = [z_k, y_k]``, ``w_k =
+    lambda^(N-1-k)``) and ``sum w_k^2 [zeta_(k-1); zeta_k] [zeta_(k-1); zeta_k]'``.
     """
 
     forgetting: float
     regressors: int
     outputs: int
-    cross: Array = field(init=False, repr=False)  # sum w zeta [z, y]'  (p, p + n)
-    second: Array = field(init=False, repr=False)  # sum w [z, y][z, y]'  (p + n, p + n)
-    squared: Array = field(init=False, repr=False)  # sum u u'  (p, p)
-    pairs: Array = field(init=False, repr=False)  # sum over pairs of [u_k; u_(k+1)] [.]'
-    second_lagged: Array = field(init=False, repr=False)  # sum w [z, y]_k' [z, y]_(k+1)
+    gram: Array = field(init=False, repr=False)  # sum w [zeta; v; v_(k-1)] v'
+    gram_squared: Array = field(init=False, repr=False)  # sum w^2 [zeta_(k-1); zeta] [.]'
+    first: Array = field(init=False, repr=False)  # the first sample's w^2 zeta zeta' (no pair)
     weight: float = field(init=False, default=0.0)  # sum w
     aged: float = field(init=False, default=0.0)  # sum w age (samples; the newest 0)
     count: int = field(init=False, default=0)  # samples added
@@ -78,11 +80,43 @@ class ForgettingMoments:
         if not 0.0 < self.forgetting <= 1.0:
             raise InputError(f"forgetting: expected a factor in (0, 1], got {self.forgetting!r}")
         p, n = self.regressors, self.outputs
-        self.cross = np.zeros((p, p + n))
-        self.second = np.zeros((p + n, p + n))
-        self.squared = np.zeros((p, p))
-        self.pairs = np.zeros((2 * p, 2 * p))
-        self.second_lagged = np.zeros((p + n, p + n))
+        self.gram = np.zeros((3 * p + 2 * n, p + n))
+        self.gram_squared = np.zeros((2 * p, 2 * p))
+        self.first = np.zeros((p, p))
+
+    @property
+    def cross(self) -> Array:
+        """``sum w zeta [z, y]'``, (p, p + n)."""
+        return self.gram[: self.regressors]
+
+    @property
+    def second(self) -> Array:
+        """``sum w [z, y] [z, y]'``, (p + n, p + n)."""
+        p, n = self.regressors, self.outputs
+        return self.gram[p : 2 * p + n]
+
+    @property
+    def second_lagged(self) -> Array:
+        """``sum w [z, y]_(k-1) [z, y]_k'``, (p + n, p + n)."""
+        p, n = self.regressors, self.outputs
+        return self.gram[2 * p + n :]
+
+    @property
+    def squared(self) -> Array:
+        """``sum u u'`` (``u_k = w_k zeta_k``), (p, p)."""
+        p = self.regressors
+        return self.gram_squared[p:, p:]
+
+    @property
+    def pairs(self) -> Array:
+        """``sum [u_(k-1); u_k] [u_(k-1); u_k]'`` over consecutive pairs, each weighed by
+        its later sample's weight (``u_(k-1) = lambda w_k zeta_(k-1)``), (2p, 2p)."""
+        p = self.regressors
+        pairs = self.gram_squared.copy()
+        pairs[p:, p:] -= self.first
+        pairs[:p] *= self.forgetting
+        pairs[:, :p] *= self.forgetting
+        return pairs
 
     def add(self, zeta: Array, z: Array, y: Array) -> None:
         """Add T samples, in time order, forgetting the older ones.
@@ -96,39 +130,7 @@ class ForgettingMoments:
         y : ndarray, shape (T, n)
             Outputs.
         """
-        count = z.shape[0]
-        if count == 0:
-            return
-        self._estimate = None
-        lam = self.forgetting
-        # the newest sample weighs 1, the oldest of the chunk lambda^(T-1)
-        weights, total = _chunk_weights(lam, count)
-        v = np.concatenate([z, y], axis=1)
-        # row k's sample before it: the last chunk's last, none (zeros) before the first
-        first = self._last is None
-        if self._last is None:
-            self._last = (np.zeros((1, zeta.shape[1])), np.zeros((1, v.shape[1])))
-        before_zeta = np.concatenate([self._last[0], zeta[:-1]])
-        before_v = np.concatenate([self._last[1], v[:-1]])
-        p, size = zeta.shape[1], v.shape[1]
-        weighted = np.concatenate([zeta, v, before_v], axis=1) * weights[:, None]
-        products = weighted.T @ v  # cross, second and the lagged second at once
-        older = lam**count
-        self.cross = older * self.cross + products[:p]
-        self.second = older * self.second + products[p : p + size]
-        self.second_lagged = older * self.second_lagged + products[p + size :]
-        self.squared = older**2 * self.squared + (weighted[:, :p] * weights[:, None]).T @ zeta
-        # pairs (k, k + 1) ending in this chunk, weighed by the later sample's weight: the
-        # first starts at the last chunk's end
-        stacked = np.concatenate([before_zeta * (lam * weights)[:, None], weighted[:, :p]], axis=1)
-        stacked = stacked[1:] if first else stacked
-        self.pairs = older**2 * self.pairs + stacked.T @ stacked
-        self._last = (zeta[-1:].copy(), v[-1:].copy())
-        self.aged = older * (self.aged + count * self.weight) + float(
-            weights @ np.arange(count - 1, -1, -1)
-        )
-        self.weight = older * self.weight + total
-        self.count += count
+        add_samples([self], zeta, z, y)
 
     def forget(self, keep: float) -> None:
         """Scale every moment by ``keep`` in [0, 1] (0: start afresh), as if the samples
@@ -140,11 +142,9 @@ class ForgettingMoments:
             The weight left to the samples so far.
         """
         self._estimate = None
-        self.cross *= keep
-        self.second *= keep
-        self.squared *= keep**2
-        self.pairs *= keep**2
-        self.second_lagged *= keep
+        self.gram *= keep
+        self.gram_squared *= keep**2
+        self.first *= keep**2
         self.weight *= keep
         self.aged *= keep
 
@@ -202,6 +202,20 @@ class ForgettingMoments:
         order = transposed_order(p, n)
         return np.asarray(weight[np.ix_(order, order)], dtype=np.float64)
 
+    def coefficients(self) -> Array:
+        """``Theta`` (p, n) alone, from the moments so far (:meth:`estimate` without the
+        covariances).
+
+        Raises
+        ------
+        numpy.linalg.LinAlgError
+            If the instruments' moment ``G`` is singular.
+        """
+        if self._estimate is not None:
+            return self._estimate[0].copy()
+        p = self.regressors
+        return np.asarray(np.linalg.solve(self.cross[:, :p], self.cross[:, p:]), dtype=np.float64)
+
     def estimate(self) -> tuple[Array, Array, Array]:
         """``Theta`` (p, n), the error covariance ``Sigma`` (n, n) and the covariance of
         ``vec(Theta)`` (column-major), from the moments so far.
@@ -220,8 +234,8 @@ class ForgettingMoments:
     def _estimated(self) -> tuple[Array, Array, Array]:
         """:meth:`estimate`, computed."""
         p = self.regressors
-        G, H = self.cross[:, :p], self.cross[:, p:]
-        Theta = np.asarray(np.linalg.solve(G, H), dtype=np.float64)
+        G = self.cross[:, :p]
+        Theta = self.coefficients()
         n = self.outputs
         Sigma, R, Q = self.noise(Theta)
         Ad = Theta[:n].T
@@ -235,6 +249,77 @@ class ForgettingMoments:
         G_inverse = np.linalg.inv(G)
         spread = np.kron(np.eye(n), G_inverse)
         return Theta, Sigma, np.asarray(spread @ V @ spread.T)
+
+
+def add_samples(memories: Sequence[ForgettingMoments], zeta: Array, z: Array, y: Array) -> None:
+    """Add T samples of one stream to several memories at once (one product for all).
+
+    Each memory ends as if its :meth:`~ForgettingMoments.add` had been called; memories
+    fed the same stream so far (the same last sample) share the work.
+
+    Parameters
+    ----------
+    memories : sequence of ForgettingMoments
+        The memories, of the same sizes.
+    zeta : ndarray, shape (T, p)
+        Instruments.
+    z : ndarray, shape (T, p)
+        Regressors.
+    y : ndarray, shape (T, n)
+        Outputs.
+    """
+    count = z.shape[0]
+    if count == 0 or not memories:
+        return
+    last = memories[0]._last
+    sharing = [m for m in memories if _same_last(m._last, last)]
+    if len(sharing) < len(memories):  # fed different streams: one group per stream
+        add_samples(sharing, zeta, z, y)
+        add_samples([m for m in memories if m not in sharing], zeta, z, y)
+        return
+    v = np.concatenate([z, y], axis=1)
+    if last is None:  # row k's sample before it: none (zeros) before the very first
+        last = (np.zeros((1, zeta.shape[1])), np.zeros((1, v.shape[1])))
+    left = np.concatenate([zeta, v, np.concatenate([last[1], v[:-1]])], axis=1)
+    pair = np.concatenate([np.concatenate([last[0], zeta[:-1]]), zeta], axis=1)
+    weights = np.array([_chunk_weights(m.forgetting, count)[0] for m in memories])  # (M, T)
+    # every memory's weighed sums in one product each: (T, M k)' (T, k')
+    sums = _weighed(weights, left, v)
+    sums_squared = _weighed(weights**2, pair, pair)
+    ages = np.arange(count - 1, -1, -1, dtype=float)
+    shared = (zeta[-1:].copy(), v[-1:].copy())
+    for index, memory in enumerate(memories):
+        memory._estimate = None
+        older = memory.forgetting**count
+        memory.gram *= older
+        memory.gram += sums[index]
+        memory.gram_squared *= older**2
+        memory.gram_squared += sums_squared[index]
+        memory.first *= older**2
+        if memory._last is None:  # the very first sample has no pair
+            memory.first += weights[index, 0] ** 2 * np.outer(zeta[0], zeta[0])
+        memory._last = shared
+        total = _chunk_weights(memory.forgetting, count)[1]
+        memory.aged = older * (memory.aged + count * memory.weight) + float(weights[index] @ ages)
+        memory.weight = older * memory.weight + total
+        memory.count += count
+
+
+def _weighed(weights: Array, left: Array, right: Array) -> Array:
+    """``sum_k weights[i, k] left_k right_k'`` for every row i of ``weights``: shape (M,
+    a, b) from weights (M, T), left (T, a), right (T, b), in one matrix product."""
+    T, b = right.shape
+    # the narrower side weighed (a contiguous (T, M) first: ten times faster at 1,000 rows)
+    by_row = np.ascontiguousarray(weights.T)[:, :, np.newaxis]
+    scaled = (by_row * right[:, np.newaxis, :]).reshape(T, -1)
+    return (left.T @ scaled).reshape(left.shape[1], weights.shape[0], b).transpose(1, 0, 2)
+
+
+def _same_last(a: tuple[Array, Array] | None, b: tuple[Array, Array] | None) -> bool:
+    """Whether two memories' last samples are the same (the same stream so far)."""
+    if a is None or b is None:
+        return a is b
+    return a is b or (np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]))
 
 
 @lru_cache(maxsize=8)

@@ -36,8 +36,14 @@ from ..evidence._spmsm_structure import SpmsmStructure
 
 __all__ = ["ChangeTest", "ChangeWatch", "PhysicalEstimate", "physical_estimate"]
 
-#: Gauss-Newton iterations from the last estimate (the model moves little between looks).
+#: Gauss-Newton iterations from the last estimate, at most (the model moves little
+#: between looks).
 ITERATIONS = 3
+
+#: A Gauss-Newton step below this share of every parameter's standard error ends the
+#: iterations: the next is smaller by orders (on the servo drive the second step was
+#: 4e-4 standard errors at the median, 0.013 at the 99th percentile, the third 3e-9).
+CONVERGED = 0.01
 
 #: Relative step of the finite-difference Jacobian.
 _STEP = 1e-6
@@ -56,11 +62,15 @@ class PhysicalEstimate:
     sensitivities : ndarray, shape (entries, p)
         ``d vec([Ad, Bd, Ed]) / d theta`` (column-major ``vec``) near ``theta``: the
         directions in which each parameter moves the model.
+    gain : ndarray, shape (p, entries), optional
+        ``d theta / d vec([Ad, Bd, Ed])`` of the fit: how the estimate follows a change
+        of the model it was fitted to.
     """
 
     theta: Array
     covariance: Array
     sensitivities: Array
+    gain: Array | None = None
 
     @property
     def standard_errors(self) -> Array:
@@ -86,8 +96,8 @@ def physical_estimate(
     start : ndarray
         The parameters to start from (the last estimate, or ``structure.initial``).
     iterations : int
-        Gauss-Newton iterations (one from an estimate close by, as a fast model's from
-        the slow one's).
+        Gauss-Newton iterations at most: fewer where a step is below :data:`CONVERGED`
+        of every standard error.
     weight : ndarray, shape (entries, entries), optional
         The weight on the entries' misfit (default: each entry's inverse variance).
     """
@@ -111,10 +121,13 @@ def physical_estimate(
         J = np.column_stack(
             [(entry - value) / step for step, entry in zip(steps, stepped, strict=True)]
         )
-        normal = J.T @ weight @ J
-        theta = theta + np.linalg.solve(normal, J.T @ weight @ (target - value))
-    gain = np.linalg.solve(normal, J.T @ weight)  # d theta / d entries
-    return PhysicalEstimate(theta, gain @ model.covariance @ gain.T, J)
+        gain = np.linalg.solve(J.T @ weight @ J, J.T @ weight)  # d theta / d entries
+        step = gain @ (target - value)
+        theta = theta + step
+        covariance = gain @ model.covariance @ gain.T
+        if np.all(np.abs(step) <= CONVERGED * np.sqrt(np.maximum(np.diag(covariance), 0.0))):
+            break
+    return PhysicalEstimate(theta, covariance, J, gain)
 
 
 @dataclass(frozen=True)
@@ -260,16 +273,20 @@ class ChangeWatch:
         errors = y - z @ reference.Theta
         u = zeta @ reference.maps  # row k: every direction's u_k' = (Sigma^-1 M_j zeta_k)'
         paths = u[:-1] - u[1:] @ reference.Ad  # c_j' for the chunk's interior measurements
-        within = np.sum((u @ reference.Q) * u, axis=0) + np.sum(
-            (paths @ reference.R) * paths, axis=0
-        )
+        # one product for the scores, the loads, the shifts and the process noise's
+        # variance: sum_k u_k [e_k', z_k', (every M_j z_k)', u_k'], direction j's rows
+        # j n to j n + n - 1
+        products = u.T @ np.concatenate([errors, z, z @ reference.directions, u], axis=1)
+        shifted = n + p + directions * n  # where sum u_k u_k' starts
+        # sum_k u_k' Q u_k and sum_j c_j' R c_j, each direction's, from the sums of products
+        within = reference.Q * products[:, shifted:] + reference.R * (paths.T @ paths)
         self._parts.append((T, np.concatenate([
-            np.sum(u * np.tile(errors, directions), axis=0) @ reference.sums,  # scores
-            within @ reference.sums,
-            (z.T @ u).reshape(p, directions, n).transpose(1, 2, 0).ravel(),  # vec(sum z_k u_k')
+            np.einsum("jii->j", products[:, :n].reshape(directions, n, n)),  # scores
+            np.sum(within, axis=0) @ reference.sums,
+            products[:, n : n + p].ravel(),  # vec(sum z_k u_k'), direction by direction
             u[0], u[-1],
             # shifts: score j's response to parameter k, sum_k u_k' M_j... M_k z_k
-            np.einsum("ajbj->ab", (u.T @ (z @ reference.directions)).reshape(
+            np.einsum("ajbj->ab", products[:, n + p : shifted].reshape(
                 directions, n, directions, n)).ravel(),
         ])))  # fmt: skip
         while sum(count for count, _ in self._parts[1:]) >= self.window:
