@@ -229,9 +229,7 @@ def load_npz_columns(path: PathLike, names: Sequence[str]) -> dict[str, Array]:
     with _npz_archive(target, columns=True) as (archive, members):
         absent = [name for name in names if name not in members]
         if absent:
-            raise file_error(
-                target, f"no array {absent[0]!r} (arrays: {_listing(list(members))})"
-            )
+            raise file_error(target, f"no array {absent[0]!r} (arrays: {_listing(list(members))})")
         arrays = {name: _member(target, archive, members[name]) for name in names}
     return {name: _column(target, name, array) for name, array in arrays.items()}
 
