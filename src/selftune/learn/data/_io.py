@@ -67,6 +67,7 @@ from ._trajectory import Trajectory
 
 __all__ = [
     "CsvHeader",
+    "file_format_of",
     "load_csv",
     "load_mat",
     "load_npz",
@@ -82,7 +83,9 @@ _SUFFIXES = (".csv", ".npz", ".mat")
 _WRITTEN = (".csv", ".npz")
 
 
-def _format_for(path: Path, suffixes: tuple[str, ...] = _SUFFIXES) -> str:
+def file_format_of(path: Path, suffixes: tuple[str, ...] = _SUFFIXES) -> str:
+    """The suffix of ``path`` (lower case) if it is one of ``suffixes``, else the one-line
+    error that names the accepted ones."""
     suffix = path.suffix.lower()
     if suffix not in suffixes:
         accepted = ", ".join(repr(item) for item in suffixes[:-1]) + f" or {suffixes[-1]!r}"
@@ -119,7 +122,7 @@ def load_trajectory(path: PathLike) -> Trajectory:
     """
     target = Path(path)
     readers = {".csv": load_csv, ".npz": load_npz, ".mat": load_mat}
-    return readers[_format_for(target)](target)
+    return readers[file_format_of(target)](target)
 
 
 def trajectory_dimensions(path: PathLike) -> tuple[int, int, int]:
@@ -145,7 +148,7 @@ def trajectory_dimensions(path: PathLike) -> tuple[int, int, int]:
     """
     target = Path(path)
     readers = {".csv": csv_dimensions, ".npz": npz_dimensions, ".mat": mat_dimensions}
-    return readers[_format_for(target)](target)
+    return readers[file_format_of(target)](target)
 
 
 def save_trajectory(trajectory: Trajectory, path: PathLike) -> None:
@@ -171,7 +174,7 @@ def save_trajectory(trajectory: Trajectory, path: PathLike) -> None:
         If the file cannot be written (e.g. the directory does not exist).
     """
     target = Path(path)
-    file_format = _format_for(target, _WRITTEN)
+    file_format = file_format_of(target, _WRITTEN)
     if isinstance(trajectory, Trajectory) and len(trajectory.t) > LIMITS["samples"]:
         raise file_error(
             target,
