@@ -129,7 +129,6 @@ LIMITS: Mapping[str, int] = MappingProxyType(
         "header_bytes": 1 << 16,  # the header line of a CSV file
         "samples": 1_000_000,  # sample times in a data file
         "channels": 12,  # n + m + q of a data file
-        "log_columns": 256,  # columns of a drive's own log (a [log] table names them)
         "episode_samples": 200_000,  # samples per episode of a self-tuning session
         "iterations": 1000,  # max_iterations
     }

@@ -17,6 +17,7 @@ from ...core import Array, atomic_path, first_non_increasing
 from ...core._atomic import open_regular_file, read_regular_file
 from ...core._validation import LIMITS
 from ._data_file import (
+    MAX_LOG_COLUMNS,
     PathLike,
     build,
     check_channels,
@@ -359,7 +360,7 @@ class _Columns(NamedTuple):
 def _parse_names(path: Path, line: str) -> _Columns:
     """A log's own column names: each non-empty and different from the others."""
     names = [field.strip(_FIELD_WHITESPACE) for field in line.split(",")]
-    limit = LIMITS["log_columns"]
+    limit = MAX_LOG_COLUMNS
     if len(names) > limit:
         raise file_error(path, f"line 1: {len(names)} columns; at most {limit} are read")
     for column, name in enumerate(names, start=1):
@@ -391,8 +392,8 @@ def load_csv_columns(path: PathLike) -> tuple[list[str], Array]:
     ------
     DataFileError
         Naming the file, the line and the column, for anything :func:`load_csv` refuses
-        in the rows, an empty or duplicate name, or more than ``LIMITS["log_columns"]``
-        columns.
+        in the rows, an empty or duplicate name, or more columns than
+        :data:`~._data_file.MAX_LOG_COLUMNS` (256).
     """
     target = Path(path)
     header, table = _read_table(target, _parse_names)

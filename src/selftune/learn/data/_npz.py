@@ -17,6 +17,7 @@ from ...core._atomic import open_zip, read_npy_data, read_npy_header
 from ...core._validation import LIMITS, check_time_resolution
 from ...errors import InputError
 from ._data_file import (
+    MAX_LOG_COLUMNS,
     PathLike,
     build,
     check_channels,
@@ -104,8 +105,8 @@ def _npz_archive(
     path: Path, columns: bool = False
 ) -> Iterator[tuple[zipfile.ZipFile, dict[str, zipfile.ZipInfo]]]:
     """The open archive and its checked members (a log's ``columns``: any names, at most
-    ``LIMITS["log_columns"]``); nothing is decompressed yet."""
-    most = LIMITS["log_columns"] if columns else _ZIP_MAX_MEMBERS
+    :data:`~._data_file.MAX_LOG_COLUMNS` (256)); nothing is decompressed yet."""
+    most = MAX_LOG_COLUMNS if columns else _ZIP_MAX_MEMBERS
     with open_zip(path, most, _ZIP_MAX_DIRECTORY, "an NPZ archive") as archive:
         yield archive, _member_names(path, archive, columns)
 
