@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from selftune.cli import build_parser, main
-from selftune.config import load_learn_config
+from selftune.config import LEARN_TABLES, load_learn_config, load_log_format
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 
@@ -61,6 +61,8 @@ def test_every_toml_example_is_a_valid_file(tmp_path: Path) -> None:
         else:
             config = load_learn_config(path, n=2, m=2, q=2)
             assert config.regulation and np.allclose(config.K0, 62.83 * np.eye(2))
+            log = load_log_format(path, LEARN_TABLES)
+            assert log is None or log.dimensions == (2, 2, 2)
 
 
 def test_every_command_and_option_is_documented() -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..config import LEARN_TABLES, LearnConfig, load_learn_config
+from ..config import LEARN_TABLES, LearnConfig, load_learn_config, load_log_format
 from ..core import labels, matrix_block
 from ..errors import DataFileError, InputError, Refusal
 from ._output import _check_json_target, _check_numerics, _numerics, _print_report, _write_json
@@ -48,27 +48,30 @@ def _against_config(error: InputError, config_file: str) -> DataFileError | None
 
 
 def learn_command(data_path: str, config_path: str, json_path: str | None) -> int:
-    """``selftune learn``: the learned controller from a CSV or NPZ log and a config.
+    """``selftune learn``: the learned controller from a CSV, NPZ or MAT log and a config.
 
-    The data file's header gives n, m, q; the configuration is read and checked against
-    them completely before the rows are loaded. The controller comes with its quality;
-    data that do not support one give an error that says why.
+    The data file's header (or the configuration's ``[log]`` table) gives n, m, q; the
+    configuration is read and checked against them completely before the rows are loaded.
+    The controller comes with its quality; data that do not support one give an error
+    that says why.
 
     Parameters
     ----------
     data_path : str
-        The CSV or NPZ log.
+        The CSV, NPZ or MAT log (in selftune's columns, or the ``[log]`` table's).
     config_path : str
         CONFIG.toml.
     json_path : str or None
         Where to write the JSON (``-``: standard output, without the report).
     """
-    from ..learn import load_trajectory
+    from ..learn import load_log, load_trajectory
     from ..learn.data._io import trajectory_dimensions
 
     _check_json_target(json_path)
-    config = load_learn_config(config_path, *trajectory_dimensions(data_path))
-    data = load_trajectory(data_path)
+    log = load_log_format(config_path, LEARN_TABLES)  # None: selftune's own columns
+    dimensions = trajectory_dimensions(data_path) if log is None else log.dimensions
+    config = load_learn_config(config_path, *dimensions)
+    data = load_trajectory(data_path) if log is None else load_log(data_path, log)
     result = _learn(data, config, data_path)
     law = result.law
     states, inputs = labels("x", data.n), labels("u", data.m)

@@ -5,7 +5,9 @@
 - :func:`load_motor_config` -> :class:`MotorConfig`: the motor, its operating point and
   the cost weights (:mod:`._motor_file`);
 - :func:`load_learn_config` -> :class:`LearnConfig`: what ``selftune learn`` needs
-  besides the data (:mod:`._learn_file`);
+  besides the data (:mod:`._learn_file`), and :func:`load_log_format` -> the
+  :class:`~selftune.learn.LogFormat` of its optional ``[log]`` table: a log in the
+  drive's own columns, units and frame (:mod:`._log_table`);
 - :func:`load_online_config` -> :class:`OnlineConfig`: an online run's duration and the
   profile of the motor's R_s, L_s and phi_pm over time (:mod:`._online_file`);
 - :func:`load_control_law` -> :class:`~selftune.core.ControlLaw`: the controller a JSON
@@ -16,12 +18,14 @@ from __future__ import annotations
 
 from ._law_file import load_control_law
 from ._learn_file import LEARN_TABLES, LearnConfig, load_learn_config
+from ._log_table import LOG_KEYS, load_log_format
 from ._motor_file import MOTOR_TABLES, MotorConfig, load_motor_config
 from ._online_file import ONLINE_TABLES, PROFILE_KEYS, OnlineConfig, load_online_config
 from ._toml import RENAMED_KEYS, ConfigFile, ConfigTable, read_toml
 
 __all__ = [
     "LEARN_TABLES",
+    "LOG_KEYS",
     "MOTOR_TABLES",
     "ONLINE_TABLES",
     "PROFILE_KEYS",
@@ -33,6 +37,7 @@ __all__ = [
     "OnlineConfig",
     "load_control_law",
     "load_learn_config",
+    "load_log_format",
     "load_motor_config",
     "load_online_config",
     "read_toml",

@@ -10,6 +10,7 @@ from types import MappingProxyType
 from ..core import Array
 from ..core._validation import LIMITS, check_weight_ratio
 from ..errors import InputError
+from ._log_table import LOG_KEYS
 from ._toml import ConfigFile, ConfigTable
 
 __all__ = ["LEARN_TABLES", "LearnConfig", "load_learn_config"]
@@ -37,6 +38,7 @@ LEARN_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
             "voltage_hold",
             "max_relative_error",
         ),
+        "log": LOG_KEYS,
     }
 )
 
@@ -118,6 +120,9 @@ def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> L
         electrical_speed = 150.0  # p speed, rad/s (structure; dead time without angle)
         voltage_hold = "stationary"  # or "rotor": what the drive holds over a sample
         max_relative_error = 0.05    # refuse results with larger standard errors
+        [log]                 # optional: the log's own columns, units and frame
+                              # (selftune.config._log_table); then n = m = 2 and q is
+                              # the number of references w1..wq it names
 
     Parameters
     ----------

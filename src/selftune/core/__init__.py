@@ -6,7 +6,8 @@ Everything in selftune may use this package; it uses nothing of selftune but
 atomic file output (:mod:`._atomic`), the generic LQR and Lyapunov solvers
 (:mod:`._linalg`), their discrete-time counterparts with the delay and integrator
 augmentations (:mod:`._dlinalg`), exact zero-order-hold discretization
-(:mod:`._discretize`) and the paper's settings (:mod:`._paper`).
+(:mod:`._discretize`), the Clarke and Park transforms (:mod:`._phases`) and the paper's
+settings (:mod:`._paper`).
 """
 
 from __future__ import annotations

@@ -1,13 +1,15 @@
 """The method: learning optimal controllers from sampled data, without the model.
 
 The learners take :class:`Trajectory` samples (from a simulator, or a drive's log read
-by :func:`load_trajectory`) and the known part of the problem (C, E, F, the cost weights
-and a stabilizing K0); they never see A, B or D. Nothing here imports
+by :func:`load_trajectory`, or in its own columns and frame by :func:`load_log`) and the
+known part of the problem (C, E, F, the cost weights and a stabilizing K0); they never
+see A, B or D. Nothing here imports
 :mod:`selftune.model` or :mod:`selftune.tuning`; an import contract checks that.
 
 The flow, one subpackage a stage::
 
-    data/       Trajectory, CSV and NPZ files                          the logs
+    data/       Trajectory, CSV, NPZ and MAT files, a drive's own       the logs
+                columns and phase frame (LogFormat)
     evidence/   exact discrete model, alignment, dead time,             what the logs say
                 output-error fit and noise, consistency tests
     learners/   moments and regression of the data equation, one        the method
@@ -32,6 +34,7 @@ from __future__ import annotations
 from ._pipeline import aligned_trajectory, assess, learn_controller
 from ._problem import LearningOptions, LearningProblem, Method, Target
 from ._result import DiscountStage, Formulation, LearnedController
+from .data._frames import LogColumn, LogFormat, load_log
 from .data._io import (
     CsvHeader,
     load_csv,
@@ -116,6 +119,8 @@ __all__ = [
     "LearnedController",
     "LearningOptions",
     "LearningProblem",
+    "LogColumn",
+    "LogFormat",
     "LoggedInput",
     "Method",
     "OutputErrorFit",
@@ -154,6 +159,7 @@ __all__ = [
     "learn_regulator",
     "learn_servo",
     "load_csv",
+    "load_log",
     "load_npz",
     "load_trajectory",
     "not_converged",

@@ -1,12 +1,12 @@
-"""The inverter's phases and pulses (see :mod:`._inverter` for the physics): the Clarke
-transform, the legs' duties and carrier edges, one carrier period exactly, and the carrier
-PWM's plant, one motor's sample at a time in Python floats: numpy's cost per call on
-arrays of 2, 3 or 7 values made a sample about 0.35 ms, in Python floats the plant's part
-is about 0.02 ms. The measured currents' Park transform stays numpy's (its complex
-product rounds as a fused multiply-add does), so the logged currents and commands are
-those of the former numpy plant to the bit wherever an ADC rounds the phase currents (but
-for a current within rounding of a step's edge); the true currents and voltages differ
-by rounding (1e-13 A, 2e-13 V over 5,000 samples)."""
+"""The inverter's phases and pulses (see :mod:`._inverter` for the physics; the Clarke
+transform is :mod:`selftune.core._phases`): the legs' duties and carrier edges, one
+carrier period exactly, and the carrier PWM's plant, one motor's sample at a time in
+Python floats: numpy's cost per call on arrays of 2, 3 or 7 values made a sample about
+0.35 ms, in Python floats the plant's part is about 0.02 ms. The measured currents' Park
+transform stays numpy's (its complex product rounds as a fused multiply-add does), so the
+logged currents and commands are those of the former numpy plant to the bit wherever an
+ADC rounds the phase currents (but for a current within rounding of a step's edge); the
+true currents and voltages differ by rounding (1e-13 A, 2e-13 V over 5,000 samples)."""
 
 from __future__ import annotations
 
@@ -17,9 +17,9 @@ from math import cos, exp, expm1, sin
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ..core import Array
+from ..core._phases import CLARKE, PHASE_DIRECTIONS, ComplexArray, from_phases, to_phases
 
 if TYPE_CHECKING:
     from ._inverter import LoopInputs, LoopState
@@ -38,28 +38,13 @@ __all__ = [
     "to_phases",
 ]
 
-ComplexArray = NDArray[np.complex128]
 #: A plant's results: measured i_dq and true i_ab (P, N + 1), mean dq voltages (P, N), the
 #: compensations (P, d + N + 1) and the current after the last sample (P,).
 _Results = tuple[ComplexArray, ComplexArray, ComplexArray, ComplexArray, ComplexArray]
 
-#: The directions of phases a, b, c in the stationary frame: ``exp(j 2 pi x / 3)``.
-PHASE_DIRECTIONS: ComplexArray = np.exp(2j * np.pi * np.arange(3) / 3)
-#: The amplitude-invariant Clarke transform as a row: ``i_ab = i_abc @ CLARKE``.
-CLARKE: ComplexArray = (2.0 / 3.0) * PHASE_DIRECTIONS
 #: ``conj(PHASE_DIRECTIONS)`` and CLARKE as Python complex numbers (one motor's sample).
 _DIRECTIONS = tuple(complex(d) for d in np.conj(PHASE_DIRECTIONS))
 _CLARKE = tuple(complex(c) for c in CLARKE)
-
-
-def to_phases(vector: ComplexArray) -> Array:
-    """Phase values ``[a, b, c]`` (..., 3) of stationary vectors (amplitude-invariant)."""
-    return np.real(vector[..., np.newaxis] * np.conj(PHASE_DIRECTIONS))
-
-
-def from_phases(phases: Array) -> ComplexArray:
-    """``alpha + j beta`` of phase values (..., 3) (Clarke; the common mode is dropped)."""
-    return phases @ CLARKE
 
 
 def dead_time_voltage(signs: Array, amplitude: float) -> ComplexArray:

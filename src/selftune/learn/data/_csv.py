@@ -6,10 +6,10 @@ from __future__ import annotations
 import itertools
 import math
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from io import BytesIO
 from pathlib import Path
-from typing import IO, NamedTuple
+from typing import IO, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 
@@ -17,6 +17,7 @@ from ...core import Array, atomic_path, first_non_increasing
 from ...core._atomic import open_regular_file, read_regular_file
 from ...core._validation import LIMITS
 from ._data_file import (
+    MAX_LOG_COLUMNS,
     PathLike,
     build,
     check_channels,
@@ -27,7 +28,14 @@ from ._data_file import (
 )
 from ._trajectory import Trajectory
 
-__all__ = ["CsvHeader", "csv_dimensions", "load_csv", "read_csv_chunks", "save_csv"]
+__all__ = [
+    "CsvHeader",
+    "csv_dimensions",
+    "load_csv",
+    "load_csv_columns",
+    "read_csv_chunks",
+    "save_csv",
+]
 
 _CSV_CHUNK_ROWS = 10_000
 # Bytes of data lines checked and parsed at a time (a block ends at a line end): what
@@ -316,7 +324,7 @@ def load_csv(path: PathLike) -> Trajectory:
         increase. The one-line message names the file, the line and the column.
     """
     target = Path(path)
-    (names, n, m, q, angle), table = _read_table(target)
+    (names, n, m, q, angle), table = _read_table(target, _parse_header)
     beyond = first_beyond(table)
     if beyond is not None:
         (row, column), what = beyond
@@ -335,8 +343,71 @@ def load_csv(path: PathLike) -> Trajectory:
     return build(target, t, x, u, w, table[:, -1] if angle else None)
 
 
-def _read_table(path: Path) -> tuple[CsvHeader, Array]:
-    """The header and the data rows (one per line, one column per name) of a CSV file.
+class _Named(Protocol):
+    @property
+    def names(self) -> list[str]: ...
+
+
+_Header = TypeVar("_Header", bound=_Named)
+
+
+class _Columns(NamedTuple):
+    """The header of a log with columns of its own names (:func:`load_csv_columns`)."""
+
+    names: list[str]
+
+
+def _parse_names(path: Path, line: str) -> _Columns:
+    """A log's own column names: each non-empty and different from the others."""
+    names = [field.strip(_FIELD_WHITESPACE) for field in line.split(",")]
+    limit = MAX_LOG_COLUMNS
+    if len(names) > limit:
+        raise file_error(path, f"line 1: {len(names)} columns; at most {limit} are read")
+    for column, name in enumerate(names, start=1):
+        if not name:
+            raise file_error(path, f"line 1, column {column}: an empty column name")
+        if name in names[: column - 1]:
+            raise file_error(path, f"line 1, column {column}: {quote(name)} (a duplicate)")
+    return _Columns(names)
+
+
+def load_csv_columns(path: PathLike) -> tuple[list[str], Array]:
+    """The columns of a drive's own CSV log: a header line of column names (any names,
+    each non-empty and unique), then rows of numbers (the grammar of :func:`load_csv`,
+    every column a number, at least 2 rows).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file, whatever its suffix.
+
+    Returns
+    -------
+    names : list of str
+        The column names, in the file's order.
+    table : ndarray, shape (rows, columns)
+        The values.
+
+    Raises
+    ------
+    DataFileError
+        Naming the file, the line and the column, for anything :func:`load_csv` refuses
+        in the rows, an empty or duplicate name, or more columns than
+        :data:`~._data_file.MAX_LOG_COLUMNS` (256).
+    """
+    target = Path(path)
+    header, table = _read_table(target, _parse_names)
+    beyond = first_beyond(table)
+    if beyond is not None:
+        (row, column), what = beyond
+        name = header.names[column]
+        raise file_error(target, f"line {row + 2}, column {column + 1} ({name}): {what}")
+    return header.names, table
+
+
+def _read_table(path: Path, parse: Callable[[Path, str], _Header]) -> tuple[_Header, Array]:
+    """The header (``parse`` reads it) and the data rows (one per line, one column per
+    name) of a CSV file.
 
     The file's bytes are held while they are read (and let go on return); the rows are
     parsed a block of lines at a time into the table, so that reading needs about the
@@ -344,7 +415,7 @@ def _read_table(path: Path) -> tuple[CsvHeader, Array]:
     """
     raw = read_regular_file(path, LIMITS["csv_bytes"], "a CSV data file")
     header, start = _split_header(path, raw)
-    parsed = _parse_header(path, header)
+    parsed = parse(path, header)
     plain = _is_plain(raw, start)
     end = _data_end(raw, start)
     # A file that is not plain is decoded in full so that the scan can say what is

@@ -18,6 +18,7 @@ from ...errors import DataFileError, InputError
 from ._trajectory import Trajectory
 
 __all__ = [
+    "MAX_LOG_COLUMNS",
     "PathLike",
     "build",
     "check_channels",
@@ -28,6 +29,10 @@ __all__ = [
 ]
 
 PathLike = str | os.PathLike[str]
+
+#: The most columns a drive's own log (read through a ``[log]`` table) may have: a CSV
+#: header's names, an NPZ archive's arrays.
+MAX_LOG_COLUMNS = 256
 
 
 def file_error(path: Path, message: str) -> DataFileError:

@@ -1,4 +1,5 @@
-"""Trajectory files: CSV and NPZ, the only two formats selftune reads and writes.
+"""Trajectory files: CSV and NPZ, which selftune reads and writes, and MATLAB's MAT,
+which it reads.
 
 CSV
     A header line ``t,x1,...,xn,u1,...,um`` followed by optional ``w1,...,wq``, then
@@ -21,7 +22,17 @@ NPZ
     nothing else may be in the archive. Pickled (object) arrays are never loaded. Saved
     ``u`` has N rows and ``w`` keeps its row count, so a round trip is exact.
 
-Both
+MAT
+    A MATLAB file saved with ``-v7`` (or v4 to v7; not v7.3, which is HDF5: refused with
+    a one-line error) holding the numeric (real) matrices ``t``, ``x``, ``u`` and
+    optionally ``w`` and ``angle``, as the NPZ arrays; ``t`` and ``angle`` are vectors
+    (1 x K or K x 1), the others samples x channels (a 1 x K row: one channel). Nothing
+    else may be in the file. Read only (:mod:`._mat`).
+
+A drive's own log (its column names and units, phase currents, duty cycles) is read
+through a ``[log]`` table instead (:mod:`._frames`), from CSV, NPZ or MAT.
+
+All
     The angle (the CSV column ``theta``, the NPZ array ``angle``:
     :attr:`Trajectory.angle <selftune.learn.Trajectory>`) is the electrical rotor angle at
     each sample time, rad, unwrapped or not; the learners use it to model an inverter's
@@ -39,7 +50,8 @@ a one-line message naming the file and the line and column (CSV) or the array (N
 Writes are atomic: a failed save leaves no partial file and keeps any existing file.
 
 Here are the entry points, which choose the format by the file's suffix; the formats
-live in :mod:`._csv` and :mod:`._npz`, what they share in :mod:`._data_file`.
+live in :mod:`._csv`, :mod:`._npz` and :mod:`._mat`, what they share in
+:mod:`._data_file`.
 """
 
 from __future__ import annotations
@@ -49,12 +61,15 @@ from pathlib import Path
 from ...core._validation import LIMITS
 from ._csv import CsvHeader, csv_dimensions, load_csv, read_csv_chunks, save_csv
 from ._data_file import PathLike, file_error
+from ._mat import load_mat, mat_dimensions
 from ._npz import load_npz, npz_dimensions, save_npz
 from ._trajectory import Trajectory
 
 __all__ = [
     "CsvHeader",
+    "file_format_of",
     "load_csv",
+    "load_mat",
     "load_npz",
     "load_trajectory",
     "read_csv_chunks",
@@ -64,20 +79,23 @@ __all__ = [
     "trajectory_dimensions",
 ]
 
-_SUFFIXES = (".csv", ".npz")
+_SUFFIXES = (".csv", ".npz", ".mat")
+_WRITTEN = (".csv", ".npz")
 
 
-def _format_for(path: Path) -> str:
+def file_format_of(path: Path, suffixes: tuple[str, ...] = _SUFFIXES) -> str:
+    """The suffix of ``path`` (lower case) if it is one of ``suffixes``, else the one-line
+    error that names the accepted ones."""
     suffix = path.suffix.lower()
-    if suffix not in _SUFFIXES:
-        accepted = " or ".join(repr(item) for item in _SUFFIXES)
+    if suffix not in suffixes:
+        accepted = ", ".join(repr(item) for item in suffixes[:-1]) + f" or {suffixes[-1]!r}"
         found = repr(path.suffix) if path.suffix else "no suffix"
         raise file_error(path, f"unknown file type ({found}); expected a {accepted} file")
     return suffix
 
 
 def load_trajectory(path: PathLike) -> Trajectory:
-    """Read a trajectory from a ``.csv`` or ``.npz`` file (chosen by the suffix).
+    """Read a trajectory from a ``.csv``, ``.npz`` or ``.mat`` file (chosen by the suffix).
 
     Parameters
     ----------
@@ -92,9 +110,9 @@ def load_trajectory(path: PathLike) -> Trajectory:
     Raises
     ------
     DataFileError
-        If the suffix is neither ``.csv`` nor ``.npz``, the file cannot be read, or its
-        content is invalid; the one-line message names the file and the line and column
-        or the array.
+        If the suffix is not ``.csv``, ``.npz`` or ``.mat``, the file cannot be read, or
+        its content is invalid; the one-line message names the file and the line and
+        column, the array or the variable.
 
     Examples
     --------
@@ -103,14 +121,14 @@ def load_trajectory(path: PathLike) -> Trajectory:
     (2, 1, 1000)
     """
     target = Path(path)
-    if _format_for(target) == ".csv":
-        return load_csv(target)
-    return load_npz(target)
+    readers = {".csv": load_csv, ".npz": load_npz, ".mat": load_mat}
+    return readers[file_format_of(target)](target)
 
 
 def trajectory_dimensions(path: PathLike) -> tuple[int, int, int]:
-    """``(n, m, q)`` of a ``.csv`` or ``.npz`` file from its header only: the CSV header
-    line, or the archive's directory and the arrays' ``.npy`` headers (no rows are read).
+    """``(n, m, q)`` of a ``.csv``, ``.npz`` or ``.mat`` file from its header only: the CSV
+    header line, the archive's directory and the arrays' ``.npy`` headers, or the MAT
+    variables' headers (no rows are read).
 
     Parameters
     ----------
@@ -129,9 +147,8 @@ def trajectory_dimensions(path: PathLike) -> tuple[int, int, int]:
         As :func:`load_trajectory`, for what the header shows.
     """
     target = Path(path)
-    if _format_for(target) == ".csv":
-        return csv_dimensions(target)
-    return npz_dimensions(target)
+    readers = {".csv": csv_dimensions, ".npz": npz_dimensions, ".mat": mat_dimensions}
+    return readers[file_format_of(target)](target)
 
 
 def save_trajectory(trajectory: Trajectory, path: PathLike) -> None:
@@ -157,7 +174,7 @@ def save_trajectory(trajectory: Trajectory, path: PathLike) -> None:
         If the file cannot be written (e.g. the directory does not exist).
     """
     target = Path(path)
-    file_format = _format_for(target)
+    file_format = file_format_of(target, _WRITTEN)
     if isinstance(trajectory, Trajectory) and len(trajectory.t) > LIMITS["samples"]:
         raise file_error(
             target,

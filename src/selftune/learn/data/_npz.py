@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -17,6 +17,7 @@ from ...core._atomic import open_zip, read_npy_data, read_npy_header
 from ...core._validation import LIMITS, check_time_resolution
 from ...errors import InputError
 from ._data_file import (
+    MAX_LOG_COLUMNS,
     PathLike,
     build,
     check_channels,
@@ -27,7 +28,7 @@ from ._data_file import (
 )
 from ._trajectory import Trajectory
 
-__all__ = ["load_npz", "npz_dimensions", "save_npz"]
+__all__ = ["load_npz", "load_npz_columns", "npz_dimensions", "save_npz"]
 
 _ARRAY_NAMES = ("t", "x", "u", "w", "angle")
 _REQUIRED_ARRAYS = ("t", "x", "u")
@@ -69,8 +70,11 @@ def save_npz(trajectory: Trajectory, path: PathLike) -> None:
         np.savez(temporary, **arrays)
 
 
-def _member_names(path: Path, archive: zipfile.ZipFile) -> dict[str, zipfile.ZipInfo]:
-    """The archive's arrays by name; unknown, duplicate, missing or too large ones refused."""
+def _member_names(
+    path: Path, archive: zipfile.ZipFile, columns: bool = False
+) -> dict[str, zipfile.ZipInfo]:
+    """The archive's arrays by name; unknown (but for a log's ``columns``), duplicate,
+    missing or too large ones refused."""
     members: dict[str, zipfile.ZipInfo] = {}
     for info in archive.infolist():
         name = info.filename.removesuffix(".npy")
@@ -79,8 +83,8 @@ def _member_names(path: Path, archive: zipfile.ZipFile) -> dict[str, zipfile.Zip
         if name in members:
             raise file_error(path, f"array {quote(name)} appears twice")
         members[name] = info
-    extra = [name for name in members if name not in _ARRAY_NAMES]
-    missing = [name for name in _REQUIRED_ARRAYS if name not in members]
+    extra = [name for name in members if name not in _ARRAY_NAMES and not columns]
+    missing = [name for name in _REQUIRED_ARRAYS if name not in members and not columns]
     for names, what in ((extra, "unexpected"), (missing, "missing")):
         if names:
             listed = ", ".join(quote(name) if extra else repr(name) for name in names)
@@ -97,10 +101,14 @@ def _member_names(path: Path, archive: zipfile.ZipFile) -> dict[str, zipfile.Zip
 
 
 @contextmanager
-def _npz_archive(path: Path) -> Iterator[tuple[zipfile.ZipFile, dict[str, zipfile.ZipInfo]]]:
-    """The open archive and its checked members; nothing is decompressed yet."""
-    with open_zip(path, _ZIP_MAX_MEMBERS, _ZIP_MAX_DIRECTORY, "an NPZ archive") as archive:
-        yield archive, _member_names(path, archive)
+def _npz_archive(
+    path: Path, columns: bool = False
+) -> Iterator[tuple[zipfile.ZipFile, dict[str, zipfile.ZipInfo]]]:
+    """The open archive and its checked members (a log's ``columns``: any names, at most
+    :data:`~._data_file.MAX_LOG_COLUMNS` (256)); nothing is decompressed yet."""
+    most = MAX_LOG_COLUMNS if columns else _ZIP_MAX_MEMBERS
+    with open_zip(path, most, _ZIP_MAX_DIRECTORY, "an NPZ archive") as archive:
+        yield archive, _member_names(path, archive, columns)
 
 
 @contextmanager
@@ -193,3 +201,53 @@ def load_npz(path: PathLike) -> Trajectory:
     return build(
         target, floats["t"], floats["x"], floats["u"], floats.get("w"), floats.get("angle")
     )
+
+
+def load_npz_columns(path: PathLike, names: Sequence[str]) -> dict[str, Array]:
+    """The arrays ``names`` of a drive's own NPZ log: each a 1-D array (one value per
+    row) of integer or floating-point numbers, under a name the ``[log]`` table gives; the
+    archive's other arrays are not read.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The archive, whatever its suffix.
+    names : sequence of str
+        The arrays wanted.
+
+    Returns
+    -------
+    dict of str to ndarray
+        The arrays as floats (not finite values are kept: the log's reader names them).
+
+    Raises
+    ------
+    DataFileError
+        Naming the file and the array: a missing one (with the arrays there are), one
+        that is not 1-D real numbers, a corrupt archive, more than 256 MiB of arrays.
+    """
+    target = Path(path)
+    with _npz_archive(target, columns=True) as (archive, members):
+        absent = [name for name in names if name not in members]
+        if absent:
+            raise file_error(target, f"no array {absent[0]!r} (arrays: {_listing(list(members))})")
+        arrays = {name: _member(target, archive, members[name]) for name in names}
+    return {name: _column(target, name, array) for name, array in arrays.items()}
+
+
+def _listing(names: list[str], limit: int = 12) -> str:
+    """``a, b, c`` of the first ``limit`` names, ``...`` after."""
+    shown = ", ".join(quote(name, 24) for name in names[:limit])
+    return shown + (", ..." if len(names) > limit else "")
+
+
+def _column(path: Path, name: str, array: NDArray[np.generic]) -> Array:
+    """One column of a log: 1-D real numbers, as floats."""
+    if array.dtype.kind not in "iuf":
+        message = f"expected integer or floating-point numbers, got dtype {array.dtype.str!r}"
+        raise file_error(path, f"array {name!r}: {message}")
+    if array.ndim != 1:
+        raise file_error(
+            path, f"array {name!r}: expected 1-D (one value per row), got shape {array.shape}"
+        )
+    return np.asarray(array, dtype=np.float64)

@@ -27,7 +27,8 @@ from typing import Literal
 import numpy as np
 
 from ...core import Array
-from ._dead_time import line_to_line, phase_currents, phases_to_dq
+from ...core._phases import phase_currents, phases_to_dq
+from ._dead_time import line_to_line
 
 __all__ = ["LATTICE_TOLERANCE", "CurrentLattice", "current_lattice"]
 

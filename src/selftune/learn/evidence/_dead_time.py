@@ -28,11 +28,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Literal, TypeVar
+from typing import Literal
 
 import numpy as np
 
 from ...core import Array
+from ...core._phases import Number, dq_of_phases, phase_currents, phases_of_dq
 from ...errors import ConfigurationMismatch, InputError
 from ..data._trajectory import Trajectory
 from ._alignment import aligned_transitions
@@ -49,9 +50,7 @@ __all__ = [
     "line_to_line",
     "path_signs",
     "path_vector",
-    "phase_currents",
     "phase_signs",
-    "phases_to_dq",
     "sign_vector",
     "with_dead_time",
 ]
@@ -59,12 +58,6 @@ __all__ = [
 #: Offsets tried per log when the angle comes from the speed: 1 degree apart over 60,
 #: then refined 0.05 degree apart around the best.
 OFFSET_GRID = np.deg2rad(np.arange(0.0, 60.0, 1.0))
-
-#: ``sqrt(3) / 2``: the phases b and c lie at -+120 degrees from a.
-_HALF_ROOT3 = 0.5 * float(np.sqrt(3.0))
-
-#: A sample's value (float) or many samples' (ndarray).
-Number = TypeVar("Number", float, Array)
 
 #: How the phase signs were computed: from the log's angle, from the electrical speed
 #: with a fitted offset, or the current's direction (see the module docstring).
@@ -206,32 +199,6 @@ def path_signs(x: Array, angle: Array) -> Array:
     return np.vstack([np.column_stack(path_vector(start, end)), np.column_stack(last)])
 
 
-def _phases(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Number, Number, Number]:
-    """The phase currents a, b, c of the dq currents at the angle (amplitude-invariant)."""
-    alpha, beta = i_d * cos - i_q * sin, i_d * sin + i_q * cos
-    return alpha, -0.5 * alpha + _HALF_ROOT3 * beta, -0.5 * alpha - _HALF_ROOT3 * beta
-
-
-def _dq(a: Number, b: Number, c: Number, cos: Number, sin: Number) -> tuple[Number, Number]:
-    """The dq components of ``(2/3) sum_x v_x exp(j 2 pi x / 3)`` at the angle."""
-    v_alpha, v_beta = (2.0 / 3.0) * (a - 0.5 * (b + c)), (2.0 / 3.0) * _HALF_ROOT3 * (b - c)
-    return v_alpha * cos + v_beta * sin, v_beta * cos - v_alpha * sin
-
-
-def phase_currents(x: Array, angle: Array) -> Array:
-    """The phase currents ``[i_a, i_b, i_c]`` (T, 3), A, of the dq currents ``x`` (T, 2) at
-    the electrical angles (T,), rad (amplitude-invariant)."""
-    return np.column_stack(_phases(x[:, 0], x[:, 1], np.cos(angle), np.sin(angle)))
-
-
-def phases_to_dq(phases: Array, angle: Array) -> Array:
-    """The dq currents (T, 2) of phase currents (T, 3) at the electrical angles (T,): the
-    inverse of :func:`phase_currents` (a common mode is dropped)."""
-    return np.column_stack(
-        _dq(phases[:, 0], phases[:, 1], phases[:, 2], np.cos(angle), np.sin(angle))
-    )
-
-
 def line_to_line(x: Array, angle: Array) -> Array:
     """The differences ``[i_a - i_b, i_b - i_c, i_c - i_a]`` (T, 3), A, of the phase
     currents of the dq currents ``x`` (T, 2) at the electrical angles (T,)."""
@@ -254,8 +221,8 @@ def sign_vector(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Num
     (d, q)
         The dq components of the signs' vector.
     """
-    a, b, c = _phases(i_d, i_q, cos, sin)
-    return _dq(np.sign(a), np.sign(b), np.sign(c), cos, sin)
+    a, b, c = phases_of_dq(i_d, i_q, cos, sin)
+    return dq_of_phases(np.sign(a), np.sign(b), np.sign(c), cos, sin)
 
 
 def path_vector(
@@ -278,10 +245,10 @@ def path_vector(
         The mean signs' vector in the dq frame of the start.
     """
     means = []
-    for p0, p1 in zip(_phases(*start), _phases(*end), strict=True):
+    for p0, p1 in zip(phases_of_dq(*start), phases_of_dq(*end), strict=True):
         total = np.abs(p0) + np.abs(p1)
         means.append(np.divide(p0 + p1, total, out=np.zeros_like(total), where=total > 0.0))
-    return _dq(means[0], means[1], means[2], start[2], start[3])
+    return dq_of_phases(means[0], means[1], means[2], start[2], start[3])
 
 
 def direction_signs(x: Array, floor: float) -> Array:
