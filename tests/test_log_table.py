@@ -107,10 +107,9 @@ def test_a_phase_frame_log_gives_the_controller_of_its_dq_log(tmp_path: Path) ->
 
 def test_the_example_phase_log_learns_the_same_controller(tmp_path: Path) -> None:
     """examples/data: the phase log is make_phase_log.py's output, and learns drive_log.csv's
-    controller within its standard errors. Not closer: the drive's 12-bit ADC puts 130 of
-    the 6,000 phase currents at exactly 0 A, whose signs (the dead-time model's) the
-    rounding of the dq currents then decides; the learner's answer moves as much (up to
-    2.3 standard errors) when the dq log's currents move by 1e-15 relative."""
+    controller to the conversion's rounding (3e-8 standard errors), although the drive's
+    12-bit ADC puts 130 of the 6,000 phase currents at exactly 0 A: their signs in the
+    dead-time model are 0 from either log, not the rounding's."""
     out = tmp_path / "phases.csv"
     SCRIPT["write_csv"](SCRIPT["phase_columns"](load_trajectory(DATA / "drive_log.csv")), out)
     committed = np.loadtxt(DATA / "drive_log_phases.csv", delimiter=",", skiprows=1)
@@ -119,7 +118,7 @@ def test_the_example_phase_log_learns_the_same_controller(tmp_path: Path) -> Non
     )
     expected = learned(DATA / "drive_log.csv", DATA / "learn.toml", tmp_path)
     got = learned(DATA / "drive_log_phases.csv", DATA / "learn_phases.toml", tmp_path)
-    assert np.max(normalized_differences(expected, got)) < 3.0
+    assert np.max(normalized_differences(expected, got)) < 1e-6
 
 
 def phase_log(tmp_path: Path, log: Trajectory, **columns: np.ndarray) -> Path:
