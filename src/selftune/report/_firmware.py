@@ -249,6 +249,7 @@ def _step_body(law: ControlLaw) -> list[str]:
         "    int i, j;",
         "",
         "    (void)omega_e; /* no schedule over speed */",
+        *(["    (void)s; /* the law keeps no state */"] if not (law.history or law.r) else []),
         "    /* u_e = U w; the deviations [x - X w; u_(k-d) - u_e; ...; u_(k-1) - u_e] */",
         "    for (i = 0; i < 2; ++i) {",
         "        u_e[i] = U[i][0] * w[0] + U[i][1] * w[1];",
