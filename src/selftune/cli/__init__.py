@@ -31,6 +31,7 @@ from ._commands import (
     _add_solve,
     _add_tune,
 )
+from ._export import _add_export
 from ._parsing import _Parser, _Subparsers, _UsageError
 
 __all__ = ["build_parser", "main"]
@@ -47,6 +48,7 @@ _COMMANDS: tuple[Callable[[_Subparsers], None], ...] = (
     _add_tune,
     _add_solve,
     _add_learn,
+    _add_export,
     _add_follow,
     _add_bench,
 )

@@ -11,12 +11,13 @@
 - :func:`load_online_config` -> :class:`OnlineConfig`: an online run's duration and the
   profile of the motor's R_s, L_s and phi_pm over time (:mod:`._online_file`);
 - :func:`load_control_law` -> :class:`~selftune.core.ControlLaw`: the controller a JSON
-  result names (:mod:`._law_file`).
+  result names; :func:`load_law_result` -> :class:`LawResult`: with what the file says of
+  its drive (:mod:`._law_file`).
 """
 
 from __future__ import annotations
 
-from ._law_file import load_control_law
+from ._law_file import LawResult, load_control_law, load_law_result
 from ._learn_file import LEARN_TABLES, LearnConfig, load_learn_config
 from ._log_table import LOG_KEYS, load_log_format
 from ._motor_file import MOTOR_TABLES, MotorConfig, load_motor_config
@@ -32,10 +33,12 @@ __all__ = [
     "RENAMED_KEYS",
     "ConfigFile",
     "ConfigTable",
+    "LawResult",
     "LearnConfig",
     "MotorConfig",
     "OnlineConfig",
     "load_control_law",
+    "load_law_result",
     "load_learn_config",
     "load_log_format",
     "load_motor_config",

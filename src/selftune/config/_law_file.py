@@ -1,24 +1,27 @@
-"""A controller from a JSON result: :func:`load_control_law`.
+"""A controller from a JSON result: :func:`load_control_law`, :func:`load_law_result`.
 
 Every selftune JSON that carries a controller names it ``control_law`` with every matrix
 (:meth:`selftune.core.ControlLaw.document`): ``selftune tune --json``, ``selftune learn
 --json``. :func:`load_control_law` reads it back; an online run's JSON
 (``selftune tune --online --json``) gives its last switch's law, or the cold law if it
-switched none. Every error is one line naming the file and the key.
+switched none. :func:`load_law_result` adds what the file says of the drive the law was
+made for (:class:`LawResult`). Every error is one line naming the file and the key.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from ..core import ControlLaw
 from ..core._atomic import read_regular_file
 from ..errors import DataFileError, InputError
 
-__all__ = ["load_control_law"]
+__all__ = ["LawResult", "load_control_law", "load_law_result"]
 
 #: The largest JSON file read, bytes (a result with its history is well under 10 MB).
 _LIMIT = 64 << 20
@@ -39,6 +42,72 @@ def _law_document(document: Any) -> tuple[Any, str]:
     return document.get("control_law"), "control_law"
 
 
+@dataclass(frozen=True)
+class LawResult:
+    """A JSON result's controller and what the file says of the drive it was made for.
+
+    Attributes
+    ----------
+    law : ControlLaw
+        The controller (see :func:`load_control_law`).
+    key : str
+        Where the file holds it (``"control_law"``, ``"online.switches[-1].control_law"``).
+    h : float or None
+        The sampling period, s: the law's (with integral action), else the file's ``h``
+        (``learn``, ``tune --online``) or ``settings.h`` (``tune``); None if none.
+    input_delay : int or None
+        The computation delay, samples: ``input_delay`` (``learn``) or the drive's
+        (``tune --online``); None where the file does not say (``tune``).
+    motor : dict or None
+        The motor's ``R_s``, ``L_s``, ``phi_pm``, ``p`` (``tune``, ``tune --online``);
+        None where the file names none (``learn``: a log, not a motor).
+    dc_voltage : float or None
+        The drive's DC bus, V (``tune --online``); None where the file does not say.
+    scheduled : bool
+        Whether the file schedules the law over speed (a ``schedule`` key beside the
+        law or at the top).
+    """
+
+    law: ControlLaw
+    key: str
+    h: float | None
+    input_delay: int | None
+    motor: dict[str, float] | None
+    dc_voltage: float | None
+    scheduled: bool
+
+
+def _read_document(path: str | os.PathLike[str]) -> Any:
+    """The JSON document at ``path``."""
+    name = os.fspath(path)
+    try:
+        raw = read_regular_file(path, _LIMIT, "a JSON result")
+        return json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DataFileError(f"{name}: not a JSON file ({exc})") from None
+    except InputError as exc:
+        raise DataFileError(str(exc)) from None
+
+
+def _law_of(document: Any, name: str) -> tuple[ControlLaw, Mapping[str, Any], str]:
+    """The controller of ``document`` (from the file ``name``), its mapping and key."""
+    try:
+        law, key = _law_document(document)
+    except InputError as exc:
+        raise DataFileError(f"{name}: {exc}") from None
+    if not isinstance(law, Mapping):
+        raise DataFileError(f"{name}: {key}: missing (a selftune result names its controller so)")
+    values: dict[str, Any] = {}
+    for field in ("K", "X", "U", "history", "K_i", "C", "F", "h"):
+        if field in ("K", "X", "U", "history") and field not in law:
+            raise DataFileError(f"{name}: {key}.{field}: missing")
+        values[field] = law.get(field)
+    try:
+        return ControlLaw(**values), law, key
+    except (InputError, TypeError, ValueError) as exc:
+        raise DataFileError(f"{name}: {key}: {exc}") from None
+
+
 def load_control_law(path: str | os.PathLike[str]) -> ControlLaw:
     """The controller a JSON result names (see the module).
 
@@ -53,26 +122,53 @@ def load_control_law(path: str | os.PathLike[str]) -> ControlLaw:
         ``"<file>: <key>: <why>"``, if the file is not JSON, has no controller, or a
         matrix is missing or does not fit.
     """
-    name = os.fspath(path)
-    try:
-        raw = read_regular_file(path, _LIMIT, "a JSON result")
-        document = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DataFileError(f"{name}: not a JSON file ({exc})") from None
-    except InputError as exc:
-        raise DataFileError(str(exc)) from None
-    try:
-        law, key = _law_document(document)
-    except InputError as exc:
-        raise DataFileError(f"{name}: {exc}") from None
-    if not isinstance(law, Mapping):
-        raise DataFileError(f"{name}: {key}: missing (a selftune result names its controller so)")
-    values: dict[str, Any] = {}
-    for field in ("K", "X", "U", "history", "K_i", "C", "F", "h"):
-        if field in ("K", "X", "U", "history") and field not in law:
-            raise DataFileError(f"{name}: {key}.{field}: missing")
-        values[field] = law.get(field)
-    try:
-        return ControlLaw(**values)
-    except (InputError, TypeError, ValueError) as exc:
-        raise DataFileError(f"{name}: {key}: {exc}") from None
+    return _law_of(_read_document(path), os.fspath(path))[0]
+
+
+def _number(table: Any, key: str) -> float | None:
+    value = table.get(key) if isinstance(table, Mapping) else None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    return float(value) if math.isfinite(value) else None
+
+
+def _motor(document: Mapping[str, Any]) -> dict[str, float] | None:
+    motor = document.get("motor")
+    values = {key: _number(motor, key) for key in ("R_s", "L_s", "phi_pm", "p")}
+    if any(value is None for value in values.values()):
+        return None
+    return {key: float(value) for key, value in values.items() if value is not None}
+
+
+def load_law_result(path: str | os.PathLike[str]) -> LawResult:
+    """The controller a JSON result names and what the file says of its drive.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The JSON file (``selftune learn``, ``tune`` or ``tune --online``).
+
+    Raises
+    ------
+    DataFileError
+        As :func:`load_control_law`.
+    """
+    document = _read_document(path)
+    law, mapping, key = _law_of(document, os.fspath(path))
+    drive = document.get("drive")
+    drive_settings = drive.get("settings", drive) if isinstance(drive, Mapping) else None
+    h = law.h
+    for table in (document, document.get("settings")):
+        h = h if h is not None else _number(table, "h")
+    delay = _number(document, "input_delay")
+    if delay is None:
+        delay = _number(drive_settings, "input_delay")
+    return LawResult(
+        law=law,
+        key=key,
+        h=h,
+        input_delay=None if delay is None else int(delay),
+        motor=_motor(document),
+        dc_voltage=_number(drive_settings, "dc_voltage"),
+        scheduled="schedule" in mapping or "schedule" in document,
+    )

@@ -9,7 +9,9 @@
   optimum of the same sampled loop, with the excess cost of its feedback;
 - :func:`steady_torque_error` (:mod:`._drive_check`): a controller's steady torque on the
   simulated drive; :func:`tune_lines`, :func:`tune_document` (:mod:`._tune_report`): what
-  ``selftune tune`` prints and writes.
+  ``selftune tune`` prints and writes;
+- :func:`firmware`, :func:`write_firmware` (:mod:`._firmware`): a law as C99 firmware
+  with its voltage limit and anti-windup (``selftune export``).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from ._evaluate import (
     feedback_value,
     steady_state,
 )
+from ._firmware import ANTI_WINDUP, FIRMWARE_FILES, Firmware, firmware, write_firmware
 from ._online_report import (
     ONLINE_REPORT_FILES,
     TIMELINE_POINTS,
@@ -60,10 +63,13 @@ from ._tune_report import (
 
 __all__ = [
     "ALGORITHM_LABELS",
+    "ANTI_WINDUP",
+    "FIRMWARE_FILES",
     "HOT_RESISTANCE",
     "ONLINE_REPORT_FILES",
     "STEADY_SECONDS",
     "TIMELINE_POINTS",
+    "Firmware",
     "OnlineEvaluation",
     "Reproduction",
     "TorqueCheck",
@@ -76,6 +82,7 @@ __all__ = [
     "evaluate_online",
     "feedback_excess_cost",
     "feedback_value",
+    "firmware",
     "history_document",
     "online_document",
     "online_lines",
@@ -92,6 +99,7 @@ __all__ = [
     "true_motor",
     "tune_document",
     "tune_lines",
+    "write_firmware",
     "write_online_report",
     "write_outputs",
 ]

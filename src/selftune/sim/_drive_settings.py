@@ -68,6 +68,11 @@ class DriveSettings:
         What the inverter holds over a sample: the ``alpha-beta`` vector (a PWM inverter,
         the realistic choice), or the dq vector (the ideal drive's zero-order hold; average
         PWM only).
+    anti_windup : bool
+        The controller's anti-windup: its integrators hold at the samples where the
+        DC-bus limit scales its command (conditional integration, as the C code of
+        ``selftune export`` does; :mod:`selftune.core._voltage_limit`); False: they
+        integrate regardless. It acts only with ``dc_voltage``.
 
     Raises
     ------
@@ -87,6 +92,7 @@ class DriveSettings:
     angle_compensation: bool = True
     logged_input: Literal["applied", "commanded"] = "applied"
     voltage_hold: Literal["stationary", "rotor"] = "stationary"
+    anti_windup: bool = False
 
     def __post_init__(self) -> None:
         delay = positive_integer(self.input_delay, "input_delay", minimum=0)
@@ -96,7 +102,7 @@ class DriveSettings:
         _choice(self.pwm, "pwm", ("average", "carrier"))
         _choice(self.logged_input, "logged_input", ("applied", "commanded"))
         _choice(self.voltage_hold, "voltage_hold", ("stationary", "rotor"))
-        for name in ("dead_time_compensation", "angle_compensation"):
+        for name in ("dead_time_compensation", "angle_compensation", "anti_windup"):
             _flag(getattr(self, name), name)
         for name in ("dead_time", "current_noise"):
             value = finite_float(getattr(self, name), name)

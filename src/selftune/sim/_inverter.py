@@ -38,11 +38,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
-from math import sqrt
 
 import numpy as np
 
 from ..core import Array
+from ..core._voltage_limit import limit_magnitude
 from ..errors import InputError
 from ..model import SPMSM
 from ._checks import as_float_array, as_generator
@@ -232,6 +232,9 @@ class Modulator:
         DC bus, V (None: no limit).
     dead_time : float
         ``t_d``, s.
+    anti_windup : bool
+        The laws' integrators hold at the samples where :attr:`limit` scales their command
+        (:mod:`selftune.core._voltage_limit`); False: they integrate regardless.
     """
 
     period: float
@@ -241,6 +244,7 @@ class Modulator:
     dc_voltage: float | None
     dead_time: float
     compensation: bool
+    anti_windup: bool = False
 
     @property
     def dead_time_amplitude(self) -> float:
@@ -363,19 +367,6 @@ class LoopState:
         )
 
 
-def _limit(u: Array, limit: float) -> Array:
-    """Each row of ``u`` (P, 2) scaled to a magnitude of at most ``limit``, V (``u`` itself
-    where none exceeds it; in Python floats: numpy's cost per call on 2 values was half
-    of the stepper's)."""
-    scales = []
-    for a, b in u.tolist():
-        magnitude = sqrt(a * a + b * b)
-        scales.append(1.0 if magnitude <= limit else limit / magnitude)  # NaN: NaN
-    if all(scale == 1.0 for scale in scales):
-        return u
-    return u * np.array(scales)[:, np.newaxis]
-
-
 def _step(
     inputs: LoopInputs, k: int, current: ComplexArray, command: ComplexArray, extra: ComplexArray
 ) -> tuple[ComplexArray, ComplexArray]:
@@ -472,7 +463,8 @@ def run_loop(inputs: LoopInputs, start: LoopState | None = None) -> LoopOutputs:
         given = (start.commands[:, memory - pad :], start.integrator)
     loop = run_closed_loop(
         plant, inputs.feedback, inputs.w, inputs.rho, delay,
-        limit=lambda u: _limit(u, limit), start=given,
+        limit=lambda u: limit_magnitude(u, limit), start=given,
+        anti_windup=inputs.modulator.anti_windup,
     )  # fmt: skip
     measured, currents, applied, extras, current = plant.results()
     count = inputs.rho.shape[1]

@@ -18,7 +18,8 @@ in one time loop. The effects, and what each does to the ideal drive's sampled d
   relative; without, ``eps = -d w_e h``: Bd is rotated by ``-(d + 1/2) w_e h``.
   ``"rotor"`` holds the dq vector (the ideal drive's and the paper's hold).
 - **DC-bus limit**: ``|u| <= V_dc / sqrt(3)`` (linear space-vector range) by scaling the
-  command, which is what is logged and fed back.
+  command, which is what is logged and fed back; with ``anti_windup`` the law's
+  integrators hold while it acts (:mod:`selftune.core._voltage_limit`).
 - **Dead time** ``t_d``: each phase voltage is off by ``-t_d f_sw V_dc sign(i_phase)`` V
   on average (``f_sw = 1/h``): in dq an unlogged input along ``-i``, of mean magnitude
   ``(4/pi) t_d f_sw V_dc`` for a held current vector, rippling at ``6 w_e``.
@@ -367,6 +368,7 @@ def _loop_inputs(
         dc_voltage=settings.dc_voltage,
         dead_time=settings.dead_time,
         compensation=settings.dead_time_compensation,
+        anti_windup=settings.anti_windup,
     )
     return LoopInputs(
         motor=motor,

@@ -5,7 +5,8 @@ At sample k the drive measures the state ``y_k`` of each of its P plants; the la
 it computed before and its integrator ``z_k``::
 
     u_k = limit(command(y_k, w_k, u_(k-H) .. u_(k-1), z_k) + rho_k)
-    z_(k+1) = z_k + h (C y_k + F w_k)
+    z_(k+1) = z_k + h (C y_k + F w_k)   (z_(k+1) = z_k where the limit acted, with
+                                         anti-windup: selftune.core._voltage_limit)
 
 and the drive applies ``u_(k-d)`` (zero before the first) over ``[t_k, t_(k+1))``, which
 advances its plant to ``t_(k+1)``. The plant is the drive's: :class:`SampledPlant` (the
@@ -32,6 +33,7 @@ from numpy.typing import ArrayLike
 
 from ..core import Array, ControlLaw, discretize
 from ..core._propagate import propagate_uniform
+from ..core._voltage_limit import held_integrators
 from ..errors import InputError
 from ..learn import Trajectory
 
@@ -172,6 +174,7 @@ def run_closed_loop(
     delay: int,
     limit: Callable[[Array], Array] | None = None,
     start: tuple[Array, Array] | None = None,
+    anti_windup: bool = False,
 ) -> ClosedLoop:
     """Step the laws and the plant, N samples, from rest (past inputs and integrators zero).
 
@@ -193,6 +196,10 @@ def run_closed_loop(
     start : (past, z), optional
         The ``max(H, d)`` inputs computed before the first sample (P, max(H, d), m), oldest
         first, and the integrators (P, R) at it (default zeros).
+    anti_windup : bool, optional
+        Hold a law's integrators at the samples where ``limit`` changed its command
+        (conditional integration, :func:`~selftune.core._voltage_limit.held_integrators`);
+        default False: they integrate whatever the limit does.
 
     Returns
     -------
@@ -224,12 +231,18 @@ def run_closed_loop(
         past[...] = flat[:, (pad + k - history) * m : (pad + k) * m]
         np.matmul(gains, state, out=product)
         u = np.add(computed, rho[:, k], out=commands[:, pad + k])
+        holding = None
         if limit is not None:
             limited = limit(u)
             if limited is not u:
+                if anti_windup:
+                    holding = held_integrators(u, limited)
                 u[...] = limited
         if integrators:
-            z += change
+            if holding is None:
+                z += change
+            else:
+                z += np.where(holding[:, np.newaxis], 0.0, change)
         plant.advance(k, commands[:, pad + k - delay], k - delay)
     plant.measure(count)
     integrator = state[:, state.shape[1] - integrators :, 0]
