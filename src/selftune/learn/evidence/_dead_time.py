@@ -28,12 +28,19 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Literal, cast
+from typing import Any, Literal, cast
 
 import numpy as np
 
 from ...core import Array
-from ...core._phases import Number, dq_of_phases, phase_currents, phases_of_dq
+from ...core._phases import (
+    Number,
+    dq_of_phases,
+    from_phases,
+    phase_currents,
+    phases_of_dq,
+    to_phases,
+)
 from ...errors import ConfigurationMismatch, InputError
 from ..data._trajectory import Trajectory
 from ._alignment import aligned_transitions
@@ -221,8 +228,11 @@ def sign_vector(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Num
     (d, q)
         The dq components of the signs' vector.
     """
-    a, b, c = _phases(i_d, i_q, cos, sin)
-    return dq_of_phases(np.sign(a), np.sign(b), np.sign(c), cos, sin)
+    turn = np.asarray(cos + 1j * sin)  # the rotor frame's direction in the stationary one
+    current = (i_d + 1j * i_q) * turn
+    phases = _settled(to_phases(current), np.abs(current)[..., np.newaxis])
+    vector = from_phases(np.sign(phases)) * np.conj(turn)
+    return cast("tuple[Number, Number]", (vector.real, vector.imag))
 
 
 #: A phase current rebuilt from dq within this share of the current's size is taken as
@@ -237,10 +247,14 @@ def _phases(
     i_d: Number, i_q: Number, cos: Number, sin: Number
 ) -> tuple[Number, Number, Number]:
     """The phase currents of the dq currents, those within :data:`ROUNDING` of zero 0."""
-    size = ROUNDING * np.hypot(i_d, i_q)
-    a, b, c = (np.where(np.abs(phase) > size, phase, 0.0) for phase in phases_of_dq(
-        i_d, i_q, cos, sin))  # fmt: skip
+    size = np.hypot(i_d, i_q)
+    a, b, c = (_settled(phase, size) for phase in phases_of_dq(i_d, i_q, cos, sin))
     return cast("tuple[Number, Number, Number]", (a, b, c))
+
+
+def _settled(phases: Any, size: Any) -> Any:
+    """``phases`` with those within :data:`ROUNDING` of ``size`` (the current's) set to 0."""
+    return np.where(np.abs(phases) > ROUNDING * size, phases, 0.0)
 
 
 def path_vector(
