@@ -28,9 +28,10 @@ __all__ = ["OnlineModel"]
 #: Rows a transition needs besides its own: the one before (the instrument) and after.
 _TAIL = 2
 
-#: The most transitions that wait to be added to the moments (the memory it takes is
-#: bounded whoever reads the moments, and how seldom).
-PENDING_ROWS = 4096
+#: The most transitions that wait to be added to the moments: the memory it takes is
+#: bounded whoever reads the moments, and how seldom, and a batch stays within the
+#: processor's caches (per row, 1,000 rows took a third of the time of 100 and of 2,000).
+PENDING_ROWS = 1000
 
 
 @dataclass
