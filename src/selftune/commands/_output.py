@@ -37,12 +37,19 @@ def _check_report_target(directory: str | None) -> None:
         check_output_directory(directory, LEARN_REPORT_FILES, "learn report")
 
 
-def _write_report(result: Any, title: str, lines: Sequence[str], directory: str | None) -> None:
-    """Write the report of a learned controller (with its evidence) into ``directory``."""
+def _write_report(
+    result: Any,
+    title: str,
+    lines: Sequence[str],
+    directory: str | None,
+    step: tuple[Array, Array] | None = None,
+) -> None:
+    """Write the report of a learned controller (with its evidence) into ``directory``
+    (``step``: the reference before and after its step response's step)."""
     if directory is not None:
         from ..report import write_learn_report
 
-        write_learn_report(result, title, lines, directory)
+        write_learn_report(result, title, lines, directory, step)
 
 
 def _say_report_written(directory: str | None, json_path: str | None) -> None:

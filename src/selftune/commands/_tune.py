@@ -7,6 +7,8 @@ import json
 import sys
 from typing import Any
 
+import numpy as np
+
 from ..config import MotorConfig
 from ..core import finite_or_null, to_jsonable
 from ..core._atomic import check_output_directory
@@ -68,7 +70,9 @@ def tune_command(
     lines = tune_lines(config.source, result, evaluation, torque, config.drive)
     if json_path is not None:
         _write_json(json_path, tune_document(config.motor, settings, result, evaluation, torque))
-    _write_report(result.learned, f"selftune tune: {config.source}", lines, report_dir)
+    # the step response's step: the torque reference from 0 at the operating point's speed
+    step = (result.w * np.array([1.0, 0.0]), result.w)
+    _write_report(result.learned, f"selftune tune: {config.source}", lines, report_dir, step)
     _print_report(lines, json_path)
     _say_report_written(report_dir, json_path)
     return 0

@@ -196,7 +196,11 @@ def report_page(
 
 
 def write_learn_report(
-    learned: LearnedController, title: str, lines: Sequence[str], out: str
+    learned: LearnedController,
+    title: str,
+    lines: Sequence[str],
+    out: str,
+    step: tuple[Array, Array] | None = None,
 ) -> list[Path]:
     """Write :data:`LEARN_REPORT_FILES` into ``out`` as one set.
 
@@ -210,8 +214,11 @@ def write_learn_report(
         The printed report, shown at the page's end.
     out : str
         The directory: absent, empty or a previous report.
+    step : (ndarray, ndarray), optional
+        The reference before and after the step response's step (default: read off the
+        logs, :func:`~._learn_figures.logged_step`).
     """
-    data = learn_figure_data(learned)
+    data = learn_figure_data(learned, step)
     pngs = {stem: _png(figure) for stem, figure in learn_figures(data).items()}
     page = report_page(title, verdict_sentence(learned, data), _numbers(learned), pngs, lines)
     with output_directory(out, LEARN_REPORT_FILES, "learn report") as temporary:

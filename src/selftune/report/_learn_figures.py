@@ -43,6 +43,7 @@ __all__ = [
     "LearnFigureData",
     "learn_figure_data",
     "learn_figures",
+    "logged_step",
 ]
 
 #: The figures' file stems, in the order the page shows them.
@@ -134,13 +135,18 @@ class LearnFigureData:
         return 1.0 - float(np.max(np.abs(self.poles)))
 
 
-def learn_figure_data(learned: LearnedController) -> LearnFigureData:
+def learn_figure_data(
+    learned: LearnedController, step: tuple[Array, Array] | None = None
+) -> LearnFigureData:
     """The figures' numbers of a result of :func:`~selftune.learn.learn_controller`.
 
     Parameters
     ----------
     learned : LearnedController
         With its verdict and evidence.
+    step : (ndarray, ndarray), optional
+        The reference ``w`` before and after the step of the step response (default:
+        :func:`logged_step`).
 
     Raises
     ------
@@ -156,7 +162,8 @@ def learn_figure_data(learned: LearnedController) -> LearnFigureData:
     plants = plausible_plants(evidence)
     loop = SampledLoop.of_law(learned.law, evidence.model.h, evidence.alignment.input_delay)
     poles = loop.poles([(plant.Ad, plant.Bd) for plant in plants], learned.law)
-    step = _step_response(learned, evidence, loop, poles)
+    before, after = logged_step(learned) if step is None else step
+    response = _step_response(learned, evidence, loop, poles, (before, after))
     return LearnFigureData(
         h=evidence.model.h,
         t=t,
@@ -167,11 +174,11 @@ def learn_figure_data(learned: LearnedController) -> LearnFigureData:
         shifts=dict(evidence.alignment.residuals),
         shift=shift,
         detected_shift=evidence.alignment.detected_shift,
-        step_time=step[0],
-        step_reference=step[1],
-        step_estimate=step[2],
-        step_band=step[3],
-        step_text=step[4],
+        step_time=response[0],
+        step_reference=response[1],
+        step_estimate=response[2],
+        step_band=response[3],
+        step_text=response[4],
         poles=poles,
         margin=quality.stability_margin,
         labels=tuple(learned.law.state[: evidence.model.n]),
@@ -204,26 +211,48 @@ def _predictions(evidence: Evidence) -> tuple[Array, Array, Array, tuple[Array, 
     return t[shown], measured[shown], predicted[shown], centred
 
 
-def _reference_step(learned: LearnedController, evidence: Evidence) -> tuple[Array, Array, str]:
-    """The reference before and after the step, and what the step is: the channels the
-    logs vary step from 0 to their largest logged value (the others keep theirs)."""
+def logged_step(learned: LearnedController) -> tuple[Array, Array]:
+    """The reference step of the report's step response read off the logs: the channels
+    the logs vary step from 0 to their value of largest size (the others keep their
+    logged value); before and after equal when none varies.
+
+    Parameters
+    ----------
+    learned : LearnedController
+        With its evidence.
+    """
+    assert learned.evidence is not None
     q = learned.law.X.shape[1]
-    w = np.concatenate([log.w[:, :q] for log in evidence.episodes if log.w is not None])
+    logs = [log.w[:, :q] for log in learned.evidence.episodes if log.w is not None]
+    if not q or not logs:
+        return np.zeros(q), np.zeros(q)
+    w = np.concatenate(logs)
     varying = np.ptp(w, axis=0) > 0.0
     before = w[0].copy()
     before[varying] = 0.0
     after = before.copy()
     largest = np.argmax(np.abs(w), axis=0)
     after[varying] = w[largest, np.arange(q)][varying]
+    return before, after
+
+
+def _step_text(before: Array, after: Array) -> str:
+    """What a step of the reference is: ``"Step w2 0 → 5 (w1 = 52.5)"``."""
+    moved = before != after
     steps = ", ".join(
-        f"w{index + 1} 0 \u2192 {after[index]:.3g}" for index in np.flatnonzero(varying)
+        f"w{index + 1} {before[index]:.3g} \u2192 {after[index]:.3g}"
+        for index in np.flatnonzero(moved)
     )
-    kept = ", ".join(f"w{index + 1} = {before[index]:.3g}" for index in np.flatnonzero(~varying))
-    return before, after, f"Step {steps}" + (f" ({kept})" if kept else "")
+    kept = ", ".join(f"w{index + 1} = {before[index]:.3g}" for index in np.flatnonzero(~moved))
+    return f"Step {steps}" + (f" ({kept})" if kept else "")
 
 
 def _step_response(
-    learned: LearnedController, evidence: Evidence, loop: SampledLoop, poles: Array
+    learned: LearnedController,
+    evidence: Evidence,
+    loop: SampledLoop,
+    poles: Array,
+    step: tuple[Array, Array],
 ) -> tuple[Array, Array, Array, Array, str]:
     """The step's time, the law's target ``X w``, the response on the fitted model, its
     band over the plausible plants, and what the step is. Without a reference that the
@@ -233,12 +262,9 @@ def _step_response(
     radius = float(np.max(np.abs(poles[0])))
     length = int(np.ceil(np.log(SETTLED) / np.log(max(radius, 1e-3))))
     samples = int(np.clip(length, *STEP_SAMPLES))
-    if q and evidence.episodes[0].w is not None:
-        before, after, text = _reference_step(learned, evidence)
-        varies = bool(np.any(before != after))
-    else:
-        before = after = np.zeros(q)
-        varies, text = False, ""
+    before, after = step
+    varies = bool(np.any(before != after))
+    text = _step_text(before, after) if varies else ""
     responses = []
     for plant in plausible_plants(evidence):
         A_cl, B_w = loop.closed_loop((plant.Ad, plant.Bd), law, plant.Ed[:, :q])
@@ -368,8 +394,8 @@ def figure_step(data: LearnFigureData) -> Figure:
         figure,
         axes[0],
         f"{data.step_text}: the learned controller's predicted response on the fitted model "
-        "(linear, without the dead time) and its least-to-largest band on the plants the "
-        "data allow.",
+        "(its linear part: a modelled dead time is left out) and its least-to-largest band "
+        "on the plants the data allow.",
         columns=3,
     )
     return figure
