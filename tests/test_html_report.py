@@ -117,6 +117,14 @@ def test_the_poles_figure_shows_the_verdicts_margin() -> None:
     result = _learn(load_trajectory(LOG), config, str(LOG))
     data = learn_figure_data(result)
     assert result.quality is not None
+    # the measured states are the log's (from row 1: the shift), to the rounding of x~ =
+    # xhat + (x~ - xhat)
+    log = load_trajectory(LOG)
+    shown = data.measured.shape[0]
+    np.testing.assert_allclose(
+        data.measured, log.x[1 : 1 + shown], rtol=0, atol=1e-14 * np.abs(log.x).max()
+    )
+    np.testing.assert_array_equal(data.t, log.t[1 : 1 + shown])
     assert 1.0 - np.max(np.abs(data.poles[0])) == result.quality.stability_margin
     assert data.plants == 24 and 0.0 < data.least_margin <= data.margin
     # the step response settles on the law's target X w on the fitted model
@@ -187,3 +195,39 @@ def test_a_previous_report_is_replaced_as_a_set(
     assert main([*args, "--json", "-"]) == 0
     assert capsys.readouterr().out.lstrip().startswith("{")
     _check_page(directory)
+
+
+def test_an_unstable_plant_without_a_reference_is_reported_from_its_least_squares_model(
+    tmp_path: Path,
+) -> None:
+    """No output-error model (the plant is unstable) and no reference: the currents are the
+    one-step predictions, no other plants are drawn, the response is the return of the
+    logged state farthest from rest."""
+    from selftune import lqr
+    from selftune.learn import save_trajectory
+    from selftune.sim import prbs, simulate
+
+    A, B = np.array([[0.0, 1.0], [-2.0, 0.3]]), np.array([[0.0], [1.0]])
+    K_init = lqr(A, B, np.eye(2), np.eye(1))[0]
+    data = simulate(
+        A, B, K=K_init, exploration=prbs(1.0, 5), x0=[1.0, 0.0], h=1e-3, num_samples=2000, seed=2
+    )
+    save_trajectory(data, tmp_path / "plant.csv")
+    rows = ", ".join("[" + ", ".join(repr(float(v)) for v in row) + "]" for row in K_init)
+    config = tmp_path / "lqr.toml"
+    config.write_text(
+        f"[cost]\nQ = [[1.0, 0.0], [0.0, 1.0]]\nR = [[1.0]]\n[policy]\nK0 = [{rows}]\n"
+    )
+    directory = tmp_path / "report"
+    assert main(["learn", str(tmp_path / "plant.csv"), "--config", str(config),
+                 "--report", str(directory)]) == 0  # fmt: skip
+    page = _check_page(directory)
+    assert "no other plants drawn (no output-error model)" in page.verdict
+    result = _learn(
+        load_trajectory(tmp_path / "plant.csv"), load_learn_config(str(config), 2, 1, 0), "plant"
+    )
+    data_ = learn_figure_data(result)
+    assert data_.one_step and data_.plants == 0 and data_.step_text.startswith("Return")
+    # the one-step predictions are of the logged states after the first (shift 0)
+    shown = data_.measured.shape[0]
+    np.testing.assert_array_equal(data_.measured, data.x[1 : 1 + shown])

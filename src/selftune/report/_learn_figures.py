@@ -381,9 +381,10 @@ def figure_step(data: LearnFigureData) -> Figure:
     figure, axes = _figure(n, 1.6 + 1.6 * n)
     t = data.step_time * 1e3
     for index, panel in enumerate(axes):
-        panel.fill_between(t, data.step_band[0, :, index], data.step_band[1, :, index],
-                           color=_BAND, alpha=0.3, linewidth=0,
-                           label=f"the {data.plants} plants the data allow")  # fmt: skip
+        if data.plants:  # none drawn without an output-error model
+            panel.fill_between(t, data.step_band[0, :, index], data.step_band[1, :, index],
+                               color=_BAND, alpha=0.3, linewidth=0,
+                               label=f"the {data.plants} plants the data allow")  # fmt: skip
         panel.plot(t, data.step_estimate[:, index], color=_ESTIMATE, linewidth=1.4,
                    label="fitted model")  # fmt: skip
         panel.plot(t, data.step_reference[:, index], color=_MEASURED, linewidth=0.8,
@@ -413,9 +414,10 @@ def figure_poles(data: LearnFigureData) -> Figure:
                    label="unit circle")  # fmt: skip
         panel.plot(radius * np.cos(angle), radius * np.sin(angle), color="red", linewidth=0.8,
                    linestyle="--", label=f"radius 1 - margin = {radius:.4g}")  # fmt: skip
-        others = data.poles[1:].ravel()
-        panel.plot(others.real, others.imag, "o", color=_BAND, markersize=3, alpha=0.5,
-                   label=f"the {data.plants} plants the data allow")  # fmt: skip
+        if data.plants:
+            others = data.poles[1:].ravel()
+            panel.plot(others.real, others.imag, "o", color=_BAND, markersize=3, alpha=0.5,
+                       label=f"the {data.plants} plants the data allow")  # fmt: skip
         panel.plot(data.poles[0].real, data.poles[0].imag, "x", color=_ESTIMATE,
                    markersize=8, markeredgewidth=1.6, label="fitted model")  # fmt: skip
         panel.set_aspect("equal")
