@@ -456,8 +456,8 @@ class SampledLoop:
         return np.asarray(np.max(np.abs(self.poles(plants, law)), axis=1), dtype=np.float64)
 
     def poles(self, plants: Sequence[tuple[ArrayLike, ArrayLike]], law: ControlLaw) -> Array:
-        """The eigenvalues of the digital loop of ``law`` on each of several plants (the
-        z-plane poles of :meth:`closed_loop`).
+        """The z-plane poles (eigenvalues of :meth:`closed_loop`), shape ``(len(plants),
+        nz)``, of the digital loop of ``law`` on each of several plants.
 
         Parameters
         ----------
@@ -465,10 +465,6 @@ class SampledLoop:
             The sampled plants.
         law : ControlLaw
             The controller.
-
-        Returns
-        -------
-        ndarray, shape (len(plants), nz), complex
         """
         if self.continuous:
             raise InputError("h: the spectral radius is of a sampled loop (h > 0)")
