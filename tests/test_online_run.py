@@ -185,7 +185,6 @@ def test_the_command_writes_the_json_and_the_report(
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (["--report", "REPORT"], "--report: needs --online"),
         (["--relearn", "adp"], "--relearn: needs --online"),
         (["--online", "PROFILE", "--algorithm", "1"], "--online: the drive is commissioned"),
         (["--online", "PROFILE", "--target", "continuous"], "--online: the drive is"),
@@ -204,7 +203,6 @@ def test_command_line_mistakes_are_one_line_and_exit_2(
         str(profile) if a == "PROFILE" else str(tmp_path / a) if a.endswith(".toml") else a
         for a in extra
     ]
-    extra = [str(tmp_path / "report") if a == "REPORT" else a for a in extra]
     assert main(["tune", "--motor", str(motor), *extra]) == 2
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1 and message in error, error

@@ -62,12 +62,25 @@ def _add_learn(subparsers: _Subparsers) -> None:
         help="cost weights, initial policy, optional [regulation] and [learning] tables",
     )
     _add_json_option(parser)
+    _add_report_option(parser)
+
+
+def _add_report_option(parser: argparse.ArgumentParser, online: str = "") -> None:
+    parser.add_argument(
+        "--report",
+        metavar="DIR",
+        default=None,
+        help=(
+            "write the report of the learned controller into DIR: report.html (the verdict,"
+            " the numbers and six figures, self-contained) and the figures as PNG" + online
+        ),
+    )
 
 
 def _run_learn(args: argparse.Namespace) -> int:
     from ..commands import learn_command
 
-    return learn_command(args.data, args.config, args.json)
+    return learn_command(args.data, args.config, args.json, args.report)
 
 
 def _add_reproduce(subparsers: _Subparsers) -> None:
@@ -139,12 +152,7 @@ def _add_tune(subparsers: _Subparsers) -> None:
             " action, the off-policy learner)"
         ),
     )
-    parser.add_argument(
-        "--report",
-        metavar="DIR",
-        default=None,
-        help="with --online: write its figures, JSON and printed report into DIR",
-    )
+    _add_report_option(parser, "; with --online: the online run's figures, JSON and printed report")
     _add_relearn_option(parser)
     _add_seed_option(parser)
     _add_json_option(parser)
@@ -156,13 +164,11 @@ def _run_tune(args: argparse.Namespace) -> int:
     from ..errors import InputError
 
     if args.online is None:
-        if args.report is not None:
-            raise InputError("--report: needs --online PROFILE.toml (the online run's report)")
         if args.relearn != "identify":
             raise InputError("--relearn: needs --online PROFILE.toml (the online tuner's)")
         return tune_command(
             load_motor_config(args.motor), args.algorithm or "offpolicy", args.seed, args.json,
-            target=args.target,
+            target=args.target, report_dir=args.report,
         )  # fmt: skip
     if args.algorithm not in (None, "offpolicy") or args.target not in (None, "digital"):
         raise InputError(

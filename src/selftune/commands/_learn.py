@@ -7,7 +7,16 @@ from typing import Any
 from ..config import LEARN_TABLES, LearnConfig, load_learn_config, load_log_format
 from ..core import labels, matrix_block
 from ..errors import DataFileError, InputError, Refusal
-from ._output import _check_json_target, _check_numerics, _numerics, _print_report, _write_json
+from ._output import (
+    _check_json_target,
+    _check_numerics,
+    _check_report_target,
+    _numerics,
+    _print_report,
+    _say_report_written,
+    _write_json,
+    _write_report,
+)
 
 
 def _learn(data: Any, config: LearnConfig, source: str) -> Any:
@@ -47,7 +56,9 @@ def _against_config(error: InputError, config_file: str) -> DataFileError | None
     return DataFileError(f"{config_file}: [{tables[0]}] {key}: {reason}")
 
 
-def learn_command(data_path: str, config_path: str, json_path: str | None) -> int:
+def learn_command(
+    data_path: str, config_path: str, json_path: str | None, report_dir: str | None = None
+) -> int:
     """``selftune learn``: the learned controller from a CSV, NPZ or MAT log and a config.
 
     The data file's header (or the configuration's ``[log]`` table) gives n, m, q; the
@@ -63,11 +74,15 @@ def learn_command(data_path: str, config_path: str, json_path: str | None) -> in
         CONFIG.toml.
     json_path : str or None
         Where to write the JSON (``-``: standard output, without the report).
+    report_dir : str or None
+        Where to write the report: one HTML page and its figures
+        (:func:`selftune.report.write_learn_report`), checked before the log is read.
     """
     from ..learn import load_log, load_trajectory
     from ..learn.data._io import trajectory_dimensions
 
     _check_json_target(json_path)
+    _check_report_target(report_dir)
     log = load_log_format(config_path, LEARN_TABLES)  # None: selftune's own columns
     dimensions = trajectory_dimensions(data_path) if log is None else log.dimensions
     config = load_learn_config(config_path, *dimensions)
@@ -97,7 +112,9 @@ def learn_command(data_path: str, config_path: str, json_path: str | None) -> in
     lines += ["", *result.quality.lines()]
     if json_path is not None:
         _write_json(json_path, _learn_document(result))
+    _write_report(result, f"selftune learn: {data_path}", lines, report_dir)
     _print_report(lines, json_path)
+    _say_report_written(report_dir, json_path)
     return 0
 
 

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..core import Array, finite_or_null, to_jsonable, write_json
-from ..core._atomic import check_output_file
+from ..core._atomic import check_output_directory, check_output_file
 from ..errors import InputError, SelftuneError
 
 #: The ``--json`` value that writes the JSON to standard output.
@@ -26,6 +26,38 @@ def _check_json_target(path: str | None) -> None:
     """Refuse, before anything is computed, a ``--json`` file that cannot be written."""
     if path is not None and path != STANDARD_OUTPUT:
         check_output_file(path)
+
+
+def _check_report_target(directory: str | None) -> None:
+    """Refuse, before anything is computed, a ``--report`` directory that cannot receive
+    a learned controller's report (:data:`selftune.report.LEARN_REPORT_FILES`)."""
+    if directory is not None:
+        from ..report import LEARN_REPORT_FILES
+
+        check_output_directory(directory, LEARN_REPORT_FILES, "learn report")
+
+
+def _write_report(
+    result: Any,
+    title: str,
+    lines: Sequence[str],
+    directory: str | None,
+    step: tuple[Array, Array] | None = None,
+) -> None:
+    """Write the report of a learned controller (with its evidence) into ``directory``
+    (``step``: the reference before and after its step response's step)."""
+    if directory is not None:
+        from ..report import write_learn_report
+
+        write_learn_report(result, title, lines, directory, step)
+
+
+def _say_report_written(directory: str | None, json_path: str | None) -> None:
+    """Say where the report went (not when the JSON goes to standard output)."""
+    if directory is not None and json_path != STANDARD_OUTPUT:
+        from ..report import LEARN_REPORT_FILES
+
+        print(f"wrote {directory}/ ({', '.join(LEARN_REPORT_FILES)})")
 
 
 def _write_json(path: str, data: dict[str, Any]) -> None:

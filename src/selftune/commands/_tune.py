@@ -7,6 +7,8 @@ import json
 import sys
 from typing import Any
 
+import numpy as np
+
 from ..config import MotorConfig
 from ..core import finite_or_null, to_jsonable
 from ..core._atomic import check_output_directory
@@ -15,9 +17,12 @@ from ._output import (
     STANDARD_OUTPUT,
     _check_json_target,
     _check_numerics,
+    _check_report_target,
     _numerics,
     _print_report,
+    _say_report_written,
     _write_json,
+    _write_report,
 )
 
 
@@ -27,6 +32,7 @@ def tune_command(
     seed: int,
     json_path: str | None,
     target: str | None = None,
+    report_dir: str | None = None,
 ) -> int:
     """``selftune tune``: a self-tuning session on the simulated drive of ``config``.
 
@@ -46,11 +52,15 @@ def tune_command(
         Where to write the JSON (``-``: standard output, without the report).
     target : {"continuous", "digital"}, optional
         Overrides the motor file's target.
+    report_dir : str or None
+        Where to write the report of the learned controller: one HTML page and its
+        figures (:func:`selftune.report.write_learn_report`).
     """
     from ..report import evaluate, torque_check, tune_document, tune_lines
     from ..tuning import run_algorithm, tuning_settings
 
     _check_json_target(json_path)
+    _check_report_target(report_dir)
     settings = tuning_settings(config, seed, target)
     with _numerics(config.source) as caught:
         result = run_algorithm(algorithm, config.motor, settings, drive=config.drive)  # type: ignore[arg-type]
@@ -60,7 +70,11 @@ def tune_command(
     lines = tune_lines(config.source, result, evaluation, torque, config.drive)
     if json_path is not None:
         _write_json(json_path, tune_document(config.motor, settings, result, evaluation, torque))
+    # the step response's step: the torque reference from 0 at the operating point's speed
+    step = (result.w * np.array([1.0, 0.0]), result.w)
+    _write_report(result.learned, f"selftune tune: {config.source}", lines, report_dir, step)
     _print_report(lines, json_path)
+    _say_report_written(report_dir, json_path)
     return 0
 
 

@@ -420,6 +420,7 @@ def _judged(
         quality=quality,
         alignment=evidence.alignment,
         history=history,
+        evidence=evidence,
     )
 
 

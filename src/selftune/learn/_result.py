@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Literal
 
 from ..core import Array, ControlLaw, WithLaw, pack_theta
@@ -11,6 +11,7 @@ from .learners._regression import RegressionSolution
 
 if TYPE_CHECKING:
     from .evidence._alignment import Alignment
+    from .evidence._evidence import Evidence
     from .verdict._quality import Quality
 
 __all__ = ["DiscountStage", "Formulation", "LearnedController"]
@@ -94,6 +95,10 @@ class LearnedController(WithLaw, PolicyIterationFacts):
     extra_regressions : tuple of RegressionSolution
         Least-squares solves beside the policy iteration's (the general formulation's, one
         per solution of ``C X = 0`` and a particular solution of ``C X + F = 0``).
+    evidence : Evidence or None
+        What the logs said (the fitted model, its output errors, the parameters'
+        covariance) that the verdict was drawn from; None from a learner used alone. The
+        report's figures (:func:`selftune.report.write_learn_report`) are drawn from it.
     """
 
     law: ControlLaw
@@ -110,6 +115,7 @@ class LearnedController(WithLaw, PolicyIterationFacts):
     formulation: Formulation | None = None
     stages: tuple[DiscountStage, ...] = ()
     extra_regressions: tuple[RegressionSolution, ...] = ()
+    evidence: Evidence | None = field(default=None, repr=False, compare=False)
 
     @property
     def theta(self) -> Array | None:

@@ -453,10 +453,23 @@ class SampledLoop:
         -------
         ndarray, shape (len(plants),)
         """
+        return np.asarray(np.max(np.abs(self.poles(plants, law)), axis=1), dtype=np.float64)
+
+    def poles(self, plants: Sequence[tuple[ArrayLike, ArrayLike]], law: ControlLaw) -> Array:
+        """The z-plane poles (eigenvalues of :meth:`closed_loop`), shape ``(len(plants),
+        nz)``, of the digital loop of ``law`` on each of several plants.
+
+        Parameters
+        ----------
+        plants : sequence of (Ad, Bd)
+            The sampled plants.
+        law : ControlLaw
+            The controller.
+        """
         if self.continuous:
             raise InputError("h: the spectral radius is of a sampled loop (h > 0)")
         A_cl, _ = self.closed_loop(_stacked(plants), law)
-        return np.asarray(np.max(np.abs(np.linalg.eigvals(A_cl)), axis=1), dtype=np.float64)
+        return np.asarray(np.linalg.eigvals(A_cl))
 
     def step_from_rest(self, X: ArrayLike, U: ArrayLike, w: ArrayLike) -> Array:
         """The loop's state ``zeta_0`` at a step of the reference from rest to ``w``: the

@@ -11,7 +11,9 @@
   simulated drive; :func:`tune_lines`, :func:`tune_document` (:mod:`._tune_report`): what
   ``selftune tune`` prints and writes;
 - :func:`firmware`, :func:`write_firmware` (:mod:`._firmware`): a law as C99 firmware
-  with its voltage limit and anti-windup (``selftune export``).
+  with its voltage limit and anti-windup (``selftune export``);
+- :func:`write_learn_report` (:mod:`._html_report`, figures :mod:`._learn_figures`): a
+  learned controller's report, one HTML page and its figures (``--report DIR``).
 """
 
 from __future__ import annotations
@@ -33,6 +35,8 @@ from ._evaluate import (
     steady_state,
 )
 from ._firmware import ANTI_WINDUP, FIRMWARE_FILES, Firmware, firmware, write_firmware
+from ._html_report import LEARN_REPORT_FILES, verdict_sentence, write_learn_report
+from ._learn_figures import FIGURE_STEMS, LearnFigureData, learn_figure_data, learn_figures
 from ._online_report import (
     ONLINE_REPORT_FILES,
     TIMELINE_POINTS,
@@ -64,12 +68,15 @@ from ._tune_report import (
 __all__ = [
     "ALGORITHM_LABELS",
     "ANTI_WINDUP",
+    "FIGURE_STEMS",
     "FIRMWARE_FILES",
     "HOT_RESISTANCE",
+    "LEARN_REPORT_FILES",
     "ONLINE_REPORT_FILES",
     "STEADY_SECONDS",
     "TIMELINE_POINTS",
     "Firmware",
+    "LearnFigureData",
     "OnlineEvaluation",
     "Reproduction",
     "TorqueCheck",
@@ -84,6 +91,8 @@ __all__ = [
     "feedback_value",
     "firmware",
     "history_document",
+    "learn_figure_data",
+    "learn_figures",
     "online_document",
     "online_lines",
     "online_summary",
@@ -99,7 +108,9 @@ __all__ = [
     "true_motor",
     "tune_document",
     "tune_lines",
+    "verdict_sentence",
     "write_firmware",
+    "write_learn_report",
     "write_online_report",
     "write_outputs",
 ]

@@ -150,6 +150,7 @@ def from_learned(
         target=learned.target,
         theta=theta,
         identified={} if identified is None else identified,
+        learned=learned,
     )
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..core import Array, ControlLaw, WithLaw
-from ..learn import Quality
+from ..learn import LearnedController, Quality
 
 __all__ = ["TuningIteration", "TuningResult"]
 
@@ -96,6 +96,9 @@ class TuningResult(WithLaw):
         modelled, ``"dead_time_voltage"`` (V per phase); empty otherwise.
     notes : tuple of str
         What the user should know about the result (e.g. why U is not learned).
+    learned : LearnedController or None
+        The learning result the verdict came with (its evidence: the report's figures,
+        :func:`selftune.report.write_learn_report`).
     """
 
     algorithm: str
@@ -111,6 +114,7 @@ class TuningResult(WithLaw):
     theta: Array | None = None
     identified: dict[str, float] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    learned: LearnedController | None = field(default=None, repr=False, compare=False)
 
     @property
     def rank(self) -> int:

@@ -63,6 +63,7 @@ __all__ = [
     "TEST_SAMPLES",
     "ConsistencyTest",
     "Evidence",
+    "autocorrelation",
     "gather_evidence",
     "log_precision",
     "reduced_problem",
@@ -214,8 +215,16 @@ def log_precision(episodes: Sequence[Trajectory]) -> tuple[str, float]:
     return "float64", float(np.finfo(np.float64).eps) / 2
 
 
-def _autocorrelation(series: Array, lags: int) -> Array:
-    """Sample autocorrelations of each column at lags 1..``lags``, shape (lags, columns)."""
+def autocorrelation(series: Array, lags: int) -> Array:
+    """Sample autocorrelations of each column at lags 1..``lags``, shape (lags, columns).
+
+    Parameters
+    ----------
+    series : ndarray, shape (T, columns)
+        The series (with its mean removed by the caller where it has one).
+    lags : int
+        The largest lag, samples.
+    """
     energy = np.maximum(np.sum(series**2, axis=0), 1e-300)
     return np.array([np.sum(series[k:] * series[:-k], axis=0) / energy for k in range(1, lags + 1)])
 
@@ -229,7 +238,7 @@ def _bartlett(e: Array, u: Array) -> Array:
     count = e.shape[0]
     lags = int(min(max(count // 10, 1), 4 * count ** (1 / 3)))
     weights = 1.0 - np.arange(1, lags + 1) / (lags + 1)
-    rho_e, rho_u = _autocorrelation(e, lags), _autocorrelation(u, lags)
+    rho_e, rho_u = autocorrelation(e, lags), autocorrelation(u, lags)
     factor = 1.0 + 2.0 * np.einsum("k,ki,kj->ij", weights, rho_e, rho_u)
     return np.asarray(np.maximum(factor, 1.0))
 

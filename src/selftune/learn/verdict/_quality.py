@@ -188,6 +188,17 @@ class Quality:
         """The relative standard errors of K, K_i and U, block by block."""
         return BlockErrors(self.K_relative_se, self.K_i_relative_se, self.U_relative_se)
 
+    def errors_text(self) -> str:
+        """The relative standard errors as the verdict states them: ``"K within +-1.66%,
+        K_i within +-1.27%, U within +-4.51% (one standard error, relative)"``."""
+        integral = ""
+        if self.K_i_relative_se is not None:
+            integral = f", K_i within +-{_relative(self.K_i_relative_se)}"
+        return (
+            f"K within +-{_relative(self.K_relative_se)}{integral}, U within "
+            f"+-{_relative(self.U_relative_se)} (one standard error, relative)"
+        )
+
     def lines(self) -> list[str]:
         """The verdict as report lines (what the command line prints)."""
         noise = (
@@ -195,9 +206,6 @@ class Quality:
             if self.noise_rms is None
             else ", ".join(f"{value:.3g}" for value in self.noise_rms)
         )
-        integral = ""
-        if self.K_i_relative_se is not None:
-            integral = f", K_i within +-{_relative(self.K_i_relative_se)}"
         consistency = (
             "the model explains the data to rounding (noise-free: no consistency test)"
             if self.consistency_exact
@@ -206,8 +214,7 @@ class Quality:
         )
         lines = [
             "quality (from the data alone):",
-            f"  K within +-{_relative(self.K_relative_se)}{integral}, U within "
-            f"+-{_relative(self.U_relative_se)} (one standard error, relative)",
+            f"  {self.errors_text()}",
             f"  measurement noise {noise} (the states' unit); {consistency}",
             f"  log alignment: the voltage applied during sample k is in row k - {self.shift}"
             f" (the data show {self.detected_shift}); stability margin "

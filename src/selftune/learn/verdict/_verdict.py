@@ -32,6 +32,7 @@ __all__ = [
     "design_target",
     "model_errors",
     "plausible_models",
+    "plausible_plants",
     "relative_size",
     "verdict",
     "without_extra",
@@ -203,12 +204,23 @@ def verdict(
 def _radii(law: ControlLaw, evidence: Evidence, options: LearningOptions) -> Array:
     """Spectral radii of the learned loop on the fitted model (first) and on models drawn
     from the parameters' uncertainty."""
+    return closed_loop_radii(plausible_plants(evidence), law, options.input_delay)
+
+
+def plausible_plants(evidence: Evidence) -> list[DiscreteModel]:
+    """The plants the verdict judges a learned loop on: the fitted model, then
+    :func:`plausible_models` from the output-error fit's covariance (the fitted model
+    alone without a fit).
+
+    Parameters
+    ----------
+    evidence : Evidence
+        The logs' evidence.
+    """
     fit = evidence.fit
-    model = evidence.model
     if fit is None:
-        return np.array([closed_loop_radius(model, law, options.input_delay)])
-    draws = plausible_models(model, fit.matrices, fit.parameters, fit.parameter_covariance)
-    return closed_loop_radii(draws, law, options.input_delay)
+        return [evidence.model]
+    return plausible_models(evidence.model, fit.matrices, fit.parameters, fit.parameter_covariance)
 
 
 def plausible_models(
