@@ -395,16 +395,16 @@ def check_safety(
         If the standard errors exceed ``limit``: too little data for the noise (an
         ExcitationError).
     """
-    limit = largest_radius(optimum_radius)
-    if radii.size and float(np.max(radii)) > limit:
-        unstable = int(np.sum(radii > limit))
+    radius_limit = largest_radius(optimum_radius)
+    if radii.size and float(np.max(radii)) > radius_limit:
+        unstable = int(np.sum(radii > radius_limit))
         raise NotStabilizing(
             f"the learned controller does not stabilize every plant the data allow: the "
             f"sampled loop's spectral radius reaches {float(np.max(radii)):.6f} on "
             f"{unstable} of {radii.size} plausible models "
             "(1 is the stability limit); use longer or better-excited data, or a gentler cost",
             spectral_radius=float(np.max(radii)),
-            max_radius=limit,
+            max_radius=radius_limit,
             unstable=unstable,
             plausible=int(radii.size),
         )
