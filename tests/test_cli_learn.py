@@ -153,6 +153,24 @@ def one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
             lambda text: text + 'target = "digital"\n',
             '[learning] input_delay: missing: target = "digital"',
         ),
+        (  # an integral weight with nothing to weigh: the key and the fix
+            lambda text: text.replace("[policy]", "Q_i = [[1.0, 0.0], [0.0, 1.0]]\n[policy]"),
+            "[cost] Q_i: weighs the integrated error, but integral action is off: set "
+            "[learning] integral_action = true",
+        ),
+        (
+            lambda text: (
+                text.replace("[policy]", "Q_i = [[1.0, 0.0], [0.0, -1.0]]\n[policy]")
+                + "integral_action = true\n"
+            ),
+            "[cost] Q_i: must be symmetric positive definite (smallest eigenvalue -1)",
+        ),
+        (
+            lambda text: (
+                text.replace("[policy]", "Q_i = [[1.0]]\n[policy]") + "integral_action = true\n"
+            ),
+            "[cost] Q_i: must be a 2x2 matrix, got 1x1",
+        ),
     ],
 )
 def test_bad_config_is_one_line_naming_the_key(

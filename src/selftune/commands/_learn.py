@@ -16,7 +16,7 @@ def _learn(data: Any, config: LearnConfig, source: str) -> Any:
 
     problem = LearningProblem(
         config.Q, config.R, C=config.C, E=config.E, F=config.F,
-        integral_action=config.integral_action,
+        integral_action=config.integral_action, integral_weight=config.Q_i,
     )  # fmt: skip
     options = LearningOptions(
         interval=config.interval, max_iterations=config.max_iterations,
