@@ -11,9 +11,10 @@ from .learners._regression import RegressionSolution
 
 if TYPE_CHECKING:
     from .evidence._alignment import Alignment
+    from .evidence._discrete_model import DiscreteModel
     from .verdict._quality import Quality
 
-__all__ = ["DiscountStage", "Formulation", "LearnedController"]
+__all__ = ["DiscountStage", "Formulation", "JudgedPlants", "LearnedController"]
 
 #: How a continuous-time regulator learner met the regulator equations: with the unique X
 #: of ``C X + F = 0`` in one regression family (``"customized"``, the paper's), or with
@@ -45,6 +46,27 @@ class DiscountStage:
     P: Array
     iterations: int
     rate: float
+
+
+@dataclass(frozen=True)
+class JudgedPlants:
+    """The sampled plants a verdict judged a law on, and what it asked of the law there.
+
+    Attributes
+    ----------
+    models : tuple of DiscreteModel
+        The model fitted to the data first, then the plausible models drawn from its
+        parameters' uncertainty (one model alone where no output-error fit exists).
+    input_delay : int
+        d, the drive's computation delay the loops were closed with, samples.
+    largest_radius : float
+        The largest spectral radius the verdict accepts on every one of them
+        (:func:`~selftune.learn.verdict._quality.largest_radius`).
+    """
+
+    models: tuple[DiscreteModel, ...]
+    input_delay: int
+    largest_radius: float
 
 
 @dataclass(frozen=True)
@@ -94,6 +116,10 @@ class LearnedController(WithLaw, PolicyIterationFacts):
     extra_regressions : tuple of RegressionSolution
         Least-squares solves beside the policy iteration's (the general formulation's, one
         per solution of ``C X = 0`` and a particular solution of ``C X + F = 0``).
+    judged : JudgedPlants or None
+        The estimated plants the verdict judged the law on (None from a learner used
+        alone): what a law of another structure is measured on
+        (:func:`~selftune.learn.pi_equivalent`).
     """
 
     law: ControlLaw
@@ -110,6 +136,7 @@ class LearnedController(WithLaw, PolicyIterationFacts):
     formulation: Formulation | None = None
     stages: tuple[DiscountStage, ...] = ()
     extra_regressions: tuple[RegressionSolution, ...] = ()
+    judged: JudgedPlants | None = None
 
     @property
     def theta(self) -> Array | None:

@@ -151,6 +151,7 @@ def from_learned(
         target=learned.target,
         theta=theta,
         identified={} if identified is None else identified,
+        judged=learned.judged,
     )
 
 

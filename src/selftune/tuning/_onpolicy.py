@@ -192,6 +192,7 @@ class _Session:
             quality=judged.verdict,
             theta=last.theta,
             notes=notes,
+            judged=judged.judged,
         )
 
     def unsettled(self, algorithm: str) -> ConvergenceError:

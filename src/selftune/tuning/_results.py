@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..core import Array, ControlLaw, WithLaw
-from ..learn import Quality
+from ..learn import JudgedPlants, Quality
 
 __all__ = ["TuningIteration", "TuningResult"]
 
@@ -96,6 +96,9 @@ class TuningResult(WithLaw):
         modelled, ``"dead_time_voltage"`` (V per phase); empty otherwise.
     notes : tuple of str
         What the user should know about the result (e.g. why U is not learned).
+    judged : JudgedPlants or None
+        The estimated plants the verdict judged the law on
+        (:attr:`selftune.learn.LearnedController.judged`).
     """
 
     algorithm: str
@@ -111,6 +114,7 @@ class TuningResult(WithLaw):
     theta: Array | None = None
     identified: dict[str, float] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    judged: JudgedPlants | None = None
 
     @property
     def rank(self) -> int:

@@ -30,6 +30,7 @@ __all__ = [
     "ModelErrors",
     "dead_time_voltage",
     "design_target",
+    "judged_models",
     "model_errors",
     "plausible_models",
     "relative_size",
@@ -134,8 +135,9 @@ def _floored(se: Array, value: Array) -> Array:
 
 def verdict(
     law: ControlLaw, errors: ModelErrors, evidence: Evidence, options: LearningOptions
-) -> tuple[Quality, Array]:
-    """The quality of ``law`` and the spectral radii of its loop on plausible models."""
+) -> tuple[Quality, Array, list[DiscreteModel]]:
+    """The quality of ``law``, the spectral radii of its loop on plausible models, and
+    those models (the fitted one first)."""
     model = evidence.model
     notes = list(errors.notes)
     exact = evidence.consistency.exact  # rounding only: no test of the errors applies
@@ -173,7 +175,8 @@ def verdict(
     K_se = np.hstack([_floored(K_se[:, :width], K_learned[:, :width]),
                       _floored(K_se[:, width:], K_learned[:, width:])])  # fmt: skip
     U_se = _floored(U_se, law.U)
-    radii = _radii(law, evidence, options)
+    models = judged_models(evidence)
+    radii = closed_loop_radii(models, law, options.input_delay)
     relative = block_errors((K_se, K_learned), (U_se, law.U), width)
     alignment = evidence.alignment
     quality = Quality(
@@ -197,18 +200,18 @@ def verdict(
         log_precision=evidence.precision,
         notes=tuple(notes),
     )
-    return quality, radii
+    return quality, radii, models
 
 
-def _radii(law: ControlLaw, evidence: Evidence, options: LearningOptions) -> Array:
-    """Spectral radii of the learned loop on the fitted model (first) and on models drawn
-    from the parameters' uncertainty."""
+def judged_models(evidence: Evidence) -> list[DiscreteModel]:
+    """The models a learned loop is judged on: the fitted model (first) and, with an
+    output-error fit, models drawn from its parameters' uncertainty
+    (:func:`plausible_models`)."""
     fit = evidence.fit
     model = evidence.model
     if fit is None:
-        return np.array([closed_loop_radius(model, law, options.input_delay)])
-    draws = plausible_models(model, fit.matrices, fit.parameters, fit.parameter_covariance)
-    return closed_loop_radii(draws, law, options.input_delay)
+        return [model]
+    return plausible_models(model, fit.matrices, fit.parameters, fit.parameter_covariance)
 
 
 def plausible_models(
