@@ -10,14 +10,21 @@ from ..errors import DataFileError, InputError, Refusal
 from ._output import _check_json_target, _check_numerics, _numerics, _print_report, _write_json
 
 
-def _learn(data: Any, config: LearnConfig, source: str) -> Any:
-    """The learned controller for ``config`` on ``data``; any failure names ``source``."""
-    from ..learn import LearningOptions, LearningProblem, learn_controller
+def _problem(config: LearnConfig) -> Any:
+    """The learner's problem of ``config``: the regulation and the whole cost."""
+    from ..learn import LearningProblem
 
-    problem = LearningProblem(
+    return LearningProblem(
         config.Q, config.R, C=config.C, E=config.E, F=config.F,
         integral_action=config.integral_action, integral_weight=config.Q_i,
     )  # fmt: skip
+
+
+def _learn(data: Any, config: LearnConfig, source: str) -> Any:
+    """The learned controller for ``config`` on ``data``; any failure names ``source``."""
+    from ..learn import LearningOptions, learn_controller
+
+    problem = _problem(config)
     options = LearningOptions(
         interval=config.interval, max_iterations=config.max_iterations,
         tolerance=config.tolerance, **config.options,  # type: ignore[arg-type]
@@ -64,7 +71,7 @@ def learn_command(data_path: str, config_path: str, json_path: str | None) -> in
     json_path : str or None
         Where to write the JSON (``-``: standard output, without the report).
     """
-    from ..learn import load_log, load_trajectory
+    from ..learn import load_log, load_trajectory, pi_equivalent_or_reason
     from ..learn.data._io import trajectory_dimensions
 
     _check_json_target(json_path)
@@ -95,14 +102,20 @@ def learn_command(data_path: str, config_path: str, json_path: str | None) -> in
         lines += matrix_block("U  feedforward map, u_e = U w", law.U, inputs, exogenous)
     lines += matrix_block("B  estimated input matrix", result.B, states, inputs)
     lines += ["", *result.quality.lines()]
+    problem = _problem(config)
+    pi, why = pi_equivalent_or_reason(result.law, problem, result.judged, result.target)
+    lines += ["", *(pi.lines(inputs, states) if pi else [f"no PI equivalent: {why}"])]
     if json_path is not None:
-        _write_json(json_path, _learn_document(result))
+        _write_json(json_path, _learn_document(result, problem, pi))
     _print_report(lines, json_path)
     return 0
 
 
-def _learn_document(result: Any) -> dict[str, Any]:
-    """The JSON of ``selftune learn``: the law, its quality, how it was learned."""
+def _learn_document(result: Any, problem: Any = None, pi: Any = None) -> dict[str, Any]:
+    """The JSON of ``selftune learn``: the law, its quality, how it was learned, the whole
+    cost it optimized (with ``problem``) and its PI equivalent (``pi``, or null)."""
+    from ..report import cost_document
+
     law = result.law
     alignment = result.alignment
     return {
@@ -126,4 +139,10 @@ def _learn_document(result: Any) -> dict[str, Any]:
             "residuals": {str(shift): value for shift, value in alignment.residuals.items()},
         },
         "iterations": len(result.history),
+        **(
+            {}
+            if problem is None
+            else {"cost": cost_document(problem.Q, problem.R, problem.integral_weight)}
+        ),
+        "pi_equivalent": None if pi is None else pi.document(),
     }

@@ -47,7 +47,7 @@ def tune_command(
     target : {"continuous", "digital"}, optional
         Overrides the motor file's target.
     """
-    from ..report import evaluate, torque_check, tune_document, tune_lines
+    from ..report import evaluate, torque_check, tune_document, tune_lines, tuned_pi
     from ..tuning import run_algorithm, tuning_settings
 
     _check_json_target(json_path)
@@ -57,9 +57,11 @@ def tune_command(
         evaluation = evaluate(result, config.motor, settings, config.drive)
         torque = torque_check(config.motor, settings, result, config.drive)
     _check_numerics(config.source, caught, result.P, result.K)
-    lines = tune_lines(config.source, result, evaluation, torque, config.drive)
+    pi = tuned_pi(config.motor, settings, result)
+    lines = tune_lines(config.source, result, evaluation, torque, config.drive, pi)
     if json_path is not None:
-        _write_json(json_path, tune_document(config.motor, settings, result, evaluation, torque))
+        document = tune_document(config.motor, settings, result, evaluation, torque, pi[0])
+        _write_json(json_path, document)
     _print_report(lines, json_path)
     return 0
 

@@ -31,7 +31,7 @@ runs the evidence, the learner of the options' target and method, and the verdic
 
 from __future__ import annotations
 
-from ._pi import PIEquivalent, pi_control_law, pi_equivalent
+from ._pi import PIEquivalent, pi_control_law, pi_equivalent, pi_equivalent_or_reason
 from ._pipeline import aligned_trajectory, assess, learn_controller
 from ._problem import LearningOptions, LearningProblem, Method, Target
 from ._result import DiscountStage, Formulation, JudgedPlants, LearnedController
@@ -169,6 +169,7 @@ __all__ = [
     "phase_signs",
     "pi_control_law",
     "pi_equivalent",
+    "pi_equivalent_or_reason",
     "policy_iteration",
     "policy_step",
     "read_csv_chunks",

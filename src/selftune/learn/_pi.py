@@ -48,13 +48,13 @@ from numpy.typing import ArrayLike
 from scipy.optimize import minimize
 
 from ..core import Array, ControlLaw, as_matrix, as_vector, continuous_from_discrete
-from ..errors import InputError, UnsolvableError
+from ..errors import InputError, SelftuneError, UnsolvableError
 from ..loop import LoopWeights, SampledLoop
 from ._problem import LearningProblem
 from ._result import JudgedPlants
 from .verdict._quality import closed_loop_radii
 
-__all__ = ["PIEquivalent", "pi_control_law", "pi_equivalent"]
+__all__ = ["PIEquivalent", "pi_control_law", "pi_equivalent", "pi_equivalent_or_reason"]
 
 #: Halvings of the projected gains tried before the fit gives up finding a stabilizing
 #: start.
@@ -339,6 +339,32 @@ def pi_equivalent(
         radii=radii,
         largest_radius=judged.largest_radius,
     )
+
+
+def pi_equivalent_or_reason(
+    law: ControlLaw,
+    problem: LearningProblem,
+    judged: JudgedPlants | None,
+    target: Literal["continuous", "digital"] = "digital",
+) -> tuple[PIEquivalent | None, str]:
+    """:func:`pi_equivalent`, or None and why there is none (for a report).
+
+    Parameters
+    ----------
+    law, problem, judged, target
+        As :func:`pi_equivalent`; ``judged`` None: a result without a verdict's plants.
+
+    Returns
+    -------
+    (PIEquivalent or None, str)
+        The PI and ``""``, or None and the reason.
+    """
+    if judged is None:
+        return None, "the result carries no estimated plant"
+    try:
+        return pi_equivalent(law, problem, judged, target), ""
+    except SelftuneError as exc:
+        return None, str(exc)
 
 
 def _listed(names: list[str], values: Array) -> str:

@@ -23,7 +23,7 @@ from ._digital_evaluation import (
     step_cost,
     true_motor,
 )
-from ._documents import history_document, regulator_document
+from ._documents import cost_document, history_document, regulator_document
 from ._drive_check import STEADY_SECONDS, steady_torque_error
 from ._evaluate import (
     TuningEvaluation,
@@ -59,6 +59,7 @@ from ._tune_report import (
     torque_check,
     tune_document,
     tune_lines,
+    tuned_pi,
 )
 
 __all__ = [
@@ -75,6 +76,7 @@ __all__ = [
     "TorqueCheck",
     "TuningEvaluation",
     "closed_loop_response",
+    "cost_document",
     "digital_step_cost",
     "drive_text",
     "evaluate",
@@ -99,6 +101,7 @@ __all__ = [
     "true_motor",
     "tune_document",
     "tune_lines",
+    "tuned_pi",
     "write_firmware",
     "write_online_report",
     "write_outputs",
