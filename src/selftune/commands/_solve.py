@@ -114,7 +114,9 @@ def solve_report(config: MotorConfig, solution: ModelBasedSolution) -> str:
 
 
 def solve_command(config: MotorConfig, json_path: str | None) -> int:
-    """``selftune solve``: print the model-based optimum of ``config``; write its JSON.
+    """``selftune solve``: print the model-based optimum of ``config``; write its JSON
+    (with the whole problem: the motor, the operating point, the cost ``Q, R, Q_i``, the
+    sampling period and the delay, 0 for this continuous-time optimum).
 
     Parameters
     ----------
@@ -123,6 +125,8 @@ def solve_command(config: MotorConfig, json_path: str | None) -> int:
     json_path : str or None
         Where to write the JSON (``-``: standard output, without the report).
     """
+    from ..report._documents import cost_document
+
     _check_json_target(json_path)
     solution = model_based(config)
     w = config.exogenous()
@@ -131,7 +135,8 @@ def solve_command(config: MotorConfig, json_path: str | None) -> int:
         document.update({"x_e": solution.X @ w, "u_e": solution.U @ w, "w": w})
         document.update({"motor": config.motor})
         document.update({"operating_point": {"speed": config.speed, "torque": config.torque}})
-        document.update({"cost": {"Q": config.Q, "R": config.R}})
+        document.update({"cost": cost_document(config.Q, config.R, solution.integral_weight)})
+        document.update({"h": solution.h, "input_delay": solution.input_delay})
         _write_json(json_path, document)
     _print_report([solve_report(config, solution)], json_path)
     return 0
