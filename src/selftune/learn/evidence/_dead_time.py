@@ -233,7 +233,9 @@ def sign_vector(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Num
 ROUNDING = 1e-12
 
 
-def _phases(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Number, Number, Number]:
+def _phases(
+    i_d: Number, i_q: Number, cos: Number, sin: Number
+) -> tuple[Number, Number, Number]:
     """The phase currents of the dq currents, those within :data:`ROUNDING` of zero 0."""
     size = ROUNDING * np.hypot(i_d, i_q)
     a, b, c = (np.where(np.abs(phase) > size, phase, 0.0) for phase in phases_of_dq(
