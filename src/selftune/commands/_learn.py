@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..config import LEARN_TABLES, LearnConfig, load_learn_config, load_log_format
-from ..core import labels, matrix_block
+from ..core import cost_document, labels, matrix_block
 from ..errors import DataFileError, InputError, Refusal
 from ._output import _check_json_target, _check_numerics, _numerics, _print_report, _write_json
 
@@ -114,8 +114,6 @@ def learn_command(data_path: str, config_path: str, json_path: str | None) -> in
 def _learn_document(result: Any, problem: Any = None, pi: Any = None) -> dict[str, Any]:
     """The JSON of ``selftune learn``: the law, its quality, how it was learned, the whole
     cost it optimized (with ``problem``) and its PI equivalent (``pi``, or null)."""
-    from ..report import cost_document
-
     law = result.law
     alignment = result.alignment
     return {

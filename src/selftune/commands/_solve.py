@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..config import MotorConfig
-from ..core import compact, matrix_block, vector
+from ..core import compact, cost_document, matrix_block, vector
 from ..errors import InputError
 from ..model import ModelBasedSolution, solve_optimal_regulation
 from ._output import _check_json_target, _check_numerics, _numerics, _print_report, _write_json
@@ -125,8 +125,6 @@ def solve_command(config: MotorConfig, json_path: str | None) -> int:
     json_path : str or None
         Where to write the JSON (``-``: standard output, without the report).
     """
-    from ..report._documents import cost_document
-
     _check_json_target(json_path)
     solution = model_based(config)
     w = config.exogenous()

@@ -23,7 +23,7 @@ from ._digital_evaluation import (
     step_cost,
     true_motor,
 )
-from ._documents import cost_document, history_document, regulator_document
+from ._documents import history_document, regulator_document
 from ._drive_check import STEADY_SECONDS, steady_torque_error
 from ._evaluate import (
     TuningEvaluation,
@@ -76,7 +76,6 @@ __all__ = [
     "TorqueCheck",
     "TuningEvaluation",
     "closed_loop_response",
-    "cost_document",
     "digital_step_cost",
     "drive_text",
     "evaluate",

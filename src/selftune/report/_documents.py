@@ -9,21 +9,7 @@ from ..model import ModelBasedSolution
 from ..tuning import TuningResult
 from ._evaluate import TuningEvaluation
 
-__all__ = ["cost_document", "history_document", "regulator_document"]
-
-
-def cost_document(Q: Array, R: Array, Q_i: Array | None) -> dict[str, Array | None]:
-    """The whole cost a controller optimized, for its JSON: ``Q``, ``R`` and ``Q_i`` (null
-    without integral action), so that the optimum can be recomputed from the file.
-
-    Parameters
-    ----------
-    Q, R : ndarray
-        The state and input weights.
-    Q_i : ndarray or None
-        The weight of the integrated error.
-    """
-    return {"Q": Q, "R": R, "Q_i": Q_i}
+__all__ = ["history_document", "regulator_document"]
 
 
 def history_document(result: TuningResult, evaluation: TuningEvaluation) -> list[dict[str, Any]]:

@@ -10,12 +10,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..core import matrix_block
+from ..core import cost_document, matrix_block
 from ..learn import LearningProblem, PIEquivalent, pi_equivalent_or_reason
 from ..model import SPMSM
 from ..sim import DriveSettings
 from ..tuning import TuningResult, TuningSettings
-from ._documents import cost_document, history_document
+from ._documents import history_document
 from ._drive_check import steady_torque_error
 from ._evaluate import TuningEvaluation, learner_integral_weight
 
