@@ -162,6 +162,27 @@ def test_json_matches_the_library_exactly(tmp_path: Path) -> None:
     np.testing.assert_array_equal(data["theta"], solution.theta)
 
 
+def test_the_solve_json_states_the_whole_problem(tmp_path: Path) -> None:
+    """The optimum recomputed from the JSON alone (motor, operating point, Q, R, Q_i, h,
+    delay: the continuous optimum, h = 0 and no delay) is the one it states."""
+    path = tmp_path / "solution.json"
+    motor = tmp_path / "motor.toml"
+    motor.write_text(
+        "[motor]\nR_s = 0.8\nL_s = 0.02\nphi_pm = 0.15\np = 3\n"
+        "[cost]\nQ = [[300.0, 0.0], [0.0, 500.0]]\nR = [[2.0, 0.0], [0.0, 1.0]]\n"
+    )
+    assert run(["solve", "--motor", str(motor), "--speed", "80", "--json", str(path)])[0] == 0
+    data = json.loads(path.read_text())
+    assert data["cost"]["Q_i"] is None and (data["h"], data["input_delay"]) == (0.0, 0)
+    stated = selftune.SPMSM(**{k: v for k, v in data["motor"].items() if v is not None})
+    solution = selftune.solve_optimal_regulation(
+        stated.regulation_problem(data["operating_point"]["speed"]), data["cost"]["Q"],
+        data["cost"]["R"],
+    )  # fmt: skip
+    for key in ("K", "P", "X", "U"):
+        np.testing.assert_array_equal(data[key], getattr(solution, key))
+
+
 @pytest.mark.parametrize(("speed", "torque"), [(10.0, 10.0), (150.0, -3.0), (0.0, 5.0)])
 def test_operating_point_agrees_with_the_closed_form(
     tmp_path: Path, speed: float, torque: float

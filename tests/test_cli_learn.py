@@ -93,6 +93,35 @@ def test_learn_from_a_file_equals_learning_in_memory(tmp_path: Path, suffix: str
     assert np.linalg.norm(np.array(result["K"]) - paper.K) < 1e-8 * np.linalg.norm(paper.K)
 
 
+def test_the_learn_json_states_the_whole_cost_and_the_pi_equivalent(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The README's log with an integral weight in CONFIG.toml: the JSON carries the cost
+    the law optimized (Q, R, Q_i as in the file), h and the delay, and the PI equivalent
+    the printout shows; the Q_i reached the learner (its K_i is the optimum's for it)."""
+    examples = Path(__file__).resolve().parents[1] / "examples" / "data"
+    weight = [[1e7, 0.0], [0.0, 2e7]]
+    text = (examples / "learn.toml").read_text()
+    config = tmp_path / "learn.toml"
+    config.write_text(text.replace("[policy]", f"Q_i = {weight}\n[policy]", 1))
+    out = tmp_path / "law.json"
+    args = ["learn", str(examples / "drive_log.csv"), "--config", str(config)]
+    assert main([*args, "--json", str(out)]) == 0
+    result = json.loads(out.read_text())
+    assert result["cost"] == {"Q": Q.tolist(), "R": R.tolist(), "Q_i": weight}
+    assert (result["h"], result["input_delay"]) == (pytest.approx(1e-4), 1)
+    pi = result["pi_equivalent"]
+    assert pi["stable"] is True and 0.0 < pi["excess_cost"] < 0.1
+    printed = capsys.readouterr().out
+    assert f"excess cost over the learned law {pi['excess_cost']:+.2%}" in printed
+    default = tmp_path / "default.json"
+    args = ["learn", str(examples / "drive_log.csv"), "--config", str(examples / "learn.toml")]
+    assert main([*args, "--json", str(default)]) == 0
+    unweighted = json.loads(default.read_text())
+    assert unweighted["cost"]["Q_i"] != weight
+    assert not np.allclose(unweighted["K_i"], result["K_i"], rtol=0.01)
+
+
 def test_learn_without_regulation_learns_state_feedback(tmp_path: Path) -> None:
     A = np.array([[0.0, 1.0], [-2.0, 0.3]])
     B = np.array([[0.0], [1.0]])
@@ -152,6 +181,24 @@ def one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
         (  # the digital optimum depends on the delay: never assumed silently
             lambda text: text + 'target = "digital"\n',
             '[learning] input_delay: missing: target = "digital"',
+        ),
+        (  # an integral weight with nothing to weigh: the key and the fix
+            lambda text: text.replace("[policy]", "Q_i = [[1.0, 0.0], [0.0, 1.0]]\n[policy]"),
+            "[cost] Q_i: weighs the integrated error, but integral action is off: set "
+            "[learning] integral_action = true",
+        ),
+        (
+            lambda text: (
+                text.replace("[policy]", "Q_i = [[1.0, 0.0], [0.0, -1.0]]\n[policy]")
+                + "integral_action = true\n"
+            ),
+            "[cost] Q_i: must be symmetric positive definite (smallest eigenvalue -1)",
+        ),
+        (
+            lambda text: (
+                text.replace("[policy]", "Q_i = [[1.0]]\n[policy]") + "integral_action = true\n"
+            ),
+            "[cost] Q_i: must be a 2x2 matrix, got 1x1",
         ),
     ],
 )

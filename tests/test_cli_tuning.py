@@ -130,6 +130,32 @@ def test_tune_learns_the_optimum_of_the_motor_in_the_file(
     assert "the controller" in printed and "steady torque error" in printed
 
 
+def test_the_tune_json_states_the_whole_problem(tmp_path: Path) -> None:
+    """The digital servo optimum recomputed from the JSON alone (motor, operating point,
+    Q, R, Q_i, h, delay) is the one the JSON compares with; the file's Q_i is used, and
+    the PI equivalent is there, judged stable."""
+    from selftune.model import solve_digital_regulation
+
+    weight = [[2e7, 0.0], [0.0, 3e7]]
+    learning = '[learning]\ntarget = "digital"\nintegral_action = true\n'
+    path = motor_file(tmp_path, f"[cost]\nQ_i = {weight}\n" + learning)
+    out = tmp_path / "tune.json"
+    assert main(["tune", "--motor", str(path), "--json", str(out)]) == 0
+    result = json.loads(out.read_text())
+    assert result["cost"]["Q_i"] == weight
+    motor = SPMSM(**{key: value for key, value in result["motor"].items() if value is not None})
+    settings = result["settings"]
+    optimum = solve_digital_regulation(
+        motor.regulation_problem(settings["speed"]), result["cost"]["Q"], result["cost"]["R"],
+        result["h"], input_delay=result["input_delay"], integral_weight=result["cost"]["Q_i"],
+    )  # fmt: skip
+    np.testing.assert_allclose(result["model_based"]["K"], optimum.law.K, rtol=1e-12)
+    np.testing.assert_allclose(result["model_based"]["K_i"], optimum.law.K_i, rtol=1e-12)
+    pi = result["pi_equivalent"]
+    assert pi["stable"] is True and pi["k_i"] is not None and pi["excess_cost"] > -1e-6
+    assert pi["control_law"]["history"] == result["input_delay"]
+
+
 def test_tune_reads_the_learning_table(tmp_path: Path) -> None:
     learning = "[learning]\nsampling = 2e-5\nepisode_length = 4e-3\nexploration = 2.0\n"
     out = tmp_path / "tune.json"

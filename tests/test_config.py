@@ -165,6 +165,67 @@ def test_the_learning_table_is_checked_on_load(tmp_path: Path, line: str, expect
     assert message.startswith(expected), message
 
 
+def test_the_integral_weight_is_read_with_integral_action(tmp_path: Path) -> None:
+    """[cost] Q_i reaches the learner's problem; without it the learner's default stands."""
+    from selftune.learn import LearningProblem
+    from selftune.tuning import known_flux_form
+    from selftune.tuning._learning import learning_problem
+
+    weight = [[3e6, 1e5], [1e5, 2e6]]
+    text = MOTOR_TOML + f"Q_i = {weight}\n[learning]\nintegral_action = true\n"
+    config = load_motor_config(write(tmp_path, text))
+    np.testing.assert_array_equal(config.Q_i, weight)
+    settings = tuning_settings(config)
+    np.testing.assert_array_equal(settings.Q_i, weight)
+
+    class Drive:
+        pole_pairs = config.motor.p
+
+    problem = learning_problem(Drive(), settings, config.motor.phi_pm)  # type: ignore[arg-type]
+    np.testing.assert_array_equal(problem.integral_weight, weight)
+    unweighted = tuning_settings(
+        load_motor_config(write(tmp_path, MOTOR_TOML + "[learning]\nintegral_action = true\n"))
+    )
+    assert unweighted.Q_i is None
+    C, _, F, _ = known_flux_form(2, 10.0, 10.0, 0.46)
+    default = LearningProblem(settings.Q, settings.R, C=C, F=F, integral_action=True)
+    np.testing.assert_array_equal(
+        learning_problem(Drive(), unweighted, 0.46).integral_weight,  # type: ignore[arg-type]
+        default.integral_weight,
+    )
+
+
+@pytest.mark.parametrize(
+    ("lines", "expected"),
+    [
+        (
+            "Q_i = [[1.0, 0.0], [0.0, 1.0]]\n",
+            "[cost] Q_i: weighs the integrated current error, but integral action is off: "
+            "set [learning] integral_action = true, or remove Q_i",
+        ),
+        (
+            "Q_i = [[1.0, 0.0], [0.0, 1.0]]\n[learning]\nintegral_action = false\n",
+            "[cost] Q_i: weighs the integrated current error, but integral action is off",
+        ),
+        (
+            "Q_i = [[1.0, 2.0], [2.0, 1.0]]\n[learning]\nintegral_action = true\n",
+            "[cost] Q_i: must be symmetric positive definite (smallest eigenvalue -1)",
+        ),
+        (
+            "Q_i = [[1.0, 0.0, 0.0]]\n[learning]\nintegral_action = true\n",
+            "[cost] Q_i: must be a 2x2 matrix, got 1x3",
+        ),
+        (
+            "Q_i = [[1e20, 0.0], [0.0, 1.0]]\n[learning]\nintegral_action = true\n",
+            "[cost] Q_i: entries must be 0 or between 1e-12 and 1e+12 in magnitude",
+        ),
+    ],
+)
+def test_a_bad_integral_weight_names_the_key(tmp_path: Path, lines: str, expected: str) -> None:
+    message = load_error(tmp_path, MOTOR_TOML + lines)
+    assert message.startswith(expected), message
+
+
 def test_motor_config_is_frozen_and_checks_its_fields() -> None:
     config = MotorConfig.default()
     with pytest.raises(AttributeError):

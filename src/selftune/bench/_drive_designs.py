@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..learn import LoggedInput, Trajectory
+from ..learn import LoggedInput, Trajectory, pi_control_law
 from ..loop import SampledLoop
 from ..model import SPMSM
 from ..sim import ExogenousSignal, Exploration, RealisticDrive
@@ -255,7 +255,8 @@ def pi_law(
     phi_pm: float,
     h: float,
 ) -> ControlLaw:
-    """The industrial PI current controller with decoupling, as a law with one past input.
+    """The industrial PI current controller with decoupling, as a law with one past input
+    (:func:`~selftune.learn.pi_control_law`, the structure of every PI selftune builds).
 
     ``k_p = w_c L``, ``k_i = w_c R`` (the integrator's zero cancels the pole ``R / L``, so
     on the continuous plant the closed loop is ``w_c / (s + w_c)``); with ``e = i - i*``,
@@ -289,9 +290,11 @@ def pi_law(
     p = case.nameplate.p
     C, _, F, _ = known_flux_form(p, case.speed, case.torque, phi_pm)
     k_p, k_i, cross = bandwidth * inductance, bandwidth * resistance, p * case.speed * inductance
-    K = np.array([[k_p, cross, 0.0, 0.0], [-cross, k_p, 0.0, 0.0]])
     U = np.array([[0.0, cross * F[1, 1]], [1.0, 0.0]])
-    return ControlLaw(K, -F, U, history=1, K_i=k_i * np.eye(2), C=C, F=F, h=h)
+    return pi_control_law(
+        np.full(2, k_p), [[0.0, cross], [-cross, 0.0]], -F, U, k_i=np.full(2, k_i), C=C, F=F,
+        h=h, history=1,
+    )  # fmt: skip
 
 
 def current_bandwidth(plant: tuple[Array, Array], law: ControlLaw, h: float) -> float | None:

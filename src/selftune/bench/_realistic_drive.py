@@ -207,8 +207,9 @@ class _Study:
         self.known_flux = true.phi_pm
         C, _, F, self.w = known_flux_form(case.nameplate.p, case.speed, case.torque, true.phi_pm)
         self.problem = LearningProblem(
-            settings.Q, settings.R, C=C, F=F, integral_action=settings.integral_action
-        )
+            settings.Q, settings.R, C=C, F=F, integral_action=settings.integral_action,
+            integral_weight=settings.Q_i,
+        )  # fmt: skip
         self.K0 = settings.K0
         Q_i = self.problem.integral_weight
         started = time.perf_counter()

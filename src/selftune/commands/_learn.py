@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..config import LEARN_TABLES, LearnConfig, load_learn_config, load_log_format
-from ..core import labels, matrix_block
+from ..core import cost_document, labels, matrix_block
 from ..errors import DataFileError, InputError, Refusal
 from ._output import (
     _check_json_target,
@@ -19,14 +19,21 @@ from ._output import (
 )
 
 
+def _problem(config: LearnConfig) -> Any:
+    """The learner's problem of ``config``: the regulation and the whole cost."""
+    from ..learn import LearningProblem
+
+    return LearningProblem(
+        config.Q, config.R, C=config.C, E=config.E, F=config.F,
+        integral_action=config.integral_action, integral_weight=config.Q_i,
+    )  # fmt: skip
+
+
 def _learn(data: Any, config: LearnConfig, source: str) -> Any:
     """The learned controller for ``config`` on ``data``; any failure names ``source``."""
-    from ..learn import LearningOptions, LearningProblem, learn_controller
+    from ..learn import LearningOptions, learn_controller
 
-    problem = LearningProblem(
-        config.Q, config.R, C=config.C, E=config.E, F=config.F,
-        integral_action=config.integral_action,
-    )  # fmt: skip
+    problem = _problem(config)
     options = LearningOptions(
         interval=config.interval, max_iterations=config.max_iterations,
         tolerance=config.tolerance, **config.options,  # type: ignore[arg-type]
@@ -78,7 +85,7 @@ def learn_command(
         Where to write the report: one HTML page and its figures
         (:func:`selftune.report.write_learn_report`), checked before the log is read.
     """
-    from ..learn import load_log, load_trajectory
+    from ..learn import load_log, load_trajectory, pi_equivalent_or_reason
     from ..learn.data._io import trajectory_dimensions
 
     _check_json_target(json_path)
@@ -110,16 +117,20 @@ def learn_command(
         lines += matrix_block("U  feedforward map, u_e = U w", law.U, inputs, exogenous)
     lines += matrix_block("B  estimated input matrix", result.B, states, inputs)
     lines += ["", *result.quality.lines()]
+    problem = _problem(config)
+    pi, why = pi_equivalent_or_reason(result.law, problem, result.judged, result.target)
+    lines += ["", *(pi.lines(inputs, states) if pi else [f"no PI equivalent: {why}"])]
     if json_path is not None:
-        _write_json(json_path, _learn_document(result))
+        _write_json(json_path, _learn_document(result, problem, pi))
     _write_report(result, f"selftune learn: {data_path}", lines, report_dir)
     _print_report(lines, json_path)
     _say_report_written(report_dir, json_path)
     return 0
 
 
-def _learn_document(result: Any) -> dict[str, Any]:
-    """The JSON of ``selftune learn``: the law, its quality, how it was learned."""
+def _learn_document(result: Any, problem: Any = None, pi: Any = None) -> dict[str, Any]:
+    """The JSON of ``selftune learn``: the law, its quality, how it was learned, the whole
+    cost it optimized (with ``problem``) and its PI equivalent (``pi``, or null)."""
     law = result.law
     alignment = result.alignment
     return {
@@ -143,4 +154,10 @@ def _learn_document(result: Any) -> dict[str, Any]:
             "residuals": {str(shift): value for shift, value in alignment.residuals.items()},
         },
         "iterations": len(result.history),
+        **(
+            {}
+            if problem is None
+            else {"cost": cost_document(problem.Q, problem.R, problem.integral_weight)}
+        ),
+        "pi_equivalent": None if pi is None else pi.document(),
     }

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..config import MotorConfig
-from ..core import compact, matrix_block, vector
+from ..core import compact, cost_document, matrix_block, vector
 from ..errors import InputError
 from ..model import ModelBasedSolution, solve_optimal_regulation
 from ._output import _check_json_target, _check_numerics, _numerics, _print_report, _write_json
@@ -114,7 +114,9 @@ def solve_report(config: MotorConfig, solution: ModelBasedSolution) -> str:
 
 
 def solve_command(config: MotorConfig, json_path: str | None) -> int:
-    """``selftune solve``: print the model-based optimum of ``config``; write its JSON.
+    """``selftune solve``: print the model-based optimum of ``config``; write its JSON
+    (with the whole problem: the motor, the operating point, the cost ``Q, R, Q_i``, the
+    sampling period and the delay, 0 for this continuous-time optimum).
 
     Parameters
     ----------
@@ -131,7 +133,8 @@ def solve_command(config: MotorConfig, json_path: str | None) -> int:
         document.update({"x_e": solution.X @ w, "u_e": solution.U @ w, "w": w})
         document.update({"motor": config.motor})
         document.update({"operating_point": {"speed": config.speed, "torque": config.torque}})
-        document.update({"cost": {"Q": config.Q, "R": config.R}})
+        document.update({"cost": cost_document(config.Q, config.R, solution.integral_weight)})
+        document.update({"h": solution.h, "input_delay": solution.input_delay})
         _write_json(json_path, document)
     _print_report([solve_report(config, solution)], json_path)
     return 0

@@ -56,7 +56,7 @@ def tune_command(
         Where to write the report of the learned controller: one HTML page and its
         figures (:func:`selftune.report.write_learn_report`).
     """
-    from ..report import evaluate, torque_check, tune_document, tune_lines
+    from ..report import evaluate, torque_check, tune_document, tune_lines, tuned_pi
     from ..tuning import run_algorithm, tuning_settings
 
     _check_json_target(json_path)
@@ -67,9 +67,11 @@ def tune_command(
         evaluation = evaluate(result, config.motor, settings, config.drive)
         torque = torque_check(config.motor, settings, result, config.drive)
     _check_numerics(config.source, caught, result.P, result.K)
-    lines = tune_lines(config.source, result, evaluation, torque, config.drive)
+    pi = tuned_pi(config.motor, settings, result)
+    lines = tune_lines(config.source, result, evaluation, torque, config.drive, pi)
     if json_path is not None:
-        _write_json(json_path, tune_document(config.motor, settings, result, evaluation, torque))
+        document = tune_document(config.motor, settings, result, evaluation, torque, pi[0])
+        _write_json(json_path, document)
     # the step response's step: the torque reference from 0 at the operating point's speed
     step = (result.w * np.array([1.0, 0.0]), result.w)
     _write_report(result.learned, f"selftune tune: {config.source}", lines, report_dir, step)

@@ -19,7 +19,7 @@ __all__ = ["LEARN_TABLES", "LearnConfig", "load_learn_config"]
 #: The tables of a learning configuration (``selftune learn``) and their keys.
 LEARN_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
     {
-        "cost": ("Q", "R"),
+        "cost": ("Q", "R", "Q_i"),
         "policy": ("K0",),
         "regulation": ("C", "E", "F"),
         "learning": (
@@ -70,6 +70,9 @@ class LearnConfig:
         max_relative_error.
     integral_action : bool
         Learn the optimal servo controller (integral action on ``e = C x + F w``).
+    Q_i : ndarray, shape (r, r), or None
+        The integral weight ``[cost] Q_i`` (symmetric positive definite); None: the
+        learner's default (:class:`selftune.learn.LearningProblem`), or no integral action.
     """
 
     Q: Array
@@ -84,6 +87,7 @@ class LearnConfig:
     source: str = ""
     options: Mapping[str, object] = field(default_factory=dict)
     integral_action: bool = False
+    Q_i: Array | None = None
 
     @property
     def regulation(self) -> bool:
@@ -99,6 +103,8 @@ def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> L
         [cost]
         Q = [[...]]           # n x n, symmetric positive definite
         R = [[...]]           # m x m, symmetric positive definite
+        Q_i = [[...]]         # optional, r x r, symmetric positive definite: the weight
+                              # of the integrated error (needs integral_action = true)
         [policy]
         K0 = [[...]]          # m x n stabilizing gain that policy iteration starts from
         [regulation]          # optional: omit it to learn plain optimal state feedback
@@ -183,8 +189,22 @@ def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> L
     if integral and C is None:
         raise learning.error("integral_action", "needs a [regulation] table (C, E, F)")
     return LearnConfig(
-        Q, R, K0, C, E, F, interval, iterations, tolerance, config.file, options, integral
-    )
+        Q, R, K0, C, E, F, interval, iterations, tolerance, config.file, options, integral,
+        _integral_weight(cost, integral, None if C is None else C.shape[0]),
+    )  # fmt: skip
+
+
+def _integral_weight(cost: ConfigTable, integral: bool, r: int | None) -> Array | None:
+    """``[cost] Q_i``, r x r symmetric positive definite, only with integral action."""
+    if "Q_i" not in cost:
+        return None
+    if not integral or r is None:
+        raise cost.error(
+            "Q_i",
+            "weighs the integrated error, but integral action is off: set [learning] "
+            "integral_action = true (with a [regulation] table), or remove Q_i",
+        )
+    return cost.positive_definite("Q_i", r)
 
 
 def _options(learning: ConfigTable, iteration: tuple[int, int, float]) -> Mapping[str, object]:

@@ -11,6 +11,7 @@
     [cost]             # optional: weights of the cost, both symmetric positive definite
     Q = [[1000.0, 0.0], [0.0, 1000.0]]
     R = [[1.0, 0.0], [0.0, 1.0]]
+    Q_i = [[4e7, 0.0], [0.0, 4e7]]  # optional, with integral_action: the integral weight
     [learning]         # optional: selftune tune's settings (selftune.tuning.TuningSettings)
     target = "digital" # or "continuous"; integral_action, dead_time (true/false),
                        # perturbation, flux_length (s), h, K0, exploration, ...
@@ -104,7 +105,7 @@ MOTOR_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
     {
         "motor": ("R_s", "L_s", "phi_pm", "p", "J"),
         "operating_point": ("speed", "torque"),
-        "cost": ("Q", "R"),
+        "cost": ("Q", "R", "Q_i"),
         "learning": LEARNING_KEYS,
         "drive": (
             "input_delay",
@@ -146,6 +147,9 @@ class MotorConfig:
         The realistic drive of the ``[drive]`` table; None without one (the ideal drive).
     drive_h : float or None
         ``1 / switching_frequency`` of the ``[drive]`` table, s, if it gives one.
+    Q_i : ndarray, shape (2, 2), or None
+        The weight of the integrated current error (``[cost] Q_i``), symmetric positive
+        definite; None: the learner's default (:class:`selftune.learn.LearningProblem`).
     source : str
         Where the configuration came from (a file name, or ``"paper preset"``), for
         messages.
@@ -169,6 +173,7 @@ class MotorConfig:
     source: str = "paper preset"
     drive: DriveSettings | None = None
     drive_h: float | None = None
+    Q_i: Array | None = None
 
     def __post_init__(self) -> None:
         for name in ("speed", "torque"):
@@ -177,7 +182,9 @@ class MotorConfig:
             )
         check_electrical_time_constant(self.motor.R_s, self.motor.L_s)
         check_electrical_speed(self.speed, self.motor.p, self.motor.L_s)
-        for name in ("Q", "R"):
+        for name in ("Q", "R", "Q_i"):
+            if getattr(self, name) is None:
+                continue
             matrix = check_entries(as_matrix(getattr(self, name), name, (2, 2)), name)
             matrix = check_positive_definite(matrix, name)
             matrix.setflags(write=False)
@@ -259,6 +266,7 @@ def load_motor_config(path: str | os.PathLike[str]) -> MotorConfig:
     torque = operating_point.ranged("torque", PAPER_TORQUE)
     Q = cost.positive_definite("Q", 2, paper_Q())
     R = cost.positive_definite("R", 2, paper_R())
+    Q_i = _integral_weight(cost, learning)
     drive, drive_h = None, None
     if "drive" in config:
         from ._drive_table import drive_settings  # here: solve loads no simulator
@@ -266,11 +274,24 @@ def load_motor_config(path: str | os.PathLike[str]) -> MotorConfig:
         drive, drive_h = drive_settings(config.table("drive"))
     try:
         raw = config.data.get("learning", {})  # as written: read with its names by the tuner
-        return MotorConfig(motor, speed, torque, Q, R, raw, config.file, drive, drive_h)
+        return MotorConfig(motor, speed, torque, Q, R, raw, config.file, drive, drive_h, Q_i)
     except InputError as exc:  # a rule across tables (the speed for the motor)
         key, _, reason = str(exc).partition(": ")
         table = operating_point if key in ("speed", "torque") else cost
         raise table.error(key, reason) from None
+
+
+def _integral_weight(cost: ConfigTable, learning: ConfigTable) -> Array | None:
+    """``[cost] Q_i``, 2x2 symmetric positive definite, only with integral action."""
+    if "Q_i" not in cost:
+        return None
+    if not learning.flag("integral_action", False):
+        raise cost.error(
+            "Q_i",
+            "weighs the integrated current error, but integral action is off: set "
+            "[learning] integral_action = true, or remove Q_i",
+        )
+    return cost.positive_definite("Q_i", 2)
 
 
 def _motor(table: ConfigTable) -> SPMSM:

@@ -13,7 +13,7 @@ settings (:mod:`._paper`).
 from __future__ import annotations
 
 from ._atomic import atomic_path, finite_or_null, to_jsonable, write_json, write_text
-from ._control_law import ControlLaw, WithLaw, state_names
+from ._control_law import ControlLaw, WithLaw, cost_document, state_names
 from ._discretize import Discretization, augmented, discretize, expm_stack, rotating_hold
 from ._dlinalg import (
     continuous_from_discrete,
@@ -106,6 +106,7 @@ __all__ = [
     "check_weights",
     "compact",
     "continuous_from_discrete",
+    "cost_document",
     "delay_augmented",
     "discretize",
     "dlqr",

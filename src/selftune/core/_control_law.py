@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike
 from ..errors import InputError
 from ._validation import Array, as_matrix, positive_finite, positive_integer
 
-__all__ = ["ControlLaw", "WithLaw", "state_names"]
+__all__ = ["ControlLaw", "WithLaw", "cost_document", "state_names"]
 
 
 def state_names(n: int, m: int, history: int, r: int = 0) -> tuple[str, ...]:
@@ -290,6 +290,20 @@ class ControlLaw:
         if self.history:
             text += ", ubar_(k-j) = u_(k-j) - U w_k (the input computed j samples before)"
         return text
+
+
+def cost_document(Q: Array, R: Array, Q_i: Array | None) -> dict[str, Array | None]:
+    """The whole cost a controller optimized, for its JSON: ``Q``, ``R`` and ``Q_i`` (null
+    without integral action), so that the optimum can be recomputed from the file.
+
+    Parameters
+    ----------
+    Q, R : ndarray
+        The state and input weights.
+    Q_i : ndarray or None
+        The weight of the integrated error.
+    """
+    return {"Q": Q, "R": R, "Q_i": Q_i}
 
 
 class WithLaw:

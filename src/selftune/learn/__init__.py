@@ -31,9 +31,10 @@ runs the evidence, the learner of the options' target and method, and the verdic
 
 from __future__ import annotations
 
+from ._pi import PIEquivalent, pi_control_law, pi_equivalent, pi_equivalent_or_reason
 from ._pipeline import aligned_trajectory, assess, learn_controller
 from ._problem import LearningOptions, LearningProblem, Method, Target
-from ._result import DiscountStage, Formulation, LearnedController
+from ._result import DiscountStage, Formulation, JudgedPlants, LearnedController
 from .data._frames import LogColumn, LogFormat, load_log
 from .data._io import (
     CsvHeader,
@@ -116,6 +117,7 @@ __all__ = [
     "Formulation",
     "IntervalMoments",
     "IterationRecord",
+    "JudgedPlants",
     "LearnedController",
     "LearningOptions",
     "LearningProblem",
@@ -124,6 +126,7 @@ __all__ = [
     "LoggedInput",
     "Method",
     "OutputErrorFit",
+    "PIEquivalent",
     "PolicyIterationFacts",
     "Quality",
     "Regression",
@@ -164,6 +167,9 @@ __all__ = [
     "load_trajectory",
     "not_converged",
     "phase_signs",
+    "pi_control_law",
+    "pi_equivalent",
+    "pi_equivalent_or_reason",
     "policy_iteration",
     "policy_step",
     "read_csv_chunks",

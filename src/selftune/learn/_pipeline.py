@@ -46,7 +46,7 @@ from ..errors import (
 )
 from ..loop import SampledLoop
 from ._problem import LearningOptions, LearningProblem
-from ._result import LearnedController
+from ._result import JudgedPlants, LearnedController
 from .data._trajectory import Trajectory, as_trajectories
 from .evidence._alignment import applied_inputs
 from .evidence._evidence import Evidence, gather_evidence, reduced_problem
@@ -61,7 +61,7 @@ from .learners._digital import (
 from .learners._moments import IntervalMoments, WKind, interval_moments
 from .learners._policy_iteration import IterationRecord
 from .learners._servo import servo_from_moments
-from .verdict._quality import check_precision, check_safety
+from .verdict._quality import check_precision, check_safety, largest_radius
 from .verdict._verdict import (
     ROUNDING_FLOOR,
     ModelErrors,
@@ -399,7 +399,7 @@ def _judged(
 ) -> LearnedController:
     """The learned ``(law, P, B, history)`` with its verdict, or the error that refuses it."""
     law, P, B, history = learned
-    quality, radii = verdict(law, errors, evidence, options)
+    quality, radii, models = verdict(law, errors, evidence, options)
     check_safety(
         quality,
         evidence,
@@ -421,6 +421,9 @@ def _judged(
         alignment=evidence.alignment,
         history=history,
         evidence=evidence,
+        judged=JudgedPlants(
+            tuple(models), options.input_delay, largest_radius(errors.optimum_radius)
+        ),
     )
 
 

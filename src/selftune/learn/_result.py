@@ -11,10 +11,11 @@ from .learners._regression import RegressionSolution
 
 if TYPE_CHECKING:
     from .evidence._alignment import Alignment
+    from .evidence._discrete_model import DiscreteModel
     from .evidence._evidence import Evidence
     from .verdict._quality import Quality
 
-__all__ = ["DiscountStage", "Formulation", "LearnedController"]
+__all__ = ["DiscountStage", "Formulation", "JudgedPlants", "LearnedController"]
 
 #: How a continuous-time regulator learner met the regulator equations: with the unique X
 #: of ``C X + F = 0`` in one regression family (``"customized"``, the paper's), or with
@@ -46,6 +47,27 @@ class DiscountStage:
     P: Array
     iterations: int
     rate: float
+
+
+@dataclass(frozen=True)
+class JudgedPlants:
+    """The sampled plants a verdict judged a law on, and what it asked of the law there.
+
+    Attributes
+    ----------
+    models : tuple of DiscreteModel
+        The model fitted to the data first, then the plausible models drawn from its
+        parameters' uncertainty (one model alone where no output-error fit exists).
+    input_delay : int
+        d, the drive's computation delay the loops were closed with, samples.
+    largest_radius : float
+        The largest spectral radius the verdict accepts on every one of them
+        (:func:`~selftune.learn.verdict._quality.largest_radius`).
+    """
+
+    models: tuple[DiscreteModel, ...]
+    input_delay: int
+    largest_radius: float
 
 
 @dataclass(frozen=True)
@@ -99,6 +121,10 @@ class LearnedController(WithLaw, PolicyIterationFacts):
         What the logs said (the fitted model, its output errors, the parameters'
         covariance) that the verdict was drawn from; None from a learner used alone. The
         report's figures (:func:`selftune.report.write_learn_report`) are drawn from it.
+    judged : JudgedPlants or None
+        The estimated plants the verdict judged the law on (None from a learner used
+        alone): what a law of another structure is measured on
+        (:func:`~selftune.learn.pi_equivalent`).
     """
 
     law: ControlLaw
@@ -116,6 +142,7 @@ class LearnedController(WithLaw, PolicyIterationFacts):
     stages: tuple[DiscountStage, ...] = ()
     extra_regressions: tuple[RegressionSolution, ...] = ()
     evidence: Evidence | None = field(default=None, repr=False, compare=False)
+    judged: JudgedPlants | None = field(default=None, repr=False, compare=False)
 
     @property
     def theta(self) -> Array | None:

@@ -63,6 +63,7 @@ from ._tune_report import (
     torque_check,
     tune_document,
     tune_lines,
+    tuned_pi,
 )
 
 __all__ = [
@@ -108,6 +109,7 @@ __all__ = [
     "true_motor",
     "tune_document",
     "tune_lines",
+    "tuned_pi",
     "verdict_sentence",
     "write_firmware",
     "write_learn_report",

@@ -214,8 +214,9 @@ def block_error(learned: Array | None, best: Array | None) -> float:
 
 
 def learner_integral_weight(motor: SPMSM, settings: TuningSettings) -> Array | None:
-    """The integral weight a session's learner uses (the default of
-    :class:`selftune.learn.LearningProblem`), so the optimum compared is of the same cost.
+    """The integral weight a session's learner uses (the settings' ``Q_i``, else the
+    default of :class:`selftune.learn.LearningProblem`), so the optimum compared is of the
+    same cost.
 
     Parameters
     ----------
@@ -225,7 +226,9 @@ def learner_integral_weight(motor: SPMSM, settings: TuningSettings) -> Array | N
         Cost weights and K0.
     """
     C, _, F, _ = known_flux_form(motor.p, settings.speed, settings.torque, motor.phi_pm)
-    problem = LearningProblem(settings.Q, settings.R, C=C, F=F, integral_action=True)
+    problem = LearningProblem(
+        settings.Q, settings.R, C=C, F=F, integral_action=True, integral_weight=settings.Q_i
+    )
     return problem.integral_weight
 
 

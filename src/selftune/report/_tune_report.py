@@ -10,13 +10,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..core import matrix_block
+from ..core import cost_document, matrix_block
+from ..learn import LearningProblem, PIEquivalent, pi_equivalent_or_reason
 from ..model import SPMSM
 from ..sim import DriveSettings
 from ..tuning import TuningResult, TuningSettings
 from ._documents import history_document
 from ._drive_check import steady_torque_error
-from ._evaluate import TuningEvaluation
+from ._evaluate import TuningEvaluation, learner_integral_weight
 
 __all__ = [
     "HOT_RESISTANCE",
@@ -25,6 +26,7 @@ __all__ = [
     "torque_check",
     "tune_document",
     "tune_lines",
+    "tuned_pi",
 ]
 
 #: The resistance after tuning against which the torque error is checked again: +40%,
@@ -98,12 +100,39 @@ def drive_text(drive: DriveSettings | None) -> str:
     return "a realistic drive (" + ", ".join(parts) + ")"
 
 
+def tuned_pi(
+    motor: SPMSM, settings: TuningSettings, result: TuningResult
+) -> tuple[PIEquivalent | None, str]:
+    """The PI equivalent of a session's law on the plants it estimated
+    (:func:`~selftune.learn.pi_equivalent_or_reason`), for the cost the session's learner
+    optimized (the settings' Q, R and the learner's Q_i).
+
+    Parameters
+    ----------
+    motor : SPMSM
+        The motor (nameplate values: F of the integral weight's problem).
+    settings : TuningSettings
+        The session's cost.
+    result : TuningResult
+        The session's result.
+    """
+    law = result.law
+    problem = LearningProblem(
+        settings.Q, settings.R, C=law.C, F=law.F, integral_action=law.K_i is not None,
+        integral_weight=learner_integral_weight(motor, settings) if law.K_i is not None else None,
+    )  # fmt: skip
+    if result.target == "digital":
+        return pi_equivalent_or_reason(law, problem, result.judged, "digital")
+    return pi_equivalent_or_reason(law, problem, result.judged, "continuous")
+
+
 def tune_lines(
     source: str,
     result: TuningResult,
     evaluation: TuningEvaluation,
     torque: TorqueCheck,
     drive: DriveSettings | None,
+    pi: tuple[PIEquivalent | None, str] | None = None,
 ) -> list[str]:
     """The report ``selftune tune`` prints.
 
@@ -119,6 +148,8 @@ def tune_lines(
         Its steady torque on the simulated drive.
     drive : DriveSettings or None
         The drive it was tuned on.
+    pi : (PIEquivalent or None, str), optional
+        Its PI equivalent, or why there is none (:func:`tuned_pi`); appended.
     """
     law = result.law
     target = "digital" if result.target == "digital" else "continuous (the paper's)"
@@ -157,7 +188,11 @@ def tune_lines(
                 else ""
             )
         )
-    return lines + list(result.notes)
+    lines += list(result.notes)
+    if pi is not None:
+        lines += ["", *(pi[0].lines(["u_d", "u_q"], ["i_d", "i_q"]) if pi[0] else [])]
+        lines += [] if pi[0] else [f"no PI equivalent: {pi[1]}"]
+    return lines
 
 
 def tune_document(
@@ -166,8 +201,11 @@ def tune_document(
     result: TuningResult,
     evaluation: TuningEvaluation,
     torque: TorqueCheck,
+    pi: PIEquivalent | None = None,
 ) -> dict[str, Any]:
-    """The JSON ``selftune tune --json`` writes (every number of the report and more).
+    """The JSON ``selftune tune --json`` writes (every number of the report and more),
+    with the whole cost the controller optimized (``cost``: Q, R and Q_i; ``h``;
+    ``input_delay``) and its PI equivalent (null without one).
 
     Parameters
     ----------
@@ -181,9 +219,12 @@ def tune_document(
         Its comparison with the model-based optimum.
     torque : TorqueCheck
         Its steady torque on the simulated drive.
+    pi : PIEquivalent, optional
+        Its PI equivalent (:func:`tuned_pi`).
     """
     optimum = evaluation.optimum
     best = optimum.law
+    weight = learner_integral_weight(motor, settings) if result.law.K_i is not None else None
     return {
         "algorithm": result.algorithm,
         "target": result.target,
@@ -206,4 +247,8 @@ def tune_document(
         "settings": settings,
         "notes": list(result.notes),
         "history": history_document(result, evaluation),
+        "cost": cost_document(settings.Q, settings.R, weight),
+        "h": settings.h,
+        "input_delay": result.law.history,
+        "pi_equivalent": None if pi is None else pi.document(),
     }

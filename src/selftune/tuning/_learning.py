@@ -77,14 +77,15 @@ def learning_problem(drive: Drive, settings: TuningSettings, phi_pm: float) -> L
     drive : Drive
         The drive (for its pole pairs).
     settings : TuningSettings
-        Operating point, cost, K0, integral action.
+        Operating point, cost (``Q_i`` too), K0, integral action.
     phi_pm : float
         The flux the controller assumes, Wb.
     """
     C, _, F, _ = known_flux_form(drive.pole_pairs, settings.speed, settings.torque, phi_pm)
     return LearningProblem(
-        settings.Q, settings.R, C=C, F=F, integral_action=settings.integral_action
-    )
+        settings.Q, settings.R, C=C, F=F, integral_action=settings.integral_action,
+        integral_weight=settings.Q_i,
+    )  # fmt: skip
 
 
 def learning_options(

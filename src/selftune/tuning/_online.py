@@ -246,7 +246,9 @@ def online_settings(
         How the tuner re-learns (:attr:`~selftune.learn.online.OnlineSettings.learner`).
     """
     C, _, F, _ = known_flux_form(motor.p, settings.speed, settings.torque, motor.phi_pm)
-    problem = LearningProblem(settings.Q, settings.R, C=C, F=F, integral_action=True)
+    problem = LearningProblem(
+        settings.Q, settings.R, C=C, F=F, integral_action=True, integral_weight=settings.Q_i
+    )
     return OnlineSettings(
         settings.h, drive.input_delay, problem, motor.p * settings.speed, drive.voltage_hold,
         dead_time=drive.dead_time > 0.0, learner=learner,

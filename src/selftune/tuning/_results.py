@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..core import Array, ControlLaw, WithLaw
-from ..learn import LearnedController, Quality
+from ..learn import JudgedPlants, LearnedController, Quality
 
 __all__ = ["TuningIteration", "TuningResult"]
 
@@ -115,6 +115,12 @@ class TuningResult(WithLaw):
     identified: dict[str, float] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
     learned: LearnedController | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def judged(self) -> JudgedPlants | None:
+        """The estimated plants the verdict judged the law on (the learning result's:
+        :attr:`selftune.learn.LearnedController.judged`), or None."""
+        return None if self.learned is None else self.learned.judged
 
     @property
     def rank(self) -> int:

@@ -114,6 +114,10 @@ class TuningSettings:
         mistaken for back-EMF; on by default for a realistic drive (MOTOR.toml [drive]).
     flux_length : float
         Length of Algorithm 3's flux step, s (0.2).
+    Q_i : ndarray, shape (2, 2), or None
+        The weight of the integrated current error (with ``integral_action``), symmetric
+        positive definite; None: the learner's default
+        (:class:`selftune.learn.LearningProblem`).
     """
 
     speed: float = PAPER_SPEED
@@ -138,6 +142,7 @@ class TuningSettings:
     integral_action: bool = False
     dead_time: bool = False
     flux_length: float = 0.2
+    Q_i: Array | None = None
 
     def __post_init__(self) -> None:
         for name in ("h", "episode_length", "exploration"):
@@ -152,6 +157,11 @@ class TuningSettings:
             matrix = check_entries(as_matrix(getattr(self, name), name, (2, 2)), name)
             object.__setattr__(self, name, check_positive_definite(matrix, name))
         object.__setattr__(self, "K0", check_entries(as_matrix(self.K0, "K0", (2, 2)), "K0"))
+        if self.Q_i is not None:
+            if self.integral_action is not True:
+                raise InputError("Q_i: weighs the integrated error; needs integral_action")
+            matrix = check_entries(as_matrix(self.Q_i, "Q_i", (2, 2)), "Q_i")
+            object.__setattr__(self, "Q_i", check_positive_definite(matrix, "Q_i"))
         if self.perturbation not in ("paper", "torque", "steps"):
             raise InputError(
                 f"perturbation: must be 'paper', 'torque' or 'steps', got {self.perturbation!r}"
@@ -370,6 +380,7 @@ def tuning_settings(
                 table.choice("perturbation", ("paper", "torque", "steps"), defaults.perturbation)
             ),
             flux_length=table.ranged("flux_length", TuningSettings.flux_length, "episode_length"),
+            Q_i=config.Q_i,
         )
     except DataFileError:
         raise

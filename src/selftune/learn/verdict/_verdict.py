@@ -135,8 +135,9 @@ def _floored(se: Array, value: Array) -> Array:
 
 def verdict(
     law: ControlLaw, errors: ModelErrors, evidence: Evidence, options: LearningOptions
-) -> tuple[Quality, Array]:
-    """The quality of ``law`` and the spectral radii of its loop on plausible models."""
+) -> tuple[Quality, Array, list[DiscreteModel]]:
+    """The quality of ``law``, the spectral radii of its loop on plausible models, and
+    those models (the fitted one first)."""
     model = evidence.model
     notes = list(errors.notes)
     exact = evidence.consistency.exact  # rounding only: no test of the errors applies
@@ -174,7 +175,8 @@ def verdict(
     K_se = np.hstack([_floored(K_se[:, :width], K_learned[:, :width]),
                       _floored(K_se[:, width:], K_learned[:, width:])])  # fmt: skip
     U_se = _floored(U_se, law.U)
-    radii = _radii(law, evidence, options)
+    models = plausible_plants(evidence)
+    radii = closed_loop_radii(models, law, options.input_delay)
     relative = block_errors((K_se, K_learned), (U_se, law.U), width)
     alignment = evidence.alignment
     quality = Quality(
@@ -198,13 +200,7 @@ def verdict(
         log_precision=evidence.precision,
         notes=tuple(notes),
     )
-    return quality, radii
-
-
-def _radii(law: ControlLaw, evidence: Evidence, options: LearningOptions) -> Array:
-    """Spectral radii of the learned loop on the fitted model (first) and on models drawn
-    from the parameters' uncertainty."""
-    return closed_loop_radii(plausible_plants(evidence), law, options.input_delay)
+    return quality, radii, models
 
 
 def plausible_plants(evidence: Evidence) -> list[DiscreteModel]:
