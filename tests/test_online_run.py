@@ -414,6 +414,11 @@ def test_a_recorded_log_replayed_gives_the_live_events(
     assert [(pytest.approx(t), k, r) for t, k, r in live] == [
         (t, e.kind, e.reason) for t, e in events
     ]
+    latencies: list[float] = []  # timed chunk by chunk: the same events, a time each
+    timed, total = replay(log, settings, run.cold.law, 100, latencies)
+    assert [(t, e.kind, e.reason) for t, e in timed] == [(t, e.kind, e.reason) for t, e in events]
+    assert len(latencies) == 100 and min(latencies) >= 0.0
+    assert sum(latencies) <= total * (1 + 1e-9)
     with pytest.raises(selftune.InputError, match="columns"):
         replay(log[:, :5], settings, run.cold.law, 100)
 

@@ -196,7 +196,7 @@ class BenchReport:
             calibration_target(self.calibration, self.quick),
             *self.realistic_drive.targets(),
             refusals_target(self.refusals, self.quick),
-            *online_targets(self.online),
+            *online_targets(self.online, self.quick),
         ]
 
     def to_json(self) -> dict[str, Any]:

@@ -267,7 +267,11 @@ def _events(
 
 
 def replay(
-    log: Array, settings: OnlineSettings, law: ControlLaw, chunk: int
+    log: Array,
+    settings: OnlineSettings,
+    law: ControlLaw,
+    chunk: int,
+    chunk_seconds: list[float] | None = None,
 ) -> tuple[list[tuple[float, TunerEvent]], float]:
     """A recorded log fed to a fresh tuner in chunks, as the drive fed the live one.
 
@@ -282,6 +286,8 @@ def replay(
         The law in force at the log's first row.
     chunk : int
         Rows per chunk.
+    chunk_seconds : list of float, optional
+        Given, each chunk's CPU time in the tuner is appended to it, s (its latency).
 
     Returns
     -------
@@ -295,7 +301,15 @@ def replay(
     tuner = OnlineTuner(settings, law)
     started = clock.process_time()
     tables = (log[first : first + chunk] for first in range(0, log.shape[0], chunk))
-    events = list(_events(tuner, tables, settings.h))
+    if chunk_seconds is None:
+        events = list(_events(tuner, tables, settings.h))
+        return events, clock.process_time() - started
+    events, before = [], started
+    for rows in tables:
+        events += _events(tuner, [rows], settings.h)
+        now = clock.process_time()
+        chunk_seconds.append(now - before)
+        before = now
     return events, clock.process_time() - started
 
 
