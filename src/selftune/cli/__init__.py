@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 
 from .. import __version__
 from .._interrupts import Interrupts, caused_by_interrupt
-from ..errors import SelftuneDeprecationWarning, SelftuneError
+from ..errors import SelftuneDeprecationWarning, SelftuneError, error_line
 from ._commands import (
     _add_bench,
     _add_follow,
@@ -99,14 +99,11 @@ def _run(argv: Sequence[str] | None) -> int:
     handler: Callable[[argparse.Namespace], int] = args.handler
     try:
         return handler(args)
-    except SelftuneError as exc:
-        return _fail(str(exc))
     except BrokenPipeError:  # the reader went away (``selftune solve | head``): stop quietly
         _silence_stdout()
         return 1
-    except OSError as exc:
-        where = f"{os.fsdecode(exc.filename)}: " if exc.filename is not None else ""
-        return _fail(f"{where}{exc.strerror or exc}")
+    except (SelftuneError, OSError) as exc:
+        return _fail(error_line(exc) or str(exc))
     except MemoryError:  # sizes are bounded at the door; this is the last resort
         return _fail(f"{args.command}: out of memory (the inputs ask for more than is free)")
 

@@ -4,47 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..config import LEARN_TABLES, LearnConfig, load_learn_config
+from ..config import learn_log
 from ..core import labels, matrix_block
-from ..errors import DataFileError, InputError, Refusal
-from ._output import _check_json_target, _check_numerics, _numerics, _print_report, _write_json
-
-
-def _learn(data: Any, config: LearnConfig, source: str) -> Any:
-    """The learned controller for ``config`` on ``data``; any failure names ``source``."""
-    from ..learn import LearningOptions, LearningProblem, learn_controller
-
-    problem = LearningProblem(
-        config.Q, config.R, C=config.C, E=config.E, F=config.F,
-        integral_action=config.integral_action,
-    )  # fmt: skip
-    options = LearningOptions(
-        interval=config.interval, max_iterations=config.max_iterations,
-        tolerance=config.tolerance, **config.options,  # type: ignore[arg-type]
-    )  # fmt: skip
-    mistake: DataFileError | None = None
-    with _numerics(source) as caught:
-        try:
-            result = learn_controller(data, problem, config.K0, options)
-        except InputError as exc:
-            mistake = _against_config(exc, config.source)
-            if mistake is None:
-                raise
-    if mistake is not None:
-        raise mistake
-    _check_numerics(source, caught, result.P, result.K, result.U)
-    return result
-
-
-def _against_config(error: InputError, config_file: str) -> DataFileError | None:
-    """The learner's objection to a configuration value (a key of CONFIG.toml, not a
-    refusal of the data), said against the configuration file and its table; None for
-    any other error."""
-    key, _, reason = str(error).partition(": ")
-    tables = [name for name, keys in LEARN_TABLES.items() if key in keys]
-    if isinstance(error, Refusal) or not tables or not reason:
-        return None
-    return DataFileError(f"{config_file}: [{tables[0]}] {key}: {reason}")
+from ._output import _check_json_target, _print_report, _write_json
 
 
 def learn_command(data_path: str, config_path: str, json_path: str | None) -> int:
@@ -63,13 +25,9 @@ def learn_command(data_path: str, config_path: str, json_path: str | None) -> in
     json_path : str or None
         Where to write the JSON (``-``: standard output, without the report).
     """
-    from ..learn import load_trajectory
-    from ..learn.data._io import trajectory_dimensions
-
     _check_json_target(json_path)
-    config = load_learn_config(config_path, *trajectory_dimensions(data_path))
-    data = load_trajectory(data_path)
-    result = _learn(data, config, data_path)
+    learned = learn_log(data_path, config_path)
+    data, config, result = learned.data, learned.config, learned.result
     law = result.law
     states, inputs = labels("x", data.n), labels("u", data.m)
     servo = " with integral action" if law.K_i is not None else ""

@@ -5,7 +5,8 @@
 - :func:`load_motor_config` -> :class:`MotorConfig`: the motor, its operating point and
   the cost weights (:mod:`._motor_file`);
 - :func:`load_learn_config` -> :class:`LearnConfig`: what ``selftune learn`` needs
-  besides the data (:mod:`._learn_file`);
+  besides the data (:mod:`._learn_file`); :func:`learn_log` -> :class:`LearnedLog`: a
+  log learned with it, as ``selftune learn`` and ``selftune fleet`` do (:mod:`._learn_run`);
 - :func:`load_online_config` -> :class:`OnlineConfig`: an online run's duration and the
   profile of the motor's R_s, L_s and phi_pm over time (:mod:`._online_file`);
 - :func:`load_control_law` -> :class:`~selftune.core.ControlLaw`: the controller a JSON
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 from ._law_file import load_control_law
 from ._learn_file import LEARN_TABLES, LearnConfig, load_learn_config
+from ._learn_run import LearnedLog, learn_log, learn_with_config
 from ._motor_file import MOTOR_TABLES, MotorConfig, load_motor_config
 from ._online_file import ONLINE_TABLES, PROFILE_KEYS, OnlineConfig, load_online_config
 from ._toml import RENAMED_KEYS, ConfigFile, ConfigTable, read_toml
@@ -29,9 +31,12 @@ __all__ = [
     "ConfigFile",
     "ConfigTable",
     "LearnConfig",
+    "LearnedLog",
     "MotorConfig",
     "OnlineConfig",
     "load_control_law",
+    "learn_log",
+    "learn_with_config",
     "load_learn_config",
     "load_motor_config",
     "load_online_config",
