@@ -31,6 +31,7 @@ from ._commands import (
     _add_solve,
     _add_tune,
 )
+from ._fleet import _add_fleet
 from ._parsing import _Parser, _Subparsers, _UsageError
 
 __all__ = ["build_parser", "main"]
@@ -48,6 +49,7 @@ _COMMANDS: tuple[Callable[[_Subparsers], None], ...] = (
     _add_solve,
     _add_learn,
     _add_follow,
+    _add_fleet,
     _add_bench,
 )
 

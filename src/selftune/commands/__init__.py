@@ -15,6 +15,7 @@ scipy on absurd input is an error naming the input, never a result.
 
 from __future__ import annotations
 
+from ._fleet import fleet_command
 from ._learn import learn_command
 from ._output import STANDARD_OUTPUT
 from ._reproduce import REPRODUCE_OUTPUTS, reproduce_command
@@ -24,6 +25,7 @@ from ._tune import follow_command, online_command, tune_command
 __all__ = [
     "REPRODUCE_OUTPUTS",
     "STANDARD_OUTPUT",
+    "fleet_command",
     "follow_command",
     "learn_command",
     "model_based",

@@ -18,9 +18,7 @@ __all__ = ["check_numerics", "numerics"]
 _ADVICE = "check that the values are in SI units and of a realistic size"
 
 
-def check_numerics(
-    source: str, caught: Sequence[warnings.WarningMessage], *results: Array
-) -> None:
+def check_numerics(source: str, caught: Sequence[warnings.WarningMessage], *results: Array) -> None:
     """Raise if a computation warned (overflow, lost precision) or gave non-finite numbers.
 
     Extreme inputs (a weight of 1e300, an inductance of 1e-300) pass every check on their
