@@ -27,7 +27,8 @@ def learn_command(data_path: str, config_path: str, json_path: str | None) -> in
     """
     _check_json_target(json_path)
     learned = learn_log(data_path, config_path)
-    data, config, result = learned.data, learned.config, learned.result
+    data, config = learned.data, learned.config
+    result: Any = learned.result
     law = result.law
     states, inputs = labels("x", data.n), labels("u", data.m)
     servo = " with integral action" if law.K_i is not None else ""

@@ -137,11 +137,10 @@ def map_unordered(
         for index, item in numbered:
             yield index, function(item)
         return
-    from distributed import as_completed
-
+    distributed: Any = importlib.import_module("distributed")
     limit = window or 4 * workers_count(client)
     places: dict[str, int] = {}
-    running = as_completed()
+    running = distributed.as_completed()
 
     def submit(index: int, item: Item) -> None:
         future = client.submit(function, item, pure=False)
@@ -213,11 +212,10 @@ def fleet_client(scheduler: str | None = None, workers: int | None = None) -> It
         be reached within :data:`CONNECT_SECONDS` (one line, no hang).
     """
     require_extra("distributed")
-    from distributed import Client, LocalCluster
-
+    distributed: Any = importlib.import_module("distributed")
     if scheduler is not None:
         try:
-            client = Client(scheduler, timeout=CONNECT_SECONDS)
+            client = distributed.Client(scheduler, timeout=CONNECT_SECONDS)
         except (OSError, TimeoutError, ValueError, TypeError) as exc:
             reason = " ".join(str(exc).split()) or type(exc).__name__
             raise InputError(f"--scheduler {scheduler}: cannot connect ({reason})") from None
@@ -227,15 +225,15 @@ def fleet_client(scheduler: str | None = None, workers: int | None = None) -> It
             client.close()
         return
     count = workers or os.cpu_count() or 1
-    cluster = LocalCluster(
+    cluster = distributed.LocalCluster(
         n_workers=count,
         threads_per_worker=1,
         processes=True,
         dashboard_address=":0",
-        silence_logs=logging.ERROR,
+        silence_logs=logging.CRITICAL,
     )
     try:
-        client = Client(cluster)
+        client = distributed.Client(cluster)
         try:
             yield client
         finally:

@@ -278,7 +278,7 @@ def learn_row(job: LogJob) -> dict[str, Any]:
         row["verdict"], row["error"] = _failed(job, exc)
         row["learn_seconds"] = time.perf_counter() - started
         return row
-    result, quality = learned.result, learned.result.quality
+    result, quality = learned.result, learned.result.verdict
     law, motor = result.law, quality.motor
     dead_time = quality.voltage_error if motor is None else motor.v
     row.update(

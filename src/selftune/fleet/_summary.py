@@ -191,9 +191,9 @@ def summarize(columns: dict[str, list[Any]]) -> FleetSummary:
             low, middle, high = (float(p) for p in np.percentile(found, [5, 50, 95]))
             spread.append((column, low, middle, high, int(found.size)))
     causes: dict[str, list[int]] = {}
-    for index, verdict in enumerate(verdicts):
+    for row, verdict in enumerate(verdicts):
         if verdict != "learned":
-            causes.setdefault(verdict, []).append(index)
+            causes.setdefault(verdict, []).append(row)
     counts = Counter({cause: len(rows) for cause, rows in causes.items()})
     refusals = tuple(
         RefusalCause(
