@@ -35,7 +35,9 @@ pytest.importorskip("pyarrow")
 
 #: One motor's 12 units: one hot (R_s +30%), one broken log (not a CSV), so that more
 #: than the 5 a group needs are learned (the other hostile logs: learn_row alone, below).
-DESIGN = FleetDesign(motors_count=1, units_count=12, hot_count=1, broken_count=1)
+#: The learner refuses some of these 0.2 s logs (ModelMissesEffect, the structure's
+#: ConfigurationMismatch: bench section 12 counts them); seed 2's hot unit is learned.
+DESIGN = FleetDesign(motors_count=1, units_count=12, hot_count=1, broken_count=1, seed=2)
 
 COMPARED = [name for name, *_ in RESULT_COLUMNS if name != "learn_seconds"]
 
@@ -205,7 +207,7 @@ def test_the_command_s_errors_are_one_line(
     manifest.write_text("path,drive,learning.speed\na.csv,a,150\n")
     line = _fail(["fleet", str(manifest), "--config", fleet.config, "--out", out], capsys)
     assert "column 'learning.speed': no key of the configuration" in line
-    manifest.write_text("path,drive,regulation.F\na.csv,a,[[0, 0]\n")
+    manifest.write_text('path,drive,regulation.F\na.csv,a,"[[0, 0]"\n')
     line = _fail(["fleet", str(manifest), "--config", fleet.config, "--out", out], capsys)
     assert "row 2, column regulation.F: not a TOML value" in line
     line = _fail(["fleet", fleet.manifest, "--config", str(tmp_path / "none.toml"),

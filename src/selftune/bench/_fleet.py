@@ -112,6 +112,8 @@ class FleetDesign:
         Broken logs (at most 3: :data:`BROKEN_KINDS`).
     seconds : float
         Each log's length, s.
+    seed : int
+        The generator seed of the motors, units, hot units and broken logs.
     """
 
     motors_count: int = 20
@@ -119,6 +121,7 @@ class FleetDesign:
     hot_count: int = 2
     broken_count: int = 3
     seconds: float = 0.2
+    seed: int = FLEET_SEED
 
     @property
     def logs_count(self) -> int:
@@ -225,7 +228,7 @@ def make_fleet(directory: str | Path, design: FleetDesign, client: Any = None) -
     """
     home = Path(directory)
     (home / "logs").mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(FLEET_SEED)
+    rng = np.random.default_rng(design.seed)
     motors = [
         SPMSM(
             R_s=float(rng.uniform(0.4, 0.9)),
@@ -252,7 +255,7 @@ def make_fleet(directory: str | Path, design: FleetDesign, client: Any = None) -
         path.parent.mkdir(exist_ok=True)
         torque = 1.5 * _POLES * nominal.phi_pm * _CURRENT
         units.append(_Unit(os.fspath(path), motor, nominal.phi_pm, torque, design.seconds,
-                           FLEET_SEED + 1000 * i + j, broken.get((i, j), "")))  # fmt: skip
+                           design.seed + 1000 * i + j, broken.get((i, j), "")))  # fmt: skip
         F = np.array([[0.0, 0.0], [0.0, -2.0 / (3.0 * _POLES * nominal.phi_pm)]])
         rows.append(
             f"logs/motor{i:02d}/{drive}.csv,{drive},motor{i:02d},"
