@@ -48,7 +48,10 @@ def fleet_command(
     from ..core._atomic import check_output_directory
     from ..fleet import FLEET_OUTPUTS, find_jobs, fleet_client, require_extra, run_fleet
 
-    require_extra("pyarrow") if serial else require_extra()
+    if serial:
+        require_extra("pyarrow")
+    else:
+        require_extra()
     read_toml(config_path)  # an unreadable configuration is one error, not one per log
     jobs = find_jobs(logs, config_path)
     check_output_directory(out, FLEET_OUTPUTS, "selftune fleet output")
@@ -56,11 +59,7 @@ def fleet_command(
     with engine as client:
         run = run_fleet(jobs, out, client, progress=True)
     summary = run.summary
-    where = (
-        "here, serially"
-        if run.workers_count == 1 and serial
-        else (f"on {run.workers_count} Dask workers")
-    )
+    where = "here, serially" if serial else f"on {run.workers_count} Dask workers"
     lines = [
         f"learned {run.logs_count - run.skipped_count} of {run.logs_count} logs {where} in "
         f"{run.seconds:.1f} s ({run.skipped_count} already in the table)",
