@@ -20,7 +20,9 @@ import selftune
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "src" / "selftune"
-PACKAGES = ("core", "loop", "model", "learn", "sim", "config", "tuning", "report", "bench")
+PACKAGES = (
+    "core", "loop", "model", "learn", "sim", "config", "tuning", "report", "fleet", "bench",
+)  # fmt: skip
 
 
 def _lint(pythonpath: Path, cwd: Path) -> subprocess.CompletedProcess[str]:

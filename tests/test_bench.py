@@ -37,6 +37,7 @@ SECTIONS = (
     "calibration",
     "refusals",
     "online",
+    "fleet",
 )
 
 #: A numeric key must name its unit (or say it is a ratio, a count, a relative error...).
@@ -63,6 +64,7 @@ UNIT_TOKENS = (
     "hz",
     "amperes",
     "volts",
+    "mebibytes",
 )
 #: Keys of flags and of text.
 FLAG_KEYS = {"quick", "available", "met"}
@@ -273,6 +275,7 @@ def test_markdown_has_every_table_and_says_which_targets_are_met(report: BenchRe
         "## 9. On a realistic drive",
         "## 10. Refusals and calibration",
         "## 11. The online tuner on drives that heat",
+        "## 12. A fleet of drives on the distributed engine",
     ):
         assert heading in text
     section = text.split("## Targets")[1].split("\n## ")[0]

@@ -13,8 +13,7 @@ import numpy as np
 import pytest
 
 from selftune.cli import main
-from selftune.commands._learn import _learn
-from selftune.config import load_learn_config
+from selftune.config import learn_with_config, load_learn_config
 from selftune.learn import load_trajectory
 from selftune.report import FIGURE_STEMS, LEARN_REPORT_FILES, learn_figure_data
 
@@ -114,7 +113,7 @@ def test_the_poles_figure_shows_the_verdicts_margin() -> None:
     """The fitted model's slowest pole is at 1 - the verdict's margin (one computation),
     and every plant the data allow is stable with the margin the verdict accepted."""
     config = load_learn_config(str(CONFIG), 2, 2, 2)
-    result = _learn(load_trajectory(LOG), config, str(LOG))
+    result = learn_with_config(load_trajectory(LOG), config, str(LOG))
     data = learn_figure_data(result)
     assert result.quality is not None
     # the measured states are the log's (from row 1: the shift), to the rounding of x~ =
@@ -223,7 +222,7 @@ def test_an_unstable_plant_without_a_reference_is_reported_from_its_least_square
                  "--report", str(directory)]) == 0  # fmt: skip
     page = _check_page(directory)
     assert "no other plants drawn (no output-error model)" in page.verdict
-    result = _learn(
+    result = learn_with_config(
         load_trajectory(tmp_path / "plant.csv"), load_learn_config(str(config), 2, 1, 0), "plant"
     )
     data_ = learn_figure_data(result)

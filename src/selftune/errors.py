@@ -28,6 +28,7 @@ words. Each cause also derives from the error class that names its kind
 from __future__ import annotations
 
 import copy
+import os
 import re
 import threading
 from typing import Any, Self
@@ -53,6 +54,7 @@ __all__ = [
     "TooLittleData",
     "TooShort",
     "UnsolvableError",
+    "error_line",
 ]
 
 
@@ -402,6 +404,31 @@ callback it goes to ``sys.unraisablehook``, and raised while a C function runs (
 function's own error and then caught. Code that puts output in place calls
 :func:`raise_if_interrupted` first, so an interrupted command never leaves a result.
 """
+
+
+def error_line(error: BaseException) -> str | None:
+    """The one line a user's error is told in: what the command line prints after
+    ``selftune: error: ``, and what a fleet's table holds for a log that failed.
+
+    Parameters
+    ----------
+    error : BaseException
+        The exception.
+
+    Returns
+    -------
+    str or None
+        The message of a :class:`SelftuneError`, or of an ``OSError`` with the file it
+        names in front, on one line; None for any other exception (not a user's error).
+    """
+    if isinstance(error, SelftuneError):
+        message = str(error)
+    elif isinstance(error, OSError):
+        where = f"{os.fsdecode(error.filename)}: " if error.filename is not None else ""
+        message = f"{where}{error.strerror or error}"
+    else:
+        return None
+    return " ".join(message.split())
 
 
 def raise_if_interrupted() -> None:

@@ -48,6 +48,14 @@ are the field names.
 11. :func:`measure_online` (:mod:`._online`): the online tuner on three motors through a
     120 s warm-up and a loose connection, scored against the optimum of each instant;
     a recorded log replayed.
+12. :func:`measure_fleet` (:mod:`._fleet`): 1,000 logs of a fleet of drives (20 motors
+    x 50 units, 2 hot, 3 broken) learned serially and on a 2-worker Dask cluster:
+    throughput, identical results, the outliers and broken logs named, the client's
+    memory at two sizes.
+
+Studies 6-8 run their seeded trials through the fleet's engine
+(:func:`selftune.fleet.map_ordered`): here by default, on a cluster when
+``selftune bench --scheduler`` gives one, with the same numbers.
 
 The learners never see a model; the model-based optimum and the exact closed-form
 solution are used only to score them.
@@ -69,6 +77,7 @@ from ._common import (
 from ._corpus import CorpusLog, CorpusMotor, RefusalsConfig
 from ._data_efficiency import DataEfficiency, ErrorCurve, measure_data_efficiency
 from ._drive_rates import DelayCost, DriveRates, RateErrors, measure_drive_rates
+from ._fleet import FleetDesign, FleetStudy, FleetTruth, make_fleet, measure_fleet
 from ._gem import GymElectricMotor
 from ._honesty import HazardTally, Honesty, HonestyCase, HonestyOutcome, measure_honesty
 from ._learning_cost import LearningCost, LearningDataset, LearningRun, measure_learning_cost
@@ -130,6 +139,9 @@ __all__ = [
     "DriveStudiesConfig",
     "Environment",
     "ErrorCurve",
+    "FleetDesign",
+    "FleetStudy",
+    "FleetTruth",
     "GymElectricMotor",
     "HazardTally",
     "Honesty",
@@ -154,12 +166,14 @@ __all__ = [
     "SimulatorMeasurement",
     "TargetOutcome",
     "bench_command",
+    "make_fleet",
     "markdown_online",
     "markdown_realistic_drive",
     "markdown_refusals",
     "measure_calibration",
     "measure_data_efficiency",
     "measure_drive_rates",
+    "measure_fleet",
     "measure_honesty",
     "measure_learning_cost",
     "measure_noise",

@@ -23,6 +23,7 @@ import statistics
 import time
 from collections import Counter
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -196,10 +197,16 @@ def _judged(
     )  # fmt: skip
 
 
-def _trials(index: int, rng: np.random.Generator) -> list[CalibrationTrial]:
-    """Every method on trial ``index``'s log."""
+def _draw(index: int, rng: np.random.Generator) -> tuple[int, Experiment, float, float]:
+    """Trial ``index``'s motor, noise and length, drawn in the trials' order."""
     experiment = random_experiment(rng)
     noise, seconds = Span(2e-3, 5e-2, log=True).draw(rng), Span(0.2, 0.5).draw(rng)
+    return index, experiment, noise, seconds
+
+
+def _trials(drawn: tuple[int, Experiment, float, float]) -> list[CalibrationTrial]:
+    """Every method on a trial's log (its draws: :func:`_draw`)."""
+    index, experiment, noise, seconds = drawn
     text = _text(index, experiment, noise, seconds)
     log = experiment.logs(delayed_drive(noise), seconds, [DRIVE_SEED_BASE + index])[0]
     truths = experiment.truths()
@@ -248,7 +255,9 @@ def _method(key: str, trials: list[CalibrationTrial]) -> CalibrationMethod:
     )  # fmt: skip
 
 
-def measure_calibration(trials_count: int, progress: bool = False) -> Calibration:
+def measure_calibration(
+    trials_count: int, progress: bool = False, client: Any = None
+) -> Calibration:
     """Study 8 (see the module docstring).
 
     Parameters
@@ -257,6 +266,8 @@ def measure_calibration(trials_count: int, progress: bool = False) -> Calibratio
         Seeded trials (motors); every method learns from each.
     progress : bool
         Show a progress bar on stderr (only when it is a terminal).
+    client : distributed.Client, optional
+        Run the trials on its cluster (default: here; the same numbers).
 
     Returns
     -------
@@ -264,7 +275,8 @@ def measure_calibration(trials_count: int, progress: bool = False) -> Calibratio
     """
     started = time.perf_counter()
     rng = np.random.default_rng(TRIALS_SEED)
-    each = with_progress(range(trials_count), lambda i: _trials(i, rng), "calibration", progress)
+    drawn = [_draw(index, rng) for index in range(trials_count)]
+    each = with_progress(drawn, _trials, "calibration", progress, client)
     trials = [trial for group in each for trial in group]
     methods = [
         _method(key, [t for t in trials if t.method_text == key]) for key, _, _ in NOISE_METHODS

@@ -4,19 +4,19 @@ from __future__ import annotations
 
 import math
 import statistics
-import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import numpy as np
-from tqdm import tqdm
 
 from ..core import (
     Array,
     theta_sizes,
 )
+from ..fleet import map_ordered
+from ..fleet import progress_bar as progress_bar  # the bench's bars are the engine's
 from ..model import SPMSM, ModelBasedSolution, solve_optimal_regulation
 from ..tuning import TuningSettings
 
@@ -143,44 +143,34 @@ class BenchConfig:
 # -- progress ----------------------------------------------------------------------------
 
 
-def progress_bar(total: int, description: str, enabled: bool) -> tqdm[Any]:
-    """A tqdm bar on stderr, shown only on a terminal and when ``enabled``; a context
-    manager whose ``update(1)`` advances it."""
-    return tqdm(
-        total=total,
-        desc=description,
-        file=sys.stderr,
-        leave=False,
-        disable=None if enabled else True,
-    )
-
-
 Item = TypeVar("Item")
 Result = TypeVar("Result")
 
 
 def with_progress(
-    items: Sequence[Item], function: Callable[[Item], Result], description: str, enabled: bool
+    items: Sequence[Item],
+    function: Callable[[Item], Result],
+    description: str,
+    enabled: bool,
+    client: Any = None,
 ) -> list[Result]:
-    """``function(item)`` for every item, in order, each advancing a :func:`progress_bar`.
+    """``function(item)`` for every item, in order, each advancing a :func:`progress_bar`:
+    the fleet's engine (:func:`~selftune.fleet.map_ordered`), here or on a cluster.
 
     Parameters
     ----------
     items : sequence
-        The trials (seeds, cases, ...).
+        The trials (seeds, cases, ...): each a self-contained, seeded job.
     function : callable
         One trial's run.
     description : str
         The bar's title.
     enabled : bool
         Show the bar (only when stderr is a terminal).
+    client : distributed.Client, optional
+        Run the trials on its cluster (default: here, one after another).
     """
-    results = []
-    with progress_bar(len(items), description, enabled) as bar:
-        for item in items:
-            results.append(function(item))
-            bar.update(1)
-    return results
+    return map_ordered(function, items, client, (description, enabled))
 
 
 def relative(value: Array, reference: Array) -> float:

@@ -32,6 +32,7 @@ from __future__ import annotations
 import time
 from collections import Counter
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -442,7 +443,9 @@ def _tally(hazard: str, expected: str | None, outcomes: list[HonestyOutcome]) ->
     )
 
 
-def measure_honesty(logs_per_hazard: int, short: bool = False, progress: bool = False) -> Honesty:
+def measure_honesty(
+    logs_per_hazard: int, short: bool = False, progress: bool = False, client: Any = None
+) -> Honesty:
     """Study 6 (see the module docstring).
 
     Parameters
@@ -453,6 +456,8 @@ def measure_honesty(logs_per_hazard: int, short: bool = False, progress: bool = 
         Logs of 50-100 ms (the quick run).
     progress : bool
         Show a progress bar on stderr (only when it is a terminal).
+    client : distributed.Client, optional
+        Run the logs on its cluster (default: here; the same numbers).
 
     Returns
     -------
@@ -460,7 +465,7 @@ def measure_honesty(logs_per_hazard: int, short: bool = False, progress: bool = 
     """
     started = time.perf_counter()
     cases = honesty_cases(logs_per_hazard, short)
-    outcomes = with_progress(cases, _outcome, "honesty", progress)
+    outcomes = with_progress(cases, _outcome, "honesty", progress, client)
     tallies = [
         _tally(key, expected, [o for o in outcomes if o.case.hazard_text == key])
         for key, _, expected in HAZARDS

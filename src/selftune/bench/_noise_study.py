@@ -27,16 +27,16 @@ import statistics
 import time
 from collections import Counter
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from ..core import Array
 from ..errors import TooLittleData
 from ..learn import LearningOptions, Trajectory
 from ._causes import UNNAMED
-from ._common import progress_bar
+from ._common import with_progress
 from ._experiment import REFERENCE, Experiment, Refused, attempt, delayed_drive, truncated
 
 __all__ = [
@@ -317,9 +317,10 @@ def _ratio_spread(long: list[_Run], middle: list[_Run]) -> tuple[float | None, f
 
 
 def _group(
-    config: NoiseConfig, f_s: float, noise: float, bar: tqdm[Any]
+    config: NoiseConfig, group: tuple[float, float]
 ) -> tuple[list[NoiseCell], list[ConsistencyRatio]]:
-    """Every method and length at one rate and noise level."""
+    """Every method and length at one rate and noise level ``group``."""
+    f_s, noise = group
     experiment = replace(REFERENCE, h=1.0 / f_s)
     settings = delayed_drive(noise)
     logs = experiment.logs(settings, config.lengths_seconds[-1], config.seeds)
@@ -331,7 +332,6 @@ def _group(
             for key, _, options in NOISE_METHODS:
                 run = _run(cut, experiment, options, truths[options.target])
                 runs.setdefault((key, seconds), []).append(run)
-            bar.update(1)
     extra = [s for s in config.consistency_seeds if s not in config.seeds]
     pooled = {place: list(group) for place, group in runs.items()}
     if extra and f_s == config.sampling_frequencies_hz[0]:
@@ -356,7 +356,9 @@ def _group(
     return list(cells.values()), ratios
 
 
-def measure_noise(config: NoiseConfig, quick: bool, progress: bool = False) -> NoiseStudy:
+def measure_noise(
+    config: NoiseConfig, quick: bool, progress: bool = False, client: Any = None
+) -> NoiseStudy:
     """Study 7 (see the module docstring).
 
     Parameters
@@ -366,7 +368,10 @@ def measure_noise(config: NoiseConfig, quick: bool, progress: bool = False) -> N
     quick : bool
         Whether this is the CI-sized run (recorded; the targets are then not judged).
     progress : bool
-        Show a progress bar on stderr (only when it is a terminal).
+        Show a progress bar on stderr (only when it is a terminal; it advances by rate
+        and noise level).
+    client : distributed.Client, optional
+        Run the rates and noise levels on its cluster (default: here; the same numbers).
 
     Returns
     -------
@@ -376,12 +381,10 @@ def measure_noise(config: NoiseConfig, quick: bool, progress: bool = False) -> N
     cells: list[NoiseCell] = []
     ratios: list[ConsistencyRatio] = []
     groups = [(f, s) for f in config.sampling_frequencies_hz for s in config.current_noises_amperes]
-    total = len(groups) * len(config.seeds) * len(config.lengths_seconds)
-    with progress_bar(total, "noise study", progress) as bar:
-        for f_s, noise in groups:
-            group_cells, group_ratios = _group(config, f_s, noise, bar)
-            cells += group_cells
-            ratios += group_ratios
+    each = with_progress(groups, partial(_group, config), "noise study", progress, client)
+    for group_cells, group_ratios in each:
+        cells += group_cells
+        ratios += group_ratios
     return NoiseStudy(
         quick=quick, lengths_seconds=config.lengths_seconds, seeds=config.seeds,
         cells=tuple(cells), ratios=tuple(ratios), wall_seconds=time.perf_counter() - started,

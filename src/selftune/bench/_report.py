@@ -22,6 +22,7 @@ from ..core import (
     write_text,
 )
 from ..core._atomic import check_output_directory, output_directory
+from ..fleet import fleet_client
 from ._calibration import (
     Calibration,
     calibration_target,
@@ -45,6 +46,7 @@ from ._drive_rates import (
     markdown_drive_rates,
     measure_drive_rates,
 )
+from ._fleet import FleetDesign, FleetStudy, fleet_targets, markdown_fleet, measure_fleet
 from ._gem import gem_version
 from ._honesty import Honesty, honesty_target, markdown_honesty, measure_honesty
 from ._learning_cost import LearningCost, markdown_learning, measure_learning_cost
@@ -123,6 +125,8 @@ class DriveStudiesConfig:
         Seeded motors of the calibration study.
     refusals : RefusalsConfig
         Motors, plants, seeds and lengths of the refusals study's corpus.
+    fleet : FleetDesign
+        The fleet of study 12.
     """
 
     rate_frequencies_hz: tuple[float, ...]
@@ -131,17 +135,25 @@ class DriveStudiesConfig:
     noise: NoiseConfig
     calibration_trials_count: int
     refusals: RefusalsConfig
+    fleet: FleetDesign
 
     @classmethod
     def full(cls) -> DriveStudiesConfig:
         """The published run: 5-50 kHz, 220 honesty logs, the issue's noise study, 60 motors,
-        the refusals corpus of five motors on two plants."""
-        return cls(RATE_FREQUENCIES, 20, False, NoiseConfig.full(), 60, RefusalsConfig.full())
+        the refusals corpus of five motors on two plants, the fleet of 1,000 logs."""
+        return cls(
+            RATE_FREQUENCIES, 20, False, NoiseConfig.full(), 60, RefusalsConfig.full(),
+            FleetDesign(),
+        )  # fmt: skip
 
     @classmethod
     def quick(cls) -> DriveStudiesConfig:
-        """CI-sized: 10 kHz, one short log per hazard, 2 seeds, 3 motors, 2 corpus logs."""
-        return cls((1e4,), 1, True, NoiseConfig.quick(), 3, RefusalsConfig.quick())
+        """CI-sized: 10 kHz, one short log per hazard, 2 seeds, 3 motors, 2 corpus logs, a
+        fleet of 6 logs."""
+        return cls(
+            (1e4,), 1, True, NoiseConfig.quick(), 3, RefusalsConfig.quick(),
+            FleetDesign(motors_count=1, units_count=6, hot_count=1, broken_count=1),
+        )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -166,6 +178,7 @@ class BenchReport:
     realistic_drive : RealisticDriveComparison
     refusals : Refusals
     online : OnlineStudy
+    fleet : FleetStudy
     """
 
     quick: bool
@@ -182,6 +195,7 @@ class BenchReport:
     realistic_drive: RealisticDriveComparison
     refusals: Refusals
     online: OnlineStudy
+    fleet: FleetStudy
 
     def targets(self) -> list[TargetOutcome]:
         """The bench's targets, each met or missed, with why."""
@@ -197,6 +211,7 @@ class BenchReport:
             *self.realistic_drive.targets(),
             refusals_target(self.refusals, self.quick),
             *online_targets(self.online, self.quick),
+            *fleet_targets(self.fleet),
         ]
 
     def to_json(self) -> dict[str, Any]:
@@ -307,7 +322,7 @@ def _value_target(value: SelfTuningValue) -> TargetOutcome:
     )
 
 
-def run_bench(quick: bool, progress: bool = True) -> BenchReport:
+def run_bench(quick: bool, progress: bool = True, client: Any = None) -> BenchReport:
     """Run every comparison of the bench on this machine.
 
     Parameters
@@ -318,6 +333,9 @@ def run_bench(quick: bool, progress: bool = True) -> BenchReport:
         :meth:`DriveStudiesConfig.full`, about 7 minutes on 2 cores).
     progress : bool
         Show progress bars on stderr (only when it is a terminal).
+    client : distributed.Client, optional
+        Run the seeded studies (honesty, noise, calibration) on its cluster, through the
+        fleet's engine (default: here; the same numbers).
 
     Returns
     -------
@@ -331,12 +349,15 @@ def run_bench(quick: bool, progress: bool = True) -> BenchReport:
     simulation = measure_simulation(config, progress)
     self_tuning_value = measure_self_tuning_value(config, progress)
     drive_rates = measure_drive_rates(progress, sizes.rate_frequencies_hz)
-    honesty = measure_honesty(sizes.honesty_logs_per_hazard, sizes.honesty_short_logs, progress)
-    noise = measure_noise(sizes.noise, quick, progress)
-    calibration = measure_calibration(sizes.calibration_trials_count, progress)
+    honesty = measure_honesty(
+        sizes.honesty_logs_per_hazard, sizes.honesty_short_logs, progress, client
+    )
+    noise = measure_noise(sizes.noise, quick, progress, client)
+    calibration = measure_calibration(sizes.calibration_trials_count, progress, client)
     realistic_drive = measure_realistic_drive(quick, progress)
     refusals = measure_refusals(sizes.refusals, progress)
     online = measure_online(quick, progress)
+    fleet = measure_fleet(sizes.fleet, quick, progress)
     return BenchReport(
         quick=quick,
         wall_seconds=time.perf_counter() - started,
@@ -352,6 +373,7 @@ def run_bench(quick: bool, progress: bool = True) -> BenchReport:
         realistic_drive=realistic_drive,
         refusals=refusals,
         online=online,
+        fleet=fleet,
     )
 
 
@@ -403,6 +425,7 @@ def _markdown(report: BenchReport) -> str:
         markdown_realistic_drive(report.realistic_drive),
         markdown_refusals(report.refusals),
         markdown_online(report.online),
+        markdown_fleet(report.fleet),
     ):
         lines += ["", *section]
     return "\n".join(lines) + "\n"
@@ -414,7 +437,7 @@ BENCH_OUTPUTS = ("bench.md", "bench.json")
 _WHAT = "selftune bench output"
 
 
-def bench_command(out: str, quick: bool) -> int:
+def bench_command(out: str, quick: bool, scheduler: str | None = None) -> int:
     """Run the bench, print its tables, write ``bench.md`` and ``bench.json`` to ``out``.
 
     ``out`` is checked before the bench runs, and the two files are put in place as one
@@ -428,6 +451,8 @@ def bench_command(out: str, quick: bool) -> int:
         ``bench.md`` and ``bench.json`` (replaced).
     quick : bool
         The CI-sized run (:meth:`BenchConfig.quick`).
+    scheduler : str, optional
+        A running Dask scheduler: the seeded studies run on its cluster (default: here).
 
     Returns
     -------
@@ -443,7 +468,11 @@ def bench_command(out: str, quick: bool) -> int:
         If the files cannot be written (nothing partial is left).
     """
     check_output_directory(out, BENCH_OUTPUTS, _WHAT)
-    report = run_bench(quick=quick, progress=True)
+    if scheduler is None:
+        report = run_bench(quick=quick, progress=True)
+    else:
+        with fleet_client(scheduler) as client:
+            report = run_bench(quick=quick, progress=True, client=client)
     directory = Path(out)
     markdown = report.to_markdown()
     with output_directory(out, BENCH_OUTPUTS, _WHAT) as temporary:

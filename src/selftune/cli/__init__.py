@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 
 from .. import __version__
 from .._interrupts import Interrupts, caused_by_interrupt
-from ..errors import SelftuneDeprecationWarning, SelftuneError
+from ..errors import SelftuneDeprecationWarning, SelftuneError, error_line
 from ._commands import (
     _add_bench,
     _add_follow,
@@ -32,6 +32,7 @@ from ._commands import (
     _add_tune,
 )
 from ._export import _add_export
+from ._fleet import _add_fleet
 from ._parsing import _Parser, _Subparsers, _UsageError
 
 __all__ = ["build_parser", "main"]
@@ -50,6 +51,7 @@ _COMMANDS: tuple[Callable[[_Subparsers], None], ...] = (
     _add_learn,
     _add_export,
     _add_follow,
+    _add_fleet,
     _add_bench,
 )
 
@@ -101,14 +103,11 @@ def _run(argv: Sequence[str] | None) -> int:
     handler: Callable[[argparse.Namespace], int] = args.handler
     try:
         return handler(args)
-    except SelftuneError as exc:
-        return _fail(str(exc))
     except BrokenPipeError:  # the reader went away (``selftune solve | head``): stop quietly
         _silence_stdout()
         return 1
-    except OSError as exc:
-        where = f"{os.fsdecode(exc.filename)}: " if exc.filename is not None else ""
-        return _fail(f"{where}{exc.strerror or exc}")
+    except (SelftuneError, OSError) as exc:
+        return _fail(error_line(exc) or str(exc))
     except MemoryError:  # sizes are bounded at the door; this is the last resort
         return _fail(f"{args.command}: out of memory (the inputs ask for more than is free)")
 

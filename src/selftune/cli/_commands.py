@@ -233,9 +233,17 @@ def _add_bench(subparsers: _Subparsers) -> None:
         help="CI-sized run: smaller sweeps and repeats (well under a minute)",
     )
     _add_out_option(parser, "selftune-bench", "bench.md and bench.json")
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="run the seeded studies on this running Dask scheduler (default: here)",
+    )
 
 
 def _run_bench(args: argparse.Namespace) -> int:
     from ..bench import bench_command
 
-    return bench_command(args.out, args.quick)
+    if args.scheduler is None:  # the same call as ever
+        return bench_command(args.out, args.quick)
+    return bench_command(args.out, args.quick, args.scheduler)

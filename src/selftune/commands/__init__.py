@@ -16,6 +16,7 @@ scipy on absurd input is an error naming the input, never a result.
 from __future__ import annotations
 
 from ._export import export_command
+from ._fleet import fleet_command
 from ._learn import learn_command
 from ._output import STANDARD_OUTPUT
 from ._reproduce import REPRODUCE_OUTPUTS, reproduce_command
@@ -26,6 +27,7 @@ __all__ = [
     "REPRODUCE_OUTPUTS",
     "STANDARD_OUTPUT",
     "export_command",
+    "fleet_command",
     "follow_command",
     "learn_command",
     "model_based",

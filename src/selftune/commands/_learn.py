@@ -4,63 +4,16 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..config import LEARN_TABLES, LearnConfig, load_learn_config, load_log_format
+from ..config import learn_log, learning_problem
 from ..core import cost_document, labels, matrix_block
-from ..errors import DataFileError, InputError, Refusal
 from ._output import (
     _check_json_target,
-    _check_numerics,
     _check_report_target,
-    _numerics,
     _print_report,
     _say_report_written,
     _write_json,
     _write_report,
 )
-
-
-def _problem(config: LearnConfig) -> Any:
-    """The learner's problem of ``config``: the regulation and the whole cost."""
-    from ..learn import LearningProblem
-
-    return LearningProblem(
-        config.Q, config.R, C=config.C, E=config.E, F=config.F,
-        integral_action=config.integral_action, integral_weight=config.Q_i,
-    )  # fmt: skip
-
-
-def _learn(data: Any, config: LearnConfig, source: str) -> Any:
-    """The learned controller for ``config`` on ``data``; any failure names ``source``."""
-    from ..learn import LearningOptions, learn_controller
-
-    problem = _problem(config)
-    options = LearningOptions(
-        interval=config.interval, max_iterations=config.max_iterations,
-        tolerance=config.tolerance, **config.options,  # type: ignore[arg-type]
-    )  # fmt: skip
-    mistake: DataFileError | None = None
-    with _numerics(source) as caught:
-        try:
-            result = learn_controller(data, problem, config.K0, options)
-        except InputError as exc:
-            mistake = _against_config(exc, config.source)
-            if mistake is None:
-                raise
-    if mistake is not None:
-        raise mistake
-    _check_numerics(source, caught, result.P, result.K, result.U)
-    return result
-
-
-def _against_config(error: InputError, config_file: str) -> DataFileError | None:
-    """The learner's objection to a configuration value (a key of CONFIG.toml, not a
-    refusal of the data), said against the configuration file and its table; None for
-    any other error."""
-    key, _, reason = str(error).partition(": ")
-    tables = [name for name, keys in LEARN_TABLES.items() if key in keys]
-    if isinstance(error, Refusal) or not tables or not reason:
-        return None
-    return DataFileError(f"{config_file}: [{tables[0]}] {key}: {reason}")
 
 
 def learn_command(
@@ -85,16 +38,13 @@ def learn_command(
         Where to write the report: one HTML page and its figures
         (:func:`selftune.report.write_learn_report`), checked before the log is read.
     """
-    from ..learn import load_log, load_trajectory, pi_equivalent_or_reason
-    from ..learn.data._io import trajectory_dimensions
+    from ..learn import pi_equivalent_or_reason
 
     _check_json_target(json_path)
     _check_report_target(report_dir)
-    log = load_log_format(config_path, LEARN_TABLES)  # None: selftune's own columns
-    dimensions = trajectory_dimensions(data_path) if log is None else log.dimensions
-    config = load_learn_config(config_path, *dimensions)
-    data = load_trajectory(data_path) if log is None else load_log(data_path, log)
-    result = _learn(data, config, data_path)
+    learned = learn_log(data_path, config_path)
+    data, config = learned.data, learned.config
+    result: Any = learned.result
     law = result.law
     states, inputs = labels("x", data.n), labels("u", data.m)
     servo = " with integral action" if law.K_i is not None else ""
@@ -117,7 +67,7 @@ def learn_command(
         lines += matrix_block("U  feedforward map, u_e = U w", law.U, inputs, exogenous)
     lines += matrix_block("B  estimated input matrix", result.B, states, inputs)
     lines += ["", *result.quality.lines()]
-    problem = _problem(config)
+    problem = learning_problem(config)
     pi, why = pi_equivalent_or_reason(result.law, problem, result.judged, result.target)
     lines += ["", *(pi.lines(inputs, states) if pi else [f"no PI equivalent: {why}"])]
     if json_path is not None:

@@ -1,25 +1,22 @@
 """What every command shares: its ``--json`` target checked first, the JSON written
-atomically, the report printed, and numerical trouble said against the input."""
+atomically, the report printed, and numerical trouble said against the input
+(:mod:`selftune.core._numerics`)."""
 
 from __future__ import annotations
 
 import json
 import sys
-import warnings
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from typing import Any
-
-import numpy as np
 
 from ..core import Array, finite_or_null, to_jsonable, write_json
 from ..core._atomic import check_output_directory, check_output_file
-from ..errors import InputError, SelftuneError
+from ..core._numerics import check_numerics as _check_numerics
+from ..core._numerics import numerics as _numerics
+from ..errors import SelftuneError
 
 #: The ``--json`` value that writes the JSON to standard output.
 STANDARD_OUTPUT = "-"
-
-_ADVICE = "check that the values are in SI units and of a realistic size"
 
 
 def _check_json_target(path: str | None) -> None:
@@ -80,36 +77,11 @@ def _print_report(lines: Sequence[str], json_path: str | None) -> None:
         print(f"\nwrote {json_path}")
 
 
-def _check_numerics(
-    source: str, caught: Sequence[warnings.WarningMessage], *results: Array
-) -> None:
-    """Raise if a computation warned (overflow, lost precision) or gave non-finite numbers.
-
-    Extreme inputs (a weight of 1e300, an inductance of 1e-300) pass every check on their
-    own but make the numerics meaningless; better an error than wrong numbers. Other
-    warnings are dropped (the command line never shows warnings).
-    """
-    numeric = [w for w in caught if issubclass(w.category, RuntimeWarning)]
-    if numeric or not all(np.all(np.isfinite(result)) for result in results):
-        reason = f" ({numeric[0].message})" if numeric else ""
-        raise SelftuneError(
-            f"{source}: the solution is not numerically meaningful{reason}; {_ADVICE}"
-        )
-
-
-@contextmanager
-def _numerics(source: str) -> Iterator[list[warnings.WarningMessage]]:
-    """Record numerical warnings in the block; name ``source`` in any failure of it.
-
-    A :class:`SelftuneError` gets ``source`` in front; numpy's and scipy's
-    ``LinAlgError`` (an SVD that does not converge, a singular matrix) on absurd input
-    becomes an :class:`InputError` naming ``source``.
-    """
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", RuntimeWarning)
-        try:
-            yield caught
-        except SelftuneError as exc:
-            raise exc.retold(f"{source}: {exc}") from None
-        except (np.linalg.LinAlgError, FloatingPointError, OverflowError) as exc:
-            raise InputError(f"{source}: the computation failed ({exc}); {_ADVICE}") from None
+__all__ = [
+    "STANDARD_OUTPUT",
+    "_check_json_target",
+    "_check_numerics",
+    "_numerics",
+    "_print_report",
+    "_write_json",
+]

@@ -8,6 +8,8 @@
   besides the data (:mod:`._learn_file`), and :func:`load_log_format` -> the
   :class:`~selftune.learn.LogFormat` of its optional ``[log]`` table: a log in the
   drive's own columns, units and frame (:mod:`._log_table`);
+  :func:`learn_log` -> :class:`LearnedLog`: a
+  log learned with it, as ``selftune learn`` and ``selftune fleet`` do (:mod:`._learn_run`);
 - :func:`load_online_config` -> :class:`OnlineConfig`: an online run's duration and the
   profile of the motor's R_s, L_s and phi_pm over time (:mod:`._online_file`);
 - :func:`load_control_law` -> :class:`~selftune.core.ControlLaw`: the controller a JSON
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 from ._law_file import LawResult, load_control_law, load_law_result
 from ._learn_file import LEARN_TABLES, LearnConfig, load_learn_config
+from ._learn_run import LearnedLog, learn_log, learn_with_config, learning_problem
 from ._log_table import LOG_KEYS, load_log_format
 from ._motor_file import MOTOR_TABLES, MotorConfig, load_motor_config
 from ._online_file import ONLINE_TABLES, PROFILE_KEYS, OnlineConfig, load_online_config
@@ -35,8 +38,12 @@ __all__ = [
     "ConfigTable",
     "LawResult",
     "LearnConfig",
+    "LearnedLog",
     "MotorConfig",
     "OnlineConfig",
+    "learn_log",
+    "learn_with_config",
+    "learning_problem",
     "load_control_law",
     "load_law_result",
     "load_learn_config",

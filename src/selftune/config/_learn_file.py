@@ -95,7 +95,14 @@ class LearnConfig:
         return self.C is not None
 
 
-def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> LearnConfig:
+def load_learn_config(
+    path: str | os.PathLike[str],
+    n: int,
+    m: int,
+    q: int,
+    overrides: Mapping[str, Mapping[str, object]] | None = None,
+    overridden_by: str = "",
+) -> LearnConfig:
     """Read a learning configuration for data with n states, m inputs and q exogenous signals.
 
     The format::
@@ -140,6 +147,11 @@ def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> L
         Number of inputs of the data.
     q : int
         Number of exogenous signals of the data (0: none).
+    overrides : mapping of str to mapping, optional
+        ``{table: {key: value}}`` over the file's values (a fleet's per-drive settings),
+        checked as the file's are.
+    overridden_by : str, optional
+        Where the overrides come from, for messages (e.g. ``"manifest.csv row 3"``).
 
     Raises
     ------
@@ -149,7 +161,7 @@ def load_learn_config(path: str | os.PathLike[str], n: int, m: int, q: int) -> L
     """
     from ..learn import check_iteration_settings  # here: selftune solve loads no learner
 
-    config = ConfigFile(path, LEARN_TABLES)
+    config = ConfigFile(path, LEARN_TABLES, overrides, overridden_by)
     cost = config.table("cost", required=True)
     policy = config.table("policy", required=True)
     learning = config.table("learning")

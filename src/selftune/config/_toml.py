@@ -416,6 +416,11 @@ class ConfigFile:
     tables : mapping of str to tuple of str
         The allowed tables and, for each, its allowed keys; an empty tuple means the
         table's keys are checked later, by whoever reads it.
+    overrides : mapping of str to mapping, optional
+        ``{table: {key: value}}`` set over the file's values (checked as the file's are).
+    overridden_by : str, optional
+        Where the overrides come from, named after the file in every message (e.g.
+        ``"manifest.csv row 3"``).
 
     Raises
     ------
@@ -424,11 +429,23 @@ class ConfigFile:
         value that is not a table.
     """
 
-    def __init__(self, path: str | os.PathLike[str], tables: Mapping[str, tuple[str, ...]]) -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        tables: Mapping[str, tuple[str, ...]],
+        overrides: Mapping[str, Mapping[str, Any]] | None = None,
+        overridden_by: str = "",
+    ) -> None:
         self.path = Path(path)
         self.file = os.fspath(path)
         self.tables = dict(tables)
         self.data = read_toml(path)
+        if overrides:
+            self.file = f"{self.file} with {overridden_by or 'overrides'}"
+            for name, values in overrides.items():
+                table = self.data.setdefault(name, {})
+                if isinstance(table, dict):  # anything else is refused below
+                    table.update(values)
         for key, value in self.data.items():
             known = ", ".join(f"[{name}]" for name in self.tables)
             if key not in self.tables and not isinstance(value, dict):

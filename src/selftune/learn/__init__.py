@@ -99,7 +99,7 @@ from .learners._regression import (
     solve_regression,
 )
 from .learners._servo import learn_servo, servo_from_moments
-from .verdict._quality import TOO_LITTLE_DATA, Quality, closed_loop_radius
+from .verdict._quality import TOO_LITTLE_DATA, MotorEstimate, Quality, closed_loop_radius
 from .verdict._verdict import dead_time_voltage
 
 __all__ = [
@@ -125,6 +125,7 @@ __all__ = [
     "LogFormat",
     "LoggedInput",
     "Method",
+    "MotorEstimate",
     "OutputErrorFit",
     "PIEquivalent",
     "PolicyIterationFacts",

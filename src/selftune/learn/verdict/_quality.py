@@ -39,6 +39,7 @@ __all__ = [
     "SERVO_FEEDFORWARD_LIMIT",
     "STABILITY_MARGIN",
     "BlockErrors",
+    "MotorEstimate",
     "Quality",
     "block_errors",
     "check_precision",
@@ -114,6 +115,36 @@ def relative_size(se: Array, value: Array) -> float:
 
 
 @dataclass(frozen=True)
+class MotorEstimate:
+    """A surface PMSM's parameters identified by the structured fit (``structure =
+    "spmsm"``), with their standard errors (the fit's covariance: the inverse Fisher
+    information under the estimated noise, robust to correlated output errors).
+
+    Attributes
+    ----------
+    R_s, R_s_se : float
+        The stator resistance and its standard error, ohm.
+    L_s, L_s_se : float
+        The inductance and its standard error, H.
+    phi_pm, phi_pm_se : float
+        The magnet's flux linkage and its standard error, Wb: ``kappa w_1 / w_e``, the
+        back-EMF ratio times the flux the log's first reference channel assumes.
+    v, v_se : float or None
+        The inverter's dead-time voltage per phase and its standard error, V; None
+        unless the dead time is modelled.
+    """
+
+    R_s: float
+    R_s_se: float
+    L_s: float
+    L_s_se: float
+    phi_pm: float
+    phi_pm_se: float
+    v: float | None = None
+    v_se: float | None = None
+
+
+@dataclass(frozen=True)
 class Quality:
     """How good a learned controller is, from the data alone.
 
@@ -161,6 +192,9 @@ class Quality:
         The precision the states were logged with (float64, float32, significant digits).
     notes : tuple of str
         What else the user should know.
+    motor : MotorEstimate or None
+        The motor's parameters, where the method identified them (identify-then-design
+        with ``structure = "spmsm"``); None otherwise.
     """
 
     shift: int
@@ -182,6 +216,7 @@ class Quality:
     voltage_error: float | None
     log_precision: str
     notes: tuple[str, ...]
+    motor: MotorEstimate | None = None
 
     @property
     def relative_se(self) -> BlockErrors:

@@ -17,6 +17,7 @@ from ..learners._identify import design_continuous, design_digital
 from ._quality import (
     PLAUSIBLE_MODELS,
     BlockErrors,
+    MotorEstimate,
     Quality,
     block_errors,
     closed_loop_radii,
@@ -199,6 +200,7 @@ def verdict(
         voltage_error=dead_time_voltage(evidence),
         log_precision=evidence.precision,
         notes=tuple(notes),
+        motor=motor_estimate(evidence),
     )
     return quality, radii, models
 
@@ -251,6 +253,34 @@ def plausible_models(
         else (matrices(theta) for theta in draws)
     )
     return [model] + [replace(model, Ad=Ad, Bd=Bd, Ed=Ed) for Ad, Bd, Ed in drawn]
+
+
+def motor_estimate(evidence: Evidence) -> MotorEstimate | None:
+    """The structured fit's R_s, L_s, flux (and dead-time voltage) with their standard
+    errors; None without a structured fit.
+
+    The fit's third parameter is the back-EMF ratio ``kappa``; the flux is ``kappa w_1 /
+    w_e`` with ``w_1 = p speed phi_assumed`` the logs' first reference channel (its mean:
+    the speed is held) and ``w_e`` the structure's electrical speed.
+
+    Parameters
+    ----------
+    evidence : Evidence
+        The logs' evidence.
+    """
+    fit = evidence.fit
+    if fit is None or fit.structure is None:
+        return None
+    theta = fit.parameters
+    se = np.sqrt(np.maximum(np.diag(fit.parameter_covariance), 0.0))
+    back_emf = np.concatenate([e.w[:, 0] for e in evidence.episodes if e.w is not None])
+    flux = float(np.mean(back_emf)) / fit.structure.electrical_speed
+    dead_time = fit.structure.dead_time
+    return MotorEstimate(
+        R_s=float(theta[0]), R_s_se=float(se[0]), L_s=float(theta[1]), L_s_se=float(se[1]),
+        phi_pm=float(theta[2]) * flux, phi_pm_se=float(se[2]) * abs(flux),
+        v=float(theta[3]) if dead_time else None, v_se=float(se[3]) if dead_time else None,
+    )  # fmt: skip
 
 
 def dead_time_voltage(evidence: Evidence) -> float | None:

@@ -1,0 +1,145 @@
+"""A log learned with a learning configuration: what ``selftune learn`` computes, and
+what a fleet computes for each of its logs (:func:`learn_log`)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from ..core._numerics import check_numerics, numerics
+from ..errors import DataFileError, InputError, Refusal
+from ._learn_file import LEARN_TABLES, LearnConfig, load_learn_config
+from ._log_table import load_log_format
+
+if TYPE_CHECKING:
+    from ..learn import LearnedController, LearningProblem, Trajectory
+
+__all__ = ["LearnedLog", "learn_log", "learn_with_config", "learning_problem"]
+
+
+@dataclass(frozen=True)
+class LearnedLog:
+    """A log, its configuration and the controller learned from it.
+
+    Attributes
+    ----------
+    data : Trajectory
+        The log as loaded.
+    config : LearnConfig
+        The configuration, checked against the log's dimensions.
+    result : LearnedController
+        The learned controller, with its quality.
+    """
+
+    data: Trajectory
+    config: LearnConfig
+    result: LearnedController
+
+
+def learn_with_config(data: Trajectory, config: LearnConfig, source: str) -> LearnedController:
+    """The learned controller for ``config`` on ``data``; any failure names ``source``.
+
+    Parameters
+    ----------
+    data : Trajectory
+        The log.
+    config : LearnConfig
+        What the learner knows and how it learns.
+    source : str
+        The log's name, for messages.
+
+    Raises
+    ------
+    SelftuneError
+        A refusal or a failure, its message naming ``source``; a value of the
+        configuration the learner objects to names the configuration file, its table
+        and key instead.
+    """
+    from ..learn import LearningOptions, learn_controller
+
+    problem = learning_problem(config)
+    options = LearningOptions(
+        interval=config.interval, max_iterations=config.max_iterations,
+        tolerance=config.tolerance, **config.options,  # type: ignore[arg-type]
+    )  # fmt: skip
+    mistake: DataFileError | None = None
+    with numerics(source) as caught:
+        try:
+            result = learn_controller(data, problem, config.K0, options)
+        except InputError as exc:
+            mistake = _against_config(exc, config.source)
+            if mistake is None:
+                raise
+    if mistake is not None:
+        raise mistake
+    check_numerics(source, caught, result.P, result.K, result.U)
+    return result
+
+
+def learning_problem(config: LearnConfig) -> LearningProblem:
+    """The learner's problem of ``config``: the regulation and the whole cost (Q, R and,
+    with integral action, Q_i).
+
+    Parameters
+    ----------
+    config : LearnConfig
+        The configuration.
+    """
+    from ..learn import LearningProblem
+
+    return LearningProblem(
+        config.Q, config.R, C=config.C, E=config.E, F=config.F,
+        integral_action=config.integral_action, integral_weight=config.Q_i,
+    )  # fmt: skip
+
+
+def _against_config(error: InputError, config_file: str) -> DataFileError | None:
+    """The learner's objection to a configuration value (a key of CONFIG.toml, not a
+    refusal of the data), said against the configuration file and its table; None for
+    any other error."""
+    key, _, reason = str(error).partition(": ")
+    tables = [name for name, keys in LEARN_TABLES.items() if key in keys]
+    if isinstance(error, Refusal) or not tables or not reason:
+        return None
+    return DataFileError(f"{config_file}: [{tables[0]}] {key}: {reason}")
+
+
+def learn_log(
+    data_path: str | os.PathLike[str],
+    config_path: str | os.PathLike[str],
+    overrides: Mapping[str, Mapping[str, object]] | None = None,
+    overridden_by: str = "",
+) -> LearnedLog:
+    """``selftune learn``'s computation: the log's header (or the configuration's
+    ``[log]`` table) gives n, m, q; the configuration is read and checked against them
+    completely before the rows are loaded; then the controller is learned
+    (:func:`learn_with_config`).
+
+    Parameters
+    ----------
+    data_path : str or os.PathLike
+        The CSV, NPZ or MAT log (in selftune's columns, or the ``[log]`` table's).
+    config_path : str or os.PathLike
+        CONFIG.toml.
+    overrides : mapping of str to mapping, optional
+        ``{table: {key: value}}`` over the configuration's values.
+    overridden_by : str, optional
+        Where the overrides come from, for messages.
+
+    Raises
+    ------
+    SelftuneError
+        One line: the file, configuration or refusal that stopped it.
+    """
+    from ..learn import load_log, load_trajectory
+    from ..learn.data._io import trajectory_dimensions
+
+    name = os.fspath(data_path)
+    log = load_log_format(config_path, LEARN_TABLES)  # None: selftune's own columns
+    dimensions = trajectory_dimensions(name) if log is None else log.dimensions
+    n, m, q = dimensions
+    config = load_learn_config(config_path, n, m, q, overrides, overridden_by)
+    data = load_trajectory(name) if log is None else load_log(name, log)
+    return LearnedLog(data, config, learn_with_config(data, config, name))

@@ -1,0 +1,120 @@
+"""A fleet's run: every log learned on the engine, the table written as the rows come,
+then the summary and the figure (:func:`run_fleet`)."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..core import write_text
+from ..core._atomic import check_output_directory
+from ._engine import map_unordered, progress_bar, require_extra, workers_count
+from ._jobs import LogJob, learn_row
+from ._summary import PARAMETERS, FleetSummary, summarize, summary_markdown, write_figure
+from ._table import ResultsTable
+
+__all__ = ["FLEET_OUTPUTS", "FleetRun", "run_fleet"]
+
+#: The files of a fleet's output directory.
+FLEET_OUTPUTS = ("results.parquet", "results.csv", "summary.md", "fleet.png", "fleet.svg")
+
+_WHAT = "selftune fleet output"
+
+
+@dataclass(frozen=True)
+class FleetRun:
+    """What a fleet's run did.
+
+    Attributes
+    ----------
+    logs_count : int
+        The logs given.
+    skipped_count : int
+        Those already in the table (an earlier run's), not learned again.
+    rows_count : int
+        Rows of the table now.
+    seconds : float
+        The run's wall time, s.
+    workers_count : int
+        Workers it ran on (1: serially, here).
+    summary : FleetSummary
+        The summary of the whole table.
+    """
+
+    logs_count: int
+    skipped_count: int
+    rows_count: int
+    seconds: float
+    workers_count: int
+    summary: FleetSummary
+
+
+def run_fleet(
+    jobs: Sequence[LogJob],
+    out: str | os.PathLike[str],
+    client: Any = None,
+    batch: int | None = None,
+    progress: bool = False,
+) -> FleetRun:
+    """Learn every log not yet in ``out``'s table, then summarize the table.
+
+    ``out`` must be absent (created), empty, or a fleet's earlier output: its table is
+    added to (the logs whose (path, drive id) it holds are skipped), the summary and the
+    figure are rewritten.
+
+    Parameters
+    ----------
+    jobs : sequence of LogJob
+        The logs (:func:`~selftune.fleet.find_jobs`).
+    out : str or os.PathLike
+        The output directory.
+    client : distributed.Client, optional
+        Learn on its cluster; None: here, one log after another.
+    batch : int, optional
+        Rows written at once (default: 4 per worker, at least 16).
+    progress : bool
+        Show a progress bar on stderr (on a terminal only).
+
+    Raises
+    ------
+    InputError
+        If ``out`` cannot take a fleet's output, or the extra ``fleet`` is not installed.
+    """
+    require_extra("pyarrow")
+    started = time.perf_counter()
+    check_output_directory(out, FLEET_OUTPUTS, _WHAT)
+    Path(out).mkdir(parents=True, exist_ok=True)
+    table = ResultsTable(out)
+    done = table.done()
+    todo = [job for job in jobs if (job.path, job.drive) not in done]
+    workers = workers_count(client)
+    size = batch or max(16, 4 * workers)
+    pending: list[dict[str, Any]] = []
+    with progress_bar(len(todo), "fleet", progress) as bar:
+        for _, row in map_unordered(learn_row, todo, client):
+            pending.append(row)
+            bar.update(1)
+            if len(pending) >= size:
+                table.append(pending)
+                pending = []
+    if pending:
+        table.append(pending)
+    table.sort()
+    if not table.parquet.exists():  # every log was skipped and there was no table
+        table.append([])
+    names = ["path", "drive", "group", "verdict", "error"] + [c for c, _, _ in PARAMETERS]
+    summary = summarize(table.columns(names))
+    write_text(Path(out) / "summary.md", summary_markdown(summary))
+    write_figure(summary, Path(out) / "fleet")
+    return FleetRun(
+        logs_count=len(jobs),
+        skipped_count=len(jobs) - len(todo),
+        rows_count=summary.logs_count,
+        seconds=time.perf_counter() - started,
+        workers_count=workers,
+        summary=summary,
+    )
