@@ -164,6 +164,12 @@ def test_robust_z_is_median_and_mad() -> None:
     assert median == 3.0
     assert z[4] == pytest.approx(97.0 / 1.4826)
     assert np.isnan(z[5])
+    # a value's own standard error adds to the group's spread: 97 away, 1.4826 spread,
+    # an estimate known to +-100 is not a finding
+    errors = np.array([0.0, 0.0, 0.0, 0.0, 100.0, 0.0])
+    z, _ = robust_z(np.array([1.0, 2.0, 3.0, 4.0, 100.0, np.nan]), errors)
+    assert z[4] == pytest.approx(97.0 / np.hypot(1.4826, 100.0))
+    assert z[0] == pytest.approx(-2.0 / 1.4826)
 
 
 def _fail(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:

@@ -3,12 +3,14 @@ out of their group, the refusals by cause (``summary.md`` and ``fleet.png``/``.s
 
 A drive stands out when one of its identified parameters lies more than
 :data:`OUTLIER_Z` robust standard deviations from its group's median: the robust z
-``(x - median) / (1.4826 MAD)``, median and MAD (median absolute deviation) over the
-group's learned drives, 1.4826 MAD being the standard deviation of normally spread
-values. One drive in a group cannot move the median or the MAD much, so a hot winding
-(R_s up 30%), a loose connection or another motor shows against the group's own spread
-(which the parameters' manufacturing spread and the estimates' errors make). A group of
-fewer than :data:`MIN_GROUP` learned drives is not judged.
+``(x - median) / sqrt((1.4826 MAD)^2 + se^2)``, median and MAD (median absolute
+deviation) over the group's learned drives, 1.4826 MAD being the standard deviation of
+normally spread values, and ``se`` the drive's own standard error of the parameter (an
+estimate its log pins down poorly is not a finding). One drive in a group cannot move
+the median or the MAD much, so a hot winding (R_s up 30%), a loose connection or
+another motor shows against the group's own spread (which the parameters' manufacturing
+spread and the estimates' errors make). A group of fewer than :data:`MIN_GROUP` learned
+drives is not judged.
 """
 
 from __future__ import annotations
@@ -51,6 +53,10 @@ PARAMETERS: tuple[tuple[str, str, str], ...] = (
     ("phi_pm_Wb", "phi_pm", "Wb"),
     ("dead_time_V", "dead-time voltage", "V"),
 )
+
+#: Each parameter's standard error's column.
+_ERRORS = {"R_s_ohm": "R_s_se_ohm", "L_s_H": "L_s_se_H", "phi_pm_Wb": "phi_pm_se_Wb",
+           "dead_time_V": "dead_time_se_V"}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -130,28 +136,33 @@ class FleetSummary:
     deviations: dict[str, np.ndarray]
 
 
-def robust_z(values: np.ndarray) -> tuple[np.ndarray, float]:
+def robust_z(
+    values: np.ndarray, standard_errors: np.ndarray | None = None
+) -> tuple[np.ndarray, float]:
     """The robust z of each value, and the median (NaN values are left out of both).
 
     Parameters
     ----------
     values : ndarray
         A group's values.
+    standard_errors : ndarray, optional
+        Each value's own standard error (NaN or absent: none).
 
     Returns
     -------
     (ndarray, float)
-        ``(x - median) / (1.4826 MAD)`` (NaN where the value is, or all if the MAD is 0)
-        and the median.
+        ``(x - median) / sqrt((1.4826 MAD)^2 + se^2)`` (NaN where the value is, or all
+        if the scale is 0) and the median.
     """
     finite = values[np.isfinite(values)]
     if finite.size == 0:
         return np.full(values.shape, math.nan), math.nan
     median = float(np.median(finite))
-    scale = _MAD_TO_SD * float(np.median(np.abs(finite - median)))
-    if scale <= 0.0:
-        return np.full(values.shape, math.nan), median
-    return (values - median) / scale, median
+    spread = _MAD_TO_SD * float(np.median(np.abs(finite - median)))
+    own = np.zeros(values.shape) if standard_errors is None else np.nan_to_num(standard_errors)
+    scale = np.sqrt(spread**2 + own**2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(scale > 0.0, (values - median) / scale, math.nan), median
 
 
 def summarize(columns: dict[str, list[Any]]) -> FleetSummary:
@@ -171,10 +182,14 @@ def summarize(columns: dict[str, list[Any]]) -> FleetSummary:
     deviations: dict[str, np.ndarray] = {}
     for column, _, _ in PARAMETERS:
         values = np.array([math.nan if v is None else v for v in columns[column]], dtype=float)
+        errors = np.array(
+            [math.nan if v is None else v for v in columns.get(_ERRORS[column], [None] * len(
+                values))], dtype=float,
+        )  # fmt: skip
         relative = np.full(values.shape, math.nan)
         for group in sorted(set(groups[learned])):
             members = np.flatnonzero(learned & (groups == group))
-            z, median = robust_z(values[members])
+            z, median = robust_z(values[members], errors[members])
             if np.isfinite(median) and median != 0.0:
                 relative[members] = values[members] / median - 1.0
             if np.count_nonzero(np.isfinite(values[members])) < MIN_GROUP:
@@ -260,7 +275,8 @@ def summary_markdown(summary: FleetSummary, figure: str = "fleet.png") -> str:
         f"## Drives that stand out (more than {OUTLIER_Z:g} robust standard deviations from"
         " their group's median)",
         "",
-        f"Robust z = (x - median) / (1.4826 MAD) over the group's learned drives; groups of"
+        f"Robust z = (x - median) / sqrt((1.4826 MAD)^2 + se^2) over the group's learned"
+        " drives (se: the drive's own standard error of the parameter); groups of"
         f" fewer than {MIN_GROUP} are not judged.",
         "",
     ]
