@@ -133,10 +133,13 @@ def learn_log(
     SelftuneError
         One line: the file, configuration or refusal that stopped it.
     """
+    from pathlib import Path
+
     from ..learn import load_log, load_trajectory
-    from ..learn.data._io import trajectory_dimensions
+    from ..learn.data._io import file_format_of, trajectory_dimensions
 
     name = os.fspath(data_path)
+    file_format_of(Path(name))  # a file of no known type is said first, as the first argument
     log = load_log_format(config_path, LEARN_TABLES)  # None: selftune's own columns
     dimensions = trajectory_dimensions(name) if log is None else log.dimensions
     n, m, q = dimensions
