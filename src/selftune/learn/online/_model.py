@@ -76,11 +76,15 @@ class OnlineModel:
     def moments(self) -> list[ForgettingMoments]:
         """Each memory's moments, with every transition added so far (the list itself:
         a memory may be replaced in it, as after a change)."""
+        self._add_pending()
+        return self._memories
+
+    def _add_pending(self) -> None:
+        """Add the waiting transitions to every memory, in one product."""
         if self._pending:
             rows = [np.concatenate(parts) for parts in zip(*self._pending, strict=True)]
             self._pending.clear()
             add_samples(self._memories, *rows)
-        return self._memories
 
     @property
     def channels(self) -> int:
@@ -125,7 +129,7 @@ class OnlineModel:
         rows = (zeta, z, data[2:, :n])
         self._pending.append(rows)
         if sum(part[0].shape[0] for part in self._pending) >= PENDING_ROWS:
-            self.moments  # noqa: B018 (adds what waits)
+            self._add_pending()
         return rows
 
     def model(self, index: int = 0) -> DiscreteModel:

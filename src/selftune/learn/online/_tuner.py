@@ -491,9 +491,9 @@ class OnlineTuner:
             doubt = np.array(settings.drift_rates[: theta.size]) * np.abs(theta) * lag
         else:  # the lagging memory's parameters, to first order: the fit's gain on its model
             assert estimate.gain is not None
-            lagging = self._model.model(2)
+            lagging = slow.coefficients().T.ravel(order="F")  # vec([Ad, Bd, Ed])
             shares = np.array(DRIFT_DOUBT[: theta.size])
-            doubt = shares * (estimate.gain @ (lagging.parameters - model.parameters))
+            doubt = shares * (estimate.gain @ (lagging - model.parameters))
         covariance = estimate.covariance + np.diag(doubt**2)
         return PhysicalEstimate(theta, covariance, estimate.sensitivities, estimate.gain)
 
