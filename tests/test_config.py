@@ -246,7 +246,7 @@ def test_motor_config_is_frozen_and_checks_its_fields() -> None:
         (
             "L_s =",
             "Ls =",
-            "[motor] Ls: unknown key (known: R_s, L_s, phi_pm, p, J; did you mean L_s?)",
+            "[motor] Ls: unknown key (known: R_s, L_s, L_d, L_q, phi_pm, p, J; did you mean L_s?)",
         ),
         ("speed =", "sped =", "[operating_point] sped: unknown key"),
         ("R_s = 0.439", "R_s = 0", "[motor] R_s: must be positive, got 0"),

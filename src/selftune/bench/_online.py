@@ -220,8 +220,8 @@ def _case(index: int, profile: tuple[str, ParameterProfile], seed: int, quick: b
     name, shape = profile
     duration = float(shape.time[-1])
     run = run_online(
-        config.motor, tuning_settings(config, seed, "digital"), config.drive, shape, duration,
-        seed=seed,
+        config.surface_motor(), tuning_settings(config, seed, "digital"), config.drive, shape,
+        duration, seed=seed,
     )  # fmt: skip
     evaluation = evaluate_online(run, points=200 if quick else 600)
     summary = online_summary(run, evaluation)
@@ -253,7 +253,7 @@ def _replay(quick: bool) -> OnlineReplay:
     settings = tuning_settings(config, 0, "digital")
     profile = QUICK_PROFILE[1] if quick else SPEED_PROFILE[1]
     run = run_online(
-        config.motor, settings, config.drive, profile, float(profile.time[-1]), seed=0,
+        config.surface_motor(), settings, config.drive, profile, float(profile.time[-1]), seed=0,
         keep_log=True,
     )  # fmt: skip
     assert run.log is not None
@@ -262,7 +262,7 @@ def _replay(quick: bool) -> OnlineReplay:
                comments="")  # fmt: skip
     log = np.loadtxt(io.StringIO(text.getvalue()), delimiter=",", skiprows=1)
     chunk = round(0.01 / settings.h)
-    tuner = online_settings(config.motor, settings, config.drive)
+    tuner = online_settings(config.surface_motor(), settings, config.drive)
     latencies: list[float] = []
     events, seconds = replay(log, tuner, run.cold.law, chunk, latencies)
     duration = log.shape[0] * settings.h

@@ -15,6 +15,11 @@ from ._output import _check_json_target, _check_numerics, _numerics, _print_repo
 RESIDUAL_TOLERANCE = 1e-6
 
 
+#: Each reference entry's unit and note, for the printout.
+_UNITS = {"p speed phi_pm": ("V", ""), "T*": ("N m", ""), "i_d*": ("A", ", MTPA"),
+          "i_q*": ("A", ", MTPA")}  # fmt: skip
+
+
 def _check_residuals(config: MotorConfig, solution: ModelBasedSolution) -> None:
     """Raise unless the solution satisfies its equations to :data:`RESIDUAL_TOLERANCE`."""
     problem = solution.problem
@@ -73,17 +78,23 @@ def solve_report(config: MotorConfig, solution: ModelBasedSolution) -> str:
     w = config.exogenous()
     x_e, u_e = solution.X @ w, solution.U @ w
     state, inputs = ("i_d", "i_q"), ("u_d", "u_q")
-    exogenous = ("w_1", "w_2")
-    inertia = "" if motor.J is None else f", J = {motor.J:g} kg m^2"
+    exogenous = tuple(f"w_{i + 1}" for i in range(w.size))
+    units = [_UNITS[name][0] for name in motor.reference_names]
+    names = [f"{name} ({_UNITS[name][0]}{_UNITS[name][1]})" for name in motor.reference_names]
+
+    def per(unit: str) -> str:
+        return ", ".join(
+            f"{unit}/({other})" if " " in other else f"{unit}/{other}" for other in units
+        )
+
     lines = [
         f"Model-based optimal torque control ({config.source})",
-        f"  motor: R_s = {motor.R_s:g} ohm, L_s = {motor.L_s:g} H,"
-        f" phi_pm = {motor.phi_pm:g} Wb, p = {motor.p}{inertia}",
+        f"  motor: {motor.describe()}",
         f"  operating point: speed = {config.speed:g} rad/s (mechanical),"
         f" torque = {config.torque:g} N m",
         f"  cost weights: Q = {compact(config.Q)}, R = {compact(config.R)}",
         "  state x = [i_d, i_q] (A), input u = [u_d, u_q] (V),",
-        f"  exogenous w = [p speed phi_pm (V), T* (N m)] = {vector(w)}",
+        f"  exogenous w = [{', '.join(names)}] = {vector(w)}",
         "  control u = -K* (x - X* w) + U* w",
         "",
         *matrix_block("K*  optimal feedback gain, V/A", solution.K, inputs, state),
@@ -96,11 +107,11 @@ def solve_report(config: MotorConfig, solution: ModelBasedSolution) -> str:
         ),
         "",
         *matrix_block(
-            "X*  steady-state map, x_e = X* w (A/V, A/(N m))", solution.X, state, exogenous
+            f"X*  steady-state map, x_e = X* w ({per('A')})", solution.X, state, exogenous
         ),
         "",
         *matrix_block(
-            "U*  feedforward map, u_e = U* w (V/V, V/(N m))", solution.U, inputs, exogenous
+            f"U*  feedforward map, u_e = U* w ({per('V')})", solution.U, inputs, exogenous
         ),
         "",
         "Theta* = [vecs(P*); vec(K*); vec((D + A X*)' P*)]  (unknowns of the data equation)",

@@ -61,16 +61,17 @@ def tune_command(
 
     _check_json_target(json_path)
     _check_report_target(report_dir)
+    motor = config.surface_motor()
     settings = tuning_settings(config, seed, target)
     with _numerics(config.source) as caught:
-        result = run_algorithm(algorithm, config.motor, settings, drive=config.drive)  # type: ignore[arg-type]
-        evaluation = evaluate(result, config.motor, settings, config.drive)
-        torque = torque_check(config.motor, settings, result, config.drive)
+        result = run_algorithm(algorithm, motor, settings, drive=config.drive)  # type: ignore[arg-type]
+        evaluation = evaluate(result, motor, settings, config.drive)
+        torque = torque_check(motor, settings, result, config.drive)
     _check_numerics(config.source, caught, result.P, result.K)
-    pi = tuned_pi(config.motor, settings, result)
+    pi = tuned_pi(motor, settings, result)
     lines = tune_lines(config.source, result, evaluation, torque, config.drive, pi)
     if json_path is not None:
-        document = tune_document(config.motor, settings, result, evaluation, torque, pi[0])
+        document = tune_document(motor, settings, result, evaluation, torque, pi[0])
         _write_json(json_path, document)
     # the step response's step: the torque reference from 0 at the operating point's speed
     step = (result.w * np.array([1.0, 0.0]), result.w)
@@ -147,7 +148,7 @@ def online_command(
             bar.update(now - bar.n)
 
         run = run_online(
-            config.motor, settings, drive, online.profile, online.duration, seed=seed,
+            config.surface_motor(), settings, drive, online.profile, online.duration, seed=seed,
             progress=progress, learner=learner,  # type: ignore[arg-type]
         )  # fmt: skip
         evaluation = evaluate_online(run)
@@ -190,7 +191,7 @@ def follow_command(
     from ..tuning import CHUNK_SECONDS, follow, online_settings
 
     settings, drive = _online_drive(config, 0)
-    tuner = online_settings(config.motor, settings, drive, learner)  # type: ignore[arg-type]
+    tuner = online_settings(config.surface_motor(), settings, drive, learner)  # type: ignore[arg-type]
     law = load_control_law(law_path)
     try:  # the law must fit the drive: said of the file that gave it
         OnlineTuner(tuner, law)

@@ -134,7 +134,8 @@ def _number(table: Any, key: str) -> float | None:
 
 def _motor(document: Mapping[str, Any]) -> dict[str, float] | None:
     motor = document.get("motor")
-    values = {key: _number(motor, key) for key in ("R_s", "L_s", "phi_pm", "p")}
+    inductances = ("L_s",) if _number(motor, "L_s") is not None else ("L_d", "L_q")
+    values = {key: _number(motor, key) for key in ("R_s", *inductances, "phi_pm", "p")}
     if any(value is None for value in values.values()):
         return None
     return {key: float(value) for key, value in values.items() if value is not None}

@@ -1,7 +1,7 @@
 """The motor file, MOTOR.toml, read by :func:`load_motor_config`::
 
     [motor]            # R_s (ohm), L_s (H), phi_pm (Wb), p (pole pairs), optional J (kg m^2)
-    R_s = 0.439
+    R_s = 0.439        # an interior PM motor: L_d and L_q (H) instead of L_s
     L_s = 0.0601
     phi_pm = 0.46
     p = 2
@@ -60,7 +60,7 @@ from ..core._validation import (
     check_weight_ratio,
 )
 from ..errors import DataFileError, InputError
-from ..model import SPMSM, RegulationProblem
+from ..model import IPMSM, SPMSM, Motor, RegulationProblem
 from ._toml import ConfigFile, ConfigTable
 
 if TYPE_CHECKING:
@@ -103,7 +103,7 @@ VOLTAGE_HEADROOM = 0.9
 #: The tables of MOTOR.toml and the keys each may hold.
 MOTOR_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
     {
-        "motor": ("R_s", "L_s", "phi_pm", "p", "J"),
+        "motor": ("R_s", "L_s", "L_d", "L_q", "phi_pm", "p", "J"),
         "operating_point": ("speed", "torque"),
         "cost": ("Q", "R", "Q_i"),
         "learning": LEARNING_KEYS,
@@ -131,7 +131,7 @@ class MotorConfig:
 
     Parameters
     ----------
-    motor : SPMSM
+    motor : SPMSM or IPMSM
         The motor's parameters.
     speed : float
         Mechanical speed held by the load machine, rad/s.
@@ -164,7 +164,7 @@ class MotorConfig:
         range.
     """
 
-    motor: SPMSM
+    motor: Motor
     speed: float = PAPER_SPEED
     torque: float = PAPER_TORQUE
     Q: Array = field(default_factory=paper_Q)
@@ -180,8 +180,8 @@ class MotorConfig:
             object.__setattr__(
                 self, name, check_range(finite_float(getattr(self, name), name), name)
             )
-        check_electrical_time_constant(self.motor.R_s, self.motor.L_s)
-        check_electrical_speed(self.speed, self.motor.p, self.motor.L_s)
+        check_electrical_time_constant(self.motor.R_s, min(self.motor.L_d, self.motor.L_q))
+        check_electrical_speed(self.speed, self.motor.p, max(self.motor.L_d, self.motor.L_q))
         for name in ("Q", "R", "Q_i"):
             if getattr(self, name) is None:
                 continue
@@ -217,12 +217,30 @@ class MotorConfig:
         """The paper's setting: :meth:`SPMSM.paper`, 10 rad/s, 10 N m, ``Q = 1e3 I``, ``R = I``."""
         return cls(motor=SPMSM.paper())
 
+    def surface_motor(self) -> SPMSM:
+        """The motor, if it is a surface motor (``L_d = L_q``): what the simulated drives
+        and the tuners model.
+
+        Raises
+        ------
+        InputError
+            Naming the file and the keys, for an interior motor.
+        """
+        if isinstance(self.motor, SPMSM):
+            return self.motor
+        raise InputError(
+            f"{self.source}: [motor] L_d, L_q: an interior PM motor (L_q / L_d ="
+            f" {self.motor.saliency:.3g}) cannot be tuned on a simulated drive yet (they"
+            " model L_d = L_q); selftune solve gives its model-based optimum"
+        )
+
     def regulation_problem(self) -> RegulationProblem:
         """The known-flux output-regulation problem at this operating point's speed."""
         return self.motor.regulation_problem(self.speed)
 
     def exogenous(self) -> Array:
-        """``w = [p speed phi_pm, T*]`` at this operating point."""
+        """``w`` at this operating point: ``[p speed phi_pm, T*]`` (a surface motor) or
+        ``[p speed phi_pm, i_d*, i_q*]`` (an interior one, MTPA)."""
         return self.motor.exogenous(self.speed, self.torque)
 
 
@@ -294,17 +312,43 @@ def _integral_weight(cost: ConfigTable, learning: ConfigTable) -> Array | None:
     return cost.positive_definite("Q_i", 2)
 
 
-def _motor(table: ConfigTable) -> SPMSM:
+def _inductances(table: ConfigTable) -> dict[str, float]:
+    """``{"L_s": ...}`` or ``{"L_d": ..., "L_q": ...}``: the [motor] table's inductance(s),
+    H; equal L_d and L_q are a surface motor's L_s."""
+    given = [key for key in ("L_s", "L_d", "L_q") if key in table]
+    if "L_s" in given and len(given) > 1:
+        raise table.error(
+            given[1], "give either L_s (a surface motor) or L_d and L_q (an interior one)"
+        )
+    if given in (["L_d"], ["L_q"]):
+        missing = "L_q" if given == ["L_d"] else "L_d"
+        raise table.error(missing, "missing: an interior motor needs L_d and L_q (or L_s alone)")
+    keys = given or ["L_s"]  # none: the required L_s is reported missing
+    values = {}
+    for key in keys:
+        table.positive(key)
+        values[key] = table.ranged(key, limits="L_s")
+    if len(values) == 2 and values["L_d"] == values["L_q"]:
+        return {"L_s": values["L_d"]}
+    return values
+
+
+def _motor(table: ConfigTable) -> Motor:
     """The [motor] table's motor, each parameter positive and in its range."""
     values: dict[str, float] = {}
-    for key in ("R_s", "L_s", "phi_pm", "J"):
+    table.positive("R_s")
+    values["R_s"] = table.ranged("R_s")
+    inductances = _inductances(table)
+    for key in ("phi_pm", "J"):
         if key != "J" or key in table:
             table.positive(key)
             values[key] = table.ranged(key)
     pole_pairs = table.positive_integer("p", maximum=int(PLAUSIBLE_RANGES["p"][1]))
     try:
-        check_electrical_time_constant(values["R_s"], values["L_s"])
-        return SPMSM(p=pole_pairs, **values)
+        check_electrical_time_constant(values["R_s"], min(inductances.values()))
+        if "L_s" in inductances:
+            return SPMSM(p=pole_pairs, L_s=inductances["L_s"], **values)
+        return IPMSM(p=pole_pairs, **inductances, **values)
     except DataFileError:
         raise
     except InputError as exc:  # a rule across keys: name the first key

@@ -4,6 +4,8 @@ This is the truth the learners are judged by. Nothing in :mod:`selftune.learn` m
 import it (an import contract checks that); the learners see only sampled data.
 
 - :class:`SPMSM`: the surface-mounted PMSM and its torque-control forms (eq. 8, 15);
+  :class:`IPMSM`: the interior PMSM (``L_d != L_q``) with MTPA current references;
+  :data:`Motor`: either;
 - :class:`RegulationProblem`: ``x' = A x + B u + D w, w' = E w, e = C x + F w`` and its
   regulator equations;
 - :func:`solve_optimal_regulation`: the optimal ``K*, P*, X*, U*`` (with
@@ -17,16 +19,23 @@ from __future__ import annotations
 
 from ..core import lqr, policy_value
 from ._digital import DigitalCost, solve_digital_regulation
+from ._ipmsm import IPMSM, motor_from_parameters
 from ._motor import SPMSM
 from ._optimum import ModelBasedSolution, solve_optimal_regulation
 from ._problem import RegulationProblem
 
+#: A PMSM of either kind: the surface motor (the paper's) or the interior one.
+Motor = SPMSM | IPMSM
+
 __all__ = [
+    "IPMSM",
     "SPMSM",
     "DigitalCost",
     "ModelBasedSolution",
+    "Motor",
     "RegulationProblem",
     "lqr",
+    "motor_from_parameters",
     "policy_value",
     "solve_digital_regulation",
     "solve_optimal_regulation",

@@ -24,26 +24,17 @@ from ..core import (
     PAPER_MOTOR,
     PAPER_TABLE_MOTOR,
     Array,
-    as_vector,
-    discretize,
-    finite_float,
     positive_finite,
-    rotating_hold,
 )
 from ..core._validation import check_range
-from ..errors import InputError
+from ._forms import PmsmForms, _checked, _checked_pole_pairs
 from ._problem import RegulationProblem
 
 __all__ = ["SPMSM"]
 
 
-def _checked(value: float, name: str) -> float:
-    """A finite speed (rad/s) or torque (N m) in its plausible range."""
-    return check_range(finite_float(value, name), name)
-
-
 @dataclass(frozen=True)
-class SPMSM:
+class SPMSM(PmsmForms):
     """Surface-mounted permanent-magnet synchronous motor (SI units).
 
     Parameters
@@ -84,10 +75,7 @@ class SPMSM:
         for name in ("R_s", "L_s", "phi_pm"):
             value = check_range(positive_finite(getattr(self, name), name), name)
             object.__setattr__(self, name, value)
-        pole_pairs = positive_finite(self.p, "p")
-        if pole_pairs != int(pole_pairs):
-            raise InputError(f"p: the number of pole pairs must be a whole number, got {self.p!r}")
-        object.__setattr__(self, "p", int(check_range(pole_pairs, "p")))
+        object.__setattr__(self, "p", _checked_pole_pairs(self.p))
         if self.J is not None:
             object.__setattr__(self, "J", check_range(positive_finite(self.J, "J"), "J"))
 
@@ -113,55 +101,43 @@ class SPMSM:
         """``R_s / L_s``, 1/s."""
         return self.R_s / self.L_s
 
+    @property
+    def L_d(self) -> float:
+        """The d-axis inductance, ``L_s``, H (as :class:`~selftune.model.IPMSM`'s)."""
+        return self.L_s
+
+    @property
+    def L_q(self) -> float:
+        """The q-axis inductance, ``L_s``, H."""
+        return self.L_s
+
+    @property
+    def saliency(self) -> float:
+        """``L_q / L_d``: 1."""
+        return 1.0
+
+    @property
+    def reference_names(self) -> tuple[str, ...]:
+        """What each entry of ``w`` is: ``("p speed phi_pm", "T*")``."""
+        return ("p speed phi_pm", "T*")
+
+    def _inductances(self) -> dict[str, float]:
+        return {"L_s": self.L_s}
+
     # -- full model ---------------------------------------------------------------------
 
-    def torque(self, i_q: ArrayLike) -> Array:
+    def torque(self, i_q: ArrayLike, i_d: ArrayLike | None = None) -> Array:
         """Electromagnetic torque ``(3 p / 2) phi_pm i_q``, N m (``i_q`` in A).
 
         Parameters
         ----------
         i_q : array_like
             q-axis current, A.
+        i_d : array_like, optional
+            d-axis current, A: no torque on a surface motor (accepted so that code
+            written for :class:`~selftune.model.IPMSM` serves both).
         """
         return 1.5 * self.p * self.phi_pm * np.asarray(i_q, dtype=float)
-
-    def full_model(self, x: ArrayLike, u: ArrayLike, load_torque: float = 0.0) -> Array:
-        """Time derivative of the full model with speed as a state (eq. 1, corrected).
-
-        Parameters
-        ----------
-        x : array_like, shape (3,)
-            ``[i_d (A), i_q (A), speed (rad/s, mechanical)]``.
-        u : array_like, shape (2,)
-            ``[u_d, u_q]``, V.
-        load_torque : float
-            Load torque ``T_L``, N m.
-
-        Returns
-        -------
-        ndarray, shape (3,)
-            ``[di_d/dt, di_q/dt, dspeed/dt]``.
-
-        Raises
-        ------
-        InputError
-            If the inertia ``J`` was not given.
-        """
-        if self.J is None:
-            raise InputError("J: the full model needs the rotor inertia J")
-        i_d, i_q, speed = as_vector(x, "x", 3)
-        u_d, u_q = as_vector(u, "u", 2)
-        electrical_speed = self.p * speed
-        return np.array(
-            [
-                -self.gamma * i_d + electrical_speed * i_q + u_d / self.L_s,
-                -electrical_speed * i_d
-                - self.gamma * i_q
-                - electrical_speed * self.phi_pm / self.L_s
-                + u_q / self.L_s,
-                (float(self.torque(i_q)) - finite_float(load_torque, "load_torque")) / self.J,
-            ]
-        )
 
     # -- torque-control mode ------------------------------------------------------------
 
@@ -214,59 +190,6 @@ class SPMSM:
         D = np.array([[0.0, 0.0], [-1.0 / self.L_s, 0.0]])
         F = np.array([[0.0, 0.0], [0.0, -2.0 / (3.0 * self.p * self.phi_pm)]])
         return RegulationProblem(A=A, B=B, C=np.eye(2), D=D, E=np.zeros((2, 2)), F=F)
-
-    def sampled_plant(
-        self, speed: float, h: float, hold: str = "rotor"
-    ) -> tuple[Array, Array, Array]:
-        """``(Ad, Bd, Ed)`` of :meth:`regulation_problem` sampled at h, exactly.
-
-        ``hold = "rotor"``: the dq voltage held over each sample (zero-order hold, the
-        paper's). ``"stationary"``: the stationary-frame vector held, as a PWM inverter
-        does, with the usual angle compensation that centres it on the sample
-        (:func:`selftune.core.rotating_hold`): Bd differs, by about ``(w_e h)^2 / 24``.
-
-        Parameters
-        ----------
-        speed : float
-            Mechanical speed, rad/s.
-        h : float
-            Sampling period, s.
-        hold : {"rotor", "stationary"}
-            What is held over a sample.
-        """
-        if hold not in ("rotor", "stationary"):
-            raise InputError(f"hold: must be 'rotor' or 'stationary', got {hold!r}")
-        problem = self.regulation_problem(speed)
-        exact = discretize(problem.A, problem.B, h, D=problem.D)
-        if hold == "rotor":
-            return exact.Ad, exact.Bd, exact.Ed
-        w_e = self.p * finite_float(speed, "speed")
-        Bd = rotating_hold(problem.A, problem.B, h, w_e, advance=0.5 * w_e * h)
-        return exact.Ad, Bd, exact.Ed
-
-    def no_load_exogenous(self, speed: float) -> Array:
-        """``w = [p speed]`` of the no-load, unknown-flux form (eq. 15).
-
-        Parameters
-        ----------
-        speed : float
-            Mechanical speed, rad/s.
-        """
-        return np.array([self.p * _checked(speed, "speed")])
-
-    def no_load_problem(self, speed: float) -> RegulationProblem:
-        """The no-load, unknown-flux form (eq. 15, corrected sign): ``T* = 0``, ``w = [p speed]``.
-
-        ``D = [[0], [-phi_pm / L_s]]``, ``F = 0``, ``C = I``, ``E = 0``; hence ``X* = 0``.
-
-        Parameters
-        ----------
-        speed : float
-            Mechanical speed, rad/s, held by the load machine.
-        """
-        A, B = self.torque_mode(speed)
-        D = np.array([[0.0], [-self.phi_pm / self.L_s]])
-        return RegulationProblem(A=A, B=B, C=np.eye(2), D=D, E=np.zeros((1, 1)), F=np.zeros((2, 1)))
 
     def current_reference(self, torque: float) -> Array:
         """``x_e = [0, 2 T* / (3 p phi_pm)]``, A, for the torque reference ``T*`` (N m).

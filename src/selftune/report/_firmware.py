@@ -39,6 +39,7 @@ from ..config import LawResult
 from ..core import Array, ControlLaw, positive_finite
 from ..core._atomic import output_directory, write_text
 from ..errors import InputError
+from ..model import motor_from_parameters
 
 __all__ = ["ANTI_WINDUP", "FIRMWARE_FILES", "Firmware", "firmware", "write_firmware"]
 
@@ -114,11 +115,7 @@ def _check(result: LawResult, source: str) -> ControlLaw:
 def _motor_text(result: LawResult) -> str:
     if result.motor is None:
         return "not stated in the file (a selftune learn result names the log, not a motor)"
-    motor = result.motor
-    return (
-        f"R_s = {motor['R_s']:.6g} ohm, L_s = {motor['L_s']:.6g} H, "
-        f"phi_pm = {motor['phi_pm']:.6g} Wb, p = {motor['p']:g} (nameplate)"
-    )
+    return f"{motor_from_parameters(result.motor).describe()} (nameplate)"
 
 
 def _banner(result: LawResult, u_max_text: str, source: str, version: str, date: str) -> str:

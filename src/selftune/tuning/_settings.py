@@ -292,7 +292,7 @@ def _drive_defaults(config: MotorConfig, table: ConfigTable) -> _Defaults:
         exploration = DRIVE_DEFAULTS["exploration_fraction"] * drive.dc_voltage
     return _Defaults(
         h=h,
-        K0=DRIVE_DEFAULTS["K0_fraction"] * config.motor.L_s / h * np.eye(2),
+        K0=DRIVE_DEFAULTS["K0_fraction"] * np.diag([config.motor.L_d, config.motor.L_q]) / h,
         exploration=exploration,
         episode_length=DRIVE_DEFAULTS["episode_length"],
         input_hold=1,
