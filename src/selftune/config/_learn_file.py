@@ -129,7 +129,7 @@ def load_learn_config(
         integral_action = false   # true: the optimal servo controller
         dead_time = false     # true: model the inverter's dead time (n = m = 2)
         noise = "smoothed"    # or "instruments", "none"
-        structure = "none"    # or "spmsm" (identify only, needs electrical_speed)
+        structure = "none"    # or "spmsm", "ipmsm" (identify only, needs electrical_speed)
         electrical_speed = 150.0  # p speed, rad/s (structure; dead time without angle)
         voltage_hold = "stationary"  # or "rotor": what the drive holds over a sample
         max_relative_error = 0.05    # refuse results with larger standard errors
@@ -231,7 +231,7 @@ def _options(learning: ConfigTable, iteration: tuple[int, int, float]) -> Mappin
         ),
         "dead_time": learning.flag("dead_time", False),
         "noise": learning.choice("noise", ("smoothed", "instruments", "none"), "smoothed"),
-        "structure": learning.choice("structure", ("none", "spmsm"), "none"),
+        "structure": learning.choice("structure", ("none", "spmsm", "ipmsm"), "none"),
         "voltage_hold": learning.choice("voltage_hold", ("stationary", "rotor"), "stationary"),
         "max_relative_error": learning.positive("max_relative_error", 0.05),
     }

@@ -61,6 +61,7 @@ from .evidence._dead_time import direction_signs, phase_signs
 from .evidence._discrete_model import DiscreteModel, Transitions, fit_discrete_model
 from .evidence._evidence import ConsistencyTest, Evidence, gather_evidence
 from .evidence._output_error import (
+    IpmsmStructure,
     OutputErrorFit,
     SpmsmStructure,
     fit_output_error,
@@ -116,6 +117,7 @@ __all__ = [
     "Evidence",
     "Formulation",
     "IntervalMoments",
+    "IpmsmStructure",
     "IterationRecord",
     "JudgedPlants",
     "LearnedController",

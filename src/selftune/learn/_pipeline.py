@@ -365,8 +365,8 @@ def _without_structure(
         _precise(data, problem, replace(options, structure="none"))
     except TooLittleData as other:
         return other.retold(
-            f"without the structure, {other}; with it (structure = 'spmsm') the fit was "
-            f"refused: {error}"
+            f"without the structure, {other}; with it (structure ="
+            f" '{options.structure}') the fit was refused: {error}"
         )
     except SelftuneError:
         return error

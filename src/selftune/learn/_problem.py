@@ -296,10 +296,12 @@ class LearningOptions:
         Upper bound on policy-iteration steps.
     tolerance : float
         Relative change of P at which policy iteration stops (at most 1e-3).
-    structure : {"none", "spmsm"}
+    structure : {"none", "spmsm", "ipmsm"}
         Identify-then-design only: fit every entry of the discrete model (``"none"``), or
         only a surface PMSM's R_s, L_s and flux at ``electrical_speed`` (the known-flux form,
-        n = m = q = 2), which needs far less data for the same accuracy.
+        n = m = q = 2), which needs far less data for the same accuracy, or an interior
+        PMSM's R_s, L_d, L_q and flux (the current-reference form ``w = [w_1, i_d*,
+        i_q*]``, q = 3; :class:`~selftune.learn.IpmsmStructure`).
     voltage_hold : {"stationary", "rotor"}
         What the drive holds over a sample, for ``structure = "spmsm"``: the
         stationary-frame voltage vector (a PWM inverter, with the usual angle
@@ -336,7 +338,7 @@ class LearningOptions:
     interval: int = 10
     max_iterations: int = 50
     tolerance: float = 1e-9
-    structure: Literal["none", "spmsm"] = "none"
+    structure: Literal["none", "spmsm", "ipmsm"] = "none"
     voltage_hold: Literal["stationary", "rotor"] = "stationary"
     electrical_speed: float | None = None
     dead_time: bool = False
@@ -354,8 +356,10 @@ class LearningOptions:
         stated_shift(self.logged_input, delay)
         positive_integer(self.interval, "interval")
         check_iteration_settings(self.max_iterations, self.tolerance)
-        if self.structure not in ("none", "spmsm"):
-            raise InputError(f"structure: must be 'none' or 'spmsm', got {self.structure!r}")
+        if self.structure not in ("none", "spmsm", "ipmsm"):
+            raise InputError(
+                f"structure: must be 'none', 'spmsm' or 'ipmsm', got {self.structure!r}"
+            )
         if self.voltage_hold not in ("stationary", "rotor"):
             raise InputError(
                 f"voltage_hold: must be 'stationary' or 'rotor', got {self.voltage_hold!r}"
@@ -369,8 +373,10 @@ class LearningOptions:
         positive_finite(self.max_relative_error, "max_relative_error")
         if self.electrical_speed is not None:
             finite_float(self.electrical_speed, "electrical_speed")
-        if self.structure == "spmsm":
+        if self.structure != "none":
             if self.method != "identify":
                 raise InputError("structure: a model structure is for method = 'identify'")
             if self.electrical_speed is None:
-                raise InputError('electrical_speed: structure = "spmsm" needs p speed (rad/s)')
+                raise InputError(
+                    f'electrical_speed: structure = "{self.structure}" needs p speed (rad/s)'
+                )

@@ -53,7 +53,13 @@ from ..data._trajectory import Trajectory
 from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
 from ._dead_time import DeadTimeChannels, DeadTimeModel, Switching, with_dead_time
 from ._discrete_model import DiscreteModel, lack_of_rank, regressor_names
-from ._output_error import OutputErrorFit, SpmsmStructure, fit_output_error, resolution_floor
+from ._output_error import (
+    IpmsmStructure,
+    OutputErrorFit,
+    SpmsmStructure,
+    fit_output_error,
+    resolution_floor,
+)
 from ._sign_bias import without_sign_bias
 
 __all__ = [
@@ -307,9 +313,10 @@ def gather_evidence(
     except NotExciting as error:
         raise _untied_dead_time(error, episodes[0], options) from None
     structure = None
-    if options.structure == "spmsm":
+    if options.structure != "none":
         assert options.electrical_speed is not None
-        structure = SpmsmStructure(
+        kind = SpmsmStructure if options.structure == "spmsm" else IpmsmStructure
+        structure = kind(
             options.electrical_speed, alignment.model.h, options.dead_time, options.voltage_hold
         )
     precision, relative = log_precision(episodes)

@@ -36,6 +36,7 @@ from ..data._trajectory import Trajectory
 from . import _propagation
 from ._alignment import applied_inputs
 from ._discrete_model import DiscreteModel
+from ._ipmsm_structure import IpmsmStructure
 from ._propagation import (
     _chained,
     _Jacobian,
@@ -47,6 +48,8 @@ from ._propagation import _Log as _Log
 from ._spmsm_structure import SpmsmStructure
 
 __all__ = [
+    "IpmsmStructure",
+    "MotorStructure",
     "OutputErrorFit",
     "SpmsmStructure",
     "Structure",
@@ -58,6 +61,9 @@ __all__ = [
 
 #: A structure maps physical parameters to ``(Ad, Bd, Ed)``.
 Structure = Callable[[Array], tuple[Array, Array, Array]]
+
+#: A PMSM's structure: the surface motor's or the interior one's.
+MotorStructure = SpmsmStructure | IpmsmStructure
 
 
 def _logs(episodes: Sequence[Trajectory], shift: int) -> list[_Log]:
@@ -93,7 +99,7 @@ class OutputErrorFit:
         The output errors ``x~ - xhat`` of each log.
     iterations : int
         Gauss-Newton iterations.
-    structure : SpmsmStructure or None
+    structure : SpmsmStructure or IpmsmStructure or None
         The structure fitted (None: every entry of ``[Ad, Bd, Ed]``).
     correlation_inflation : float
         How much larger the robust variances are than white output errors would give
@@ -109,7 +115,7 @@ class OutputErrorFit:
     simulated: tuple[Array, ...]
     residuals: tuple[Array, ...]
     iterations: int
-    structure: SpmsmStructure | None = None
+    structure: MotorStructure | None = None
     correlation_inflation: float = 1.0
 
     def matrices(self, parameters: Array) -> tuple[Array, Array, Array]:
@@ -135,7 +141,7 @@ def fit_output_error(
     episodes: Sequence[Trajectory],
     shift: int,
     start: DiscreteModel,
-    structure: SpmsmStructure | None = None,
+    structure: MotorStructure | None = None,
     max_iterations: int = 60,
     resolution: float = 0.0,
     stable: bool = True,
@@ -150,7 +156,7 @@ def fit_output_error(
         The alignment of the logged inputs (:func:`selftune.learn.check_alignment`).
     start : DiscreteModel
         The least-squares model to start from.
-    structure : SpmsmStructure, optional
+    structure : SpmsmStructure or IpmsmStructure, optional
         Fit only the structure's parameters instead of every entry of ``[Ad, Bd, Ed]``.
     max_iterations : int
         Upper bound on Gauss-Newton iterations.
@@ -184,9 +190,11 @@ def fit_output_error(
 
         matrices = unstructured
     else:
-        if (n, m, q) != (2, 2, 4 if structure.dead_time else 2):
+        references = structure.references
+        if (n, m, q) != (2, 2, references + (2 if structure.dead_time else 0)):
             raise InputError(
-                "structure: the PMSM structure needs n = m = q = 2 (the known-flux form)"
+                f"structure: the PMSM structure needs n = m = 2 and {references} reference"
+                f" channels ({'the known-flux form' if references == 2 else 'w_1, i_d*, i_q*'})"
             )
         theta = structure.initial(start)
         matrices = structure

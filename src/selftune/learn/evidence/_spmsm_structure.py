@@ -52,6 +52,9 @@ class SpmsmStructure:
     dead_time: bool = False
     hold: Literal["stationary", "rotor"] = "stationary"
 
+    #: The number of reference channels of the form (``w_1, T*``).
+    references = 2
+
     def __call__(self, theta: Array) -> tuple[Array, Array, Array]:
         """``(Ad, Bd, Ed)`` of ``theta = [R_s (ohm), L_s (H), kappa]`` (and ``v``, V).
 

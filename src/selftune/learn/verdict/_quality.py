@@ -116,32 +116,39 @@ def relative_size(se: Array, value: Array) -> float:
 
 @dataclass(frozen=True)
 class MotorEstimate:
-    """A surface PMSM's parameters identified by the structured fit (``structure =
-    "spmsm"``), with their standard errors (the fit's covariance: the inverse Fisher
+    """A PMSM's parameters identified by the structured fit (``structure = "spmsm"`` or
+    ``"ipmsm"``), with their standard errors (the fit's covariance: the inverse Fisher
     information under the estimated noise, robust to correlated output errors).
 
     Attributes
     ----------
     R_s, R_s_se : float
         The stator resistance and its standard error, ohm.
-    L_s, L_s_se : float
-        The inductance and its standard error, H.
+    L_s, L_s_se : float or None
+        A surface motor's inductance and its standard error, H (None: an interior one).
     phi_pm, phi_pm_se : float
         The magnet's flux linkage and its standard error, Wb: ``kappa w_1 / w_e``, the
         back-EMF ratio times the flux the log's first reference channel assumes.
     v, v_se : float or None
         The inverter's dead-time voltage per phase and its standard error, V; None
         unless the dead time is modelled.
+    L_d, L_d_se, L_q, L_q_se : float or None
+        An interior motor's inductances and their standard errors, H (``structure =
+        "ipmsm"``; None for a surface one).
     """
 
     R_s: float
     R_s_se: float
-    L_s: float
-    L_s_se: float
+    L_s: float | None
+    L_s_se: float | None
     phi_pm: float
     phi_pm_se: float
     v: float | None = None
     v_se: float | None = None
+    L_d: float | None = None
+    L_d_se: float | None = None
+    L_q: float | None = None
+    L_q_se: float | None = None
 
 
 @dataclass(frozen=True)

@@ -271,15 +271,18 @@ def motor_estimate(evidence: Evidence) -> MotorEstimate | None:
     fit = evidence.fit
     if fit is None or fit.structure is None:
         return None
-    theta = fit.parameters
     se = np.sqrt(np.maximum(np.diag(fit.parameter_covariance), 0.0))
+    names = fit.structure.names(fit.structure.dead_time)
+    values = dict(zip(names, fit.parameters.tolist(), strict=True))
+    errors = dict(zip(names, se.tolist(), strict=True))
     back_emf = np.concatenate([e.w[:, 0] for e in evidence.episodes if e.w is not None])
     flux = float(np.mean(back_emf)) / fit.structure.electrical_speed
-    dead_time = fit.structure.dead_time
     return MotorEstimate(
-        R_s=float(theta[0]), R_s_se=float(se[0]), L_s=float(theta[1]), L_s_se=float(se[1]),
-        phi_pm=float(theta[2]) * flux, phi_pm_se=float(se[2]) * abs(flux),
-        v=float(theta[3]) if dead_time else None, v_se=float(se[3]) if dead_time else None,
+        R_s=values["R_s"], R_s_se=errors["R_s"], L_s=values.get("L_s"), L_s_se=errors.get("L_s"),
+        phi_pm=values["kappa"] * flux, phi_pm_se=errors["kappa"] * abs(flux),
+        v=values.get("v"), v_se=errors.get("v"),
+        L_d=values.get("L_d"), L_d_se=errors.get("L_d"), L_q=values.get("L_q"),
+        L_q_se=errors.get("L_q"),
     )  # fmt: skip
 
 
