@@ -30,6 +30,7 @@ __all__ = [
     "ComplexArray",
     "PwmSegments",
     "carrier_edges",
+    "carrier_mean",
     "carrier_sample",
     "carrier_segments",
     "dead_time_voltage",
@@ -209,21 +210,37 @@ def carrier_sample(
         mean = exp(-j theta) V_dc sum_x CLARKE_x w_x exp(-j w_e m_x) sinc_x / T
 
     ``m_x = (r_x + f_x) / 2``, ``sinc_x = sin(y) / y``, ``y = w_e w_x / 2``: the mean of
-    ``exp(-j w_e s)`` over the pulse. A leg that never rises adds nothing.
+    ``exp(-j w_e s)`` over the pulse (:func:`carrier_mean`). A leg that never rises adds
+    nothing.
     """
     gamma, R_s, w, decay = motor
-    forced = total = 0j
+    forced = 0j
     for (rise, fall), direction in zip(edges, _CLARKE, strict=True):
         width = fall - rise
         if width == 0.0:
             continue
         forced += direction * (-exp(-gamma * (period - fall)) * expm1(-gamma * width))
-        half = 0.5 * w * width
-        middle = w * (rise + 0.5 * width)
+    after = decay * current + dc_voltage * forced / R_s + emf
+    return after, carrier_mean(edges, dc_voltage, period, w, rotor)
+
+
+def carrier_mean(
+    edges: Sequence[tuple[float, float]], dc_voltage: float, period: float, speed: float,
+    rotor: complex,
+) -> complex:  # fmt: skip
+    """The mean rotor-frame voltage over one carrier period (:func:`carrier_sample`), V,
+    of any motor: the legs' ``edges``, the electrical ``speed`` ``w_e`` (rad/s) and
+    ``rotor`` ``exp(j theta)`` at the period's start."""
+    total = 0j
+    for (rise, fall), direction in zip(edges, _CLARKE, strict=True):
+        width = fall - rise
+        if width == 0.0:
+            continue
+        half = 0.5 * speed * width
+        middle = speed * (rise + 0.5 * width)
         mean = sin(half) / half if half != 0.0 else 1.0
         total += direction * (width * mean) * complex(cos(middle), -sin(middle))
-    after = decay * current + dc_voltage * forced / R_s + emf
-    return after, rotor.conjugate() * (dc_voltage * total) / period
+    return rotor.conjugate() * (dc_voltage * total) / period
 
 
 # -- the time loop ----------------------------------------------------------------------
@@ -255,7 +272,9 @@ class _CarrierInverter:
             )
         )  # fmt: skip
         self.rotor, self.modulation = inputs.rotor.tolist(), inputs.modulation.tolist()
-        self.emf = inputs.emf.tolist()
+        frames = inputs.frames  # interior motors: the rotor frame (._salient)
+        self.frames = None if frames is None else frames.frames
+        self.emf = inputs.emf.tolist() if frames is None else []
         noise = sensor.noise
         if noise is not None and noise.shape[0] != plants:  # one noise for all motors
             noise = np.broadcast_to(noise, (plants, *noise.shape[1:]))
@@ -311,9 +330,16 @@ class _CarrierInverter:
             extra, current = extras[computed_at], self.current[i]
             dc, period = self.dc_voltage, self.period
             edges = carrier_edges(command + extra, dc, period, self.dead_time, self.signs[i])
-            self.current[i], self.applied[i][k] = carrier_sample(
-                self.motors[i], current, edges, dc, period, self.emf[i][k], self.rotor[i][k]
+            if self.frames is None:
+                self.current[i], self.applied[i][k] = carrier_sample(
+                    self.motors[i], current, edges, dc, period, self.emf[i][k], self.rotor[i][k]
+                )
+                continue
+            rotor = self.rotor[i][k]
+            self.current[i] = self.frames[i].carrier_sample(
+                current, edges, dc, _CLARKE, rotor, self.rotor[i][k + 1]
             )
+            self.applied[i][k] = carrier_mean(edges, dc, period, self.motors[i][2], rotor)
 
     def results(self) -> _Results:
         """As :meth:`._inverter._Inverter.results`."""
