@@ -42,13 +42,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from functools import cached_property
+from typing import TYPE_CHECKING, TypeVar, cast
 
 import numpy as np
 
 from ..core import Array
 from ..core._voltage_limit import limit_magnitude
 from ..errors import InputError
-from ..model import IPMSM, Motor
+from ..model import IPMSM, SPMSM, Motor
 from ._checks import as_float_array, as_generator
 from ._exploration import Exploration
 from ._pwm import (
@@ -77,6 +78,7 @@ __all__ = [
     "LoopState",
     "Modulator",
     "MotorBatch",
+    "MotorT",
     "PwmSegments",
     "carrier_segments",
     "dead_time_voltage",
@@ -95,13 +97,25 @@ COPPER_COEFFICIENT = 0.0039
 MAGNET_COEFFICIENT = 0.001
 
 
-def scaled_motor(motor: Motor, R_s: float, L: float, phi_pm: float) -> Motor:
+if TYPE_CHECKING:  # a default (PEP 696) for the type checker: a drive's motor is a surface one
+    from typing_extensions import TypeVar as DefaultTypeVar
+
+    #: A surface or an interior motor, kept through what is made of it.
+    MotorT = DefaultTypeVar("MotorT", bound=SPMSM | IPMSM, default=SPMSM)
+else:
+    MotorT = TypeVar("MotorT", bound=SPMSM | IPMSM)
+
+
+def scaled_motor(motor: MotorT, R_s: float, L: float, phi_pm: float) -> MotorT:
     """The motor with its R_s, inductances (L_s; an interior motor's L_d and L_q both)
-    and phi_pm multiplied by the factors ``R_s``, ``L`` and ``phi_pm``."""
-    R, phi = motor.R_s * R_s, motor.phi_pm * phi_pm
-    if isinstance(motor, IPMSM):
-        return replace(motor, R_s=R, L_d=motor.L_d * L, L_q=motor.L_q * L, phi_pm=phi)
-    return replace(motor, R_s=R, L_s=motor.L_s * L, phi_pm=phi)
+    and phi_pm multiplied by the factors ``R_s``, ``L`` and ``phi_pm`` (of its type)."""
+    given: Motor = motor
+    R, phi = given.R_s * R_s, given.phi_pm * phi_pm
+    if isinstance(given, IPMSM):
+        scaled: Motor = replace(given, R_s=R, L_d=given.L_d * L, L_q=given.L_q * L, phi_pm=phi)
+    else:
+        scaled = replace(given, R_s=R, L_s=given.L_s * L, phi_pm=phi)
+    return cast(MotorT, scaled)
 
 
 def phasor_mean(x: Array) -> ComplexArray:

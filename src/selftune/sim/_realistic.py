@@ -53,7 +53,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Generic
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -75,6 +75,7 @@ from ._inverter import (
     LoopOutputs,
     Modulator,
     MotorBatch,
+    MotorT,
     random_inputs,
     run_loop,
     scaled_motor,
@@ -122,7 +123,7 @@ class DriveRecord:
 
 
 @dataclass(frozen=True)
-class RealisticDrive:
+class RealisticDrive(Generic[MotorT]):
     """A realistic simulated drive (see the module docstring); implements the Drive protocol.
 
     Episodes (:meth:`record`, :meth:`run`) start from rest (currents, past commands and
@@ -141,7 +142,7 @@ class RealisticDrive:
         The drive's effects (default: one-sample delay, average PWM, nothing else).
     """
 
-    motor: Motor
+    motor: MotorT
     speed: float
     h: float
     settings: DriveSettings = field(default_factory=DriveSettings)
@@ -161,7 +162,7 @@ class RealisticDrive:
         return self.motor.p
 
     @property
-    def true_motor(self) -> Motor:
+    def true_motor(self) -> MotorT:
         """The motor at its operating temperature (R_s and phi_pm corrected; of the
         motor's own type)."""
         rise = self.settings.temperature_rise

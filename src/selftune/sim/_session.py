@@ -195,7 +195,7 @@ class DriveSession:
 
     def __init__(
         self,
-        drive: RealisticDrive,
+        drive: RealisticDrive[Any],
         law: ControlLaw,
         *,
         seed: int,
