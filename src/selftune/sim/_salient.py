@@ -29,8 +29,8 @@ The matrix exponential of the 2 x 2 A is its closed form ``exp(s tau) [cosh(delt
 sinh(delta tau) / delta (A - s I)]``, ``s = trace / 2``, ``delta^2 = ((a - d) / 2)^2 + b c``
 (cosine and sine for ``delta^2 < 0``, ``tau`` at 0), with ``exp(A tau) - I`` formed
 without cancellation. No ODE solver. :class:`RotorFrame` is one motor in Python floats
-(the carrier PWM's pulses, :mod:`._pwm`); :class:`RotorFrames` P motors' sample maps as
-arrays (the average PWM, :func:`~selftune.sim._inverter._step`).
+(the carrier PWM's pulses, :func:`._pwm.carrier_sample`); :class:`RotorFrames` P
+motors' sample maps as arrays (the average PWM, :func:`~selftune.sim._inverter._step`).
 """
 
 from __future__ import annotations
@@ -154,26 +154,10 @@ class RotorFrame:
         held = _held(self.A, self.G, speed, fall - rise, turned)
         return held + _times(exp_minus_identity(self.A, self.period - fall), held)
 
-    def carrier_sample(
-        self,
-        current: complex,
-        edges: Sequence[tuple[float, float]],
-        dc_voltage: float,
-        directions: Sequence[complex],
-        rotor: complex,
-        following: complex,
-    ) -> complex:
-        """``i_ab`` at the end of one carrier period (:func:`._pwm.carrier_sample` for a
-        salient motor): ``current`` the start's ``i_ab``, ``edges`` the legs'
-        ``[rise, fall)``, ``directions`` the legs' Clarke row, ``rotor`` and
-        ``following`` ``exp(j theta)`` at the period's start and end."""
-        turn = rotor.conjugate()
-        after = _times(self.decay, turn * current) + self.emf
-        for (rise, fall), direction in zip(edges, directions, strict=True):
-            if fall == rise:
-                continue
-            after += self.pulse(rise, fall, dc_voltage * turn * direction)
-        return following * after
+    def free(self, current: complex) -> complex:
+        """``exp(A T) i + (exp(A T) - I) A^-1 d``: the current at the sample's end (A, ``d
+        + j q``) from ``current`` at its start, with no voltage."""
+        return _times(self.decay, current) + self.emf
 
 
 def _held(A: Matrix, G: Matrix, speed: float, tau: float, v: complex) -> complex:
