@@ -83,6 +83,7 @@ __all__ = [
     "carrier_segments",
     "dead_time_voltage",
     "from_phases",
+    "heated_motor",
     "leg_duties",
     "phasor_mean",
     "random_inputs",
@@ -116,6 +117,13 @@ def scaled_motor(motor: MotorT, R_s: float, L: float, phi_pm: float) -> MotorT:
     else:
         scaled = replace(given, R_s=R, L_s=given.L_s * L, phi_pm=phi)
     return cast(MotorT, scaled)
+
+
+def heated_motor(motor: MotorT, temperature_rise: float) -> MotorT:
+    """The motor at ``temperature_rise`` (K) above its nameplate's: ``R_s (1 + 0.0039 dT)``,
+    ``phi_pm (1 - 0.001 dT)``, the inductances unchanged."""
+    copper = 1.0 + COPPER_COEFFICIENT * temperature_rise
+    return scaled_motor(motor, copper, 1.0, 1.0 - MAGNET_COEFFICIENT * temperature_rise)
 
 
 def phasor_mean(x: Array) -> ComplexArray:
@@ -158,13 +166,13 @@ class MotorBatch:
     def build(cls, motors: Sequence[Motor], speed: Array, temperature_rise: float) -> MotorBatch:
         """The motors (nameplate values) heated by ``temperature_rise`` (K), at ``speed``
         (rad/s, mechanical, one per motor)."""
+        motors = [heated_motor(motor, temperature_rise) for motor in motors]
         p = np.array([motor.p for motor in motors], dtype=float)
         return cls(
-            R_s=np.array([m.R_s for m in motors]) * (1.0 + COPPER_COEFFICIENT * temperature_rise),
+            R_s=np.array([m.R_s for m in motors]),
             L_d=np.array([m.L_d for m in motors]),
             L_q=np.array([m.L_q for m in motors]),
-            phi_pm=np.array([m.phi_pm for m in motors])
-            * (1.0 - MAGNET_COEFFICIENT * temperature_rise),
+            phi_pm=np.array([m.phi_pm for m in motors]),
             p=p,
             electrical_speed=p * speed,
             interior=np.array([isinstance(m, IPMSM) for m in motors], dtype=bool),

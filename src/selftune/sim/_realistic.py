@@ -67,8 +67,6 @@ from ._checks import as_float_array
 from ._drive_settings import DriveSettings
 from ._exploration import Exploration
 from ._inverter import (
-    COPPER_COEFFICIENT,
-    MAGNET_COEFFICIENT,
     ComplexArray,
     CurrentSensor,
     LoopInputs,
@@ -76,9 +74,9 @@ from ._inverter import (
     Modulator,
     MotorBatch,
     MotorT,
+    heated_motor,
     random_inputs,
     run_loop,
-    scaled_motor,
 )
 from ._profile import ParameterProfile
 from ._signals import ExogenousSignal, check_signal_values, constant
@@ -165,9 +163,7 @@ class RealisticDrive(Generic[MotorT]):
     def true_motor(self) -> MotorT:
         """The motor at its operating temperature (R_s and phi_pm corrected; of the
         motor's own type)."""
-        rise = self.settings.temperature_rise
-        heated = (1.0 + COPPER_COEFFICIENT * rise, 1.0, 1.0 - MAGNET_COEFFICIENT * rise)
-        return scaled_motor(self.motor, *heated)
+        return heated_motor(self.motor, self.settings.temperature_rise)
 
     @property
     def loop(self) -> SampledLoop:
