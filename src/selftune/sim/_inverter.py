@@ -13,7 +13,11 @@ w_e s)`` over ``[0, tau]`` (a constant part and one turning with the rotor), exa
              + (r - j w_e phi_pm exp(j theta_0)) (exp(j w_e tau) - a) / (L_s (gamma + j w_e))
 
 ``a = exp(-gamma tau)``, ``gamma = R_s / L_s``: the EMF and a turning voltage are the same
-integral ``int_0^tau exp(-gamma (tau - s)) exp(j w_e s) ds``. No ODE solver.
+integral ``int_0^tau exp(-gamma (tau - s)) exp(j w_e s) ds``. No ODE solver. An interior
+motor (``L_d != L_q``, :class:`~selftune.model.IPMSM`) is not a complex scalar in the
+stationary frame: it is propagated in the rotor frame, as exactly (:mod:`._salient`), and
+its torque has the reluctance term. A batch with an interior motor takes that path for
+all its motors (a surface motor's numbers then agree with its own path to rounding).
 
 **Inverter**: two-level legs on ``V_dc``; space-vector duties ``d_x = 1/2 + (v_x + v_0) /
 V_dc``, ``v_0 = -(max v_x + min v_x) / 2``, in ``[0, 1]`` while ``|v| <= V_dc / sqrt(3)``.
@@ -36,15 +40,16 @@ an ADC rounding to the LSB ``adc_range / 2**(adc_bits - 1)`` and clipping to the
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
+from typing import TYPE_CHECKING, TypeVar, cast
 
 import numpy as np
 
 from ..core import Array
 from ..core._voltage_limit import limit_magnitude
 from ..errors import InputError
-from ..model import SPMSM
+from ..model import IPMSM, SPMSM, Motor
 from ._checks import as_float_array, as_generator
 from ._exploration import Exploration
 from ._pwm import (
@@ -59,6 +64,7 @@ from ._pwm import (
     leg_duties,
     to_phases,
 )
+from ._salient import RotorFrames
 from ._stepper import Feedback, run_closed_loop
 
 __all__ = [
@@ -72,14 +78,17 @@ __all__ = [
     "LoopState",
     "Modulator",
     "MotorBatch",
+    "MotorT",
     "PwmSegments",
     "carrier_segments",
     "dead_time_voltage",
     "from_phases",
+    "heated_motor",
     "leg_duties",
     "phasor_mean",
     "random_inputs",
     "run_loop",
+    "scaled_motor",
     "to_phases",
 ]
 
@@ -87,6 +96,34 @@ __all__ = [
 COPPER_COEFFICIENT = 0.0039
 #: Flux loss of NdFeB magnets per kelvin, 1/K.
 MAGNET_COEFFICIENT = 0.001
+
+
+if TYPE_CHECKING:  # a default (PEP 696) for the type checker: a drive's motor is a surface one
+    from typing_extensions import TypeVar as DefaultTypeVar
+
+    #: A surface or an interior motor, kept through what is made of it.
+    MotorT = DefaultTypeVar("MotorT", bound=SPMSM | IPMSM, default=SPMSM)
+else:
+    MotorT = TypeVar("MotorT", bound=SPMSM | IPMSM)
+
+
+def scaled_motor(motor: MotorT, R_s: float, L: float, phi_pm: float) -> MotorT:
+    """The motor with its R_s, inductances (L_s; an interior motor's L_d and L_q both)
+    and phi_pm multiplied by the factors ``R_s``, ``L`` and ``phi_pm`` (of its type)."""
+    given: Motor = motor
+    R, phi = given.R_s * R_s, given.phi_pm * phi_pm
+    if isinstance(given, IPMSM):
+        scaled: Motor = replace(given, R_s=R, L_d=given.L_d * L, L_q=given.L_q * L, phi_pm=phi)
+    else:
+        scaled = replace(given, R_s=R, L_s=given.L_s * L, phi_pm=phi)
+    return cast(MotorT, scaled)
+
+
+def heated_motor(motor: MotorT, temperature_rise: float) -> MotorT:
+    """The motor at ``temperature_rise`` (K) above its nameplate's: ``R_s (1 + 0.0039 dT)``,
+    ``phi_pm (1 - 0.001 dT)``, the inductances unchanged."""
+    copper = 1.0 + COPPER_COEFFICIENT * temperature_rise
+    return scaled_motor(motor, copper, 1.0, 1.0 - MAGNET_COEFFICIENT * temperature_rise)
 
 
 def phasor_mean(x: Array) -> ComplexArray:
@@ -104,34 +141,55 @@ class MotorBatch:
     ----------
     R_s : ndarray
         Stator resistance, ohm, heated: ``R_s (1 + 0.0039 dT)``.
-    L_s : ndarray
-        Stator inductance, H.
+    L_d, L_q : ndarray
+        d- and q-axis inductances, H (a surface motor's L_s both).
     phi_pm : ndarray
         Magnet flux linkage, Wb, heated: ``phi_pm (1 - 0.001 dT)``.
     p : ndarray
         Pole pairs.
     electrical_speed : ndarray
         ``w_e = p speed``, rad/s.
+    interior : ndarray of bool
+        Whether the motor is an :class:`~selftune.model.IPMSM` (propagated in the rotor
+        frame, :mod:`._salient`, even with ``L_d == L_q``).
     """
 
     R_s: Array
-    L_s: Array
+    L_d: Array
+    L_q: Array
     phi_pm: Array
     p: Array
     electrical_speed: Array
+    interior: Array
 
     @classmethod
-    def build(cls, motors: Sequence[SPMSM], speed: Array, temperature_rise: float) -> MotorBatch:
+    def build(cls, motors: Sequence[Motor], speed: Array, temperature_rise: float) -> MotorBatch:
         """The motors (nameplate values) heated by ``temperature_rise`` (K), at ``speed``
         (rad/s, mechanical, one per motor)."""
+        motors = [heated_motor(motor, temperature_rise) for motor in motors]
         p = np.array([motor.p for motor in motors], dtype=float)
         return cls(
-            R_s=np.array([m.R_s for m in motors]) * (1.0 + COPPER_COEFFICIENT * temperature_rise),
-            L_s=np.array([m.L_s for m in motors]),
-            phi_pm=np.array([m.phi_pm for m in motors])
-            * (1.0 - MAGNET_COEFFICIENT * temperature_rise),
+            R_s=np.array([m.R_s for m in motors]),
+            L_d=np.array([m.L_d for m in motors]),
+            L_q=np.array([m.L_q for m in motors]),
+            phi_pm=np.array([m.phi_pm for m in motors]),
             p=p,
             electrical_speed=p * speed,
+            interior=np.array([isinstance(m, IPMSM) for m in motors], dtype=bool),
+        )
+
+    @property
+    def L_s(self) -> Array:
+        """A surface motor's inductance ``L_d = L_q``, H (the complex path's)."""
+        return self.L_d
+
+    def frames(self, period: float) -> RotorFrames | None:
+        """The motors in the rotor frame over ``period`` (s) if one is an interior motor
+        (:mod:`._salient`), else None (the complex path)."""
+        if not np.any(self.interior):
+            return None
+        return RotorFrames.build(
+            self.R_s, self.L_d, self.L_q, self.phi_pm, self.electrical_speed, period
         )
 
     @property
@@ -151,10 +209,12 @@ class MotorBatch:
         shape = (-1,) + (1,) * (rotor.ndim - 1)
         return 1j * (self.electrical_speed * self.phi_pm).reshape(shape) * rotor
 
-    def torque(self, i_q: Array) -> Array:
-        """``1.5 p phi_pm i_q``, N m, with the true (heated) flux; ``i_q`` (P, ...) in A."""
+    def torque(self, i_q: Array, i_d: Array) -> Array:
+        """``1.5 p (phi_pm + (L_d - L_q) i_d) i_q``, N m, with the true (heated) flux;
+        ``i_q``, ``i_d`` (P, ...) in A (a surface motor's ``1.5 p phi_pm i_q``, bit for bit)."""
         shape = (-1,) + (1,) * (i_q.ndim - 1)
-        return 1.5 * (self.p * self.phi_pm).reshape(shape) * i_q
+        flux = self.phi_pm.reshape(shape) + (self.L_d - self.L_q).reshape(shape) * i_d
+        return 1.5 * (self.p.reshape(shape) * flux) * i_q
 
 
 @dataclass(frozen=True, eq=False)
@@ -283,6 +343,11 @@ class LoopInputs:
     rho: Array
 
     @cached_property
+    def frames(self) -> RotorFrames | None:
+        """:meth:`MotorBatch.frames` over a sample: None for surface motors only."""
+        return self.motor.frames(self.modulator.period)
+
+    @cached_property
     def decay(self) -> Array:
         """``exp(-gamma h)`` (P,)."""
         return np.exp(-self.motor.gamma * self.modulator.period)
@@ -380,14 +445,17 @@ def _step(
     amplitude = mod.dead_time_amplitude
     signs = np.sign(to_phases(current)) if amplitude > 0.0 else np.zeros((current.shape[0], 3))
     steady, turning = (command + extra, None) if mod.stationary else (extra, command)
-    emf = inputs.emf[:, k]
     assert not mod.carrier, "carrier PWM steps through _CarrierInverter"
     steady = steady + dead_time_voltage(signs, amplitude)
-    after = inputs.decay * current + inputs.charge * steady + emf
     mean = steady * np.conj(rotor) * inputs.turn
     if turning is not None:
-        after = after + turning * inputs.gain
         mean = mean + turning * np.conj(rotor)
+    frames = inputs.frames
+    if frames is not None:  # an interior motor: the rotor frame (._salient)
+        return frames.advance(current, steady, turning, rotor, inputs.rotor[:, k + 1]), mean
+    after = inputs.decay * current + inputs.charge * steady + inputs.emf[:, k]
+    if turning is not None:
+        after = after + turning * inputs.gain
     return after, mean
 
 

@@ -51,31 +51,47 @@ def dq_sample_map(inputs: LoopInputs, motor: MotorBatch) -> tuple[Array, Array, 
     (average PWM, no dead time), read off the inverter's step; the modulator, the law
     and the modulation's angle offset are those of ``inputs``.
 
-    Returns ``(a, b, c, v)``, complex (P,): ``i_(k+1) = a i_k + b u_k + c`` (``u_k`` the dq
-    command applied over sample k, ``c`` the back-EMF's part, A) and the mean dq voltage
-    over the sample ``v u_k``, V; the same at every rotor angle (here at ``theta = 0``).
+    Returns ``(Ad, Bd, c, v)``: ``i_(k+1) = Ad i_k + Bd u_k + c`` (real, (P, 2, 2) and
+    (P, 2), on ``[d, q]``; ``u_k`` the dq command applied over sample k, ``c`` the
+    back-EMF's part, A) and the mean dq voltage over the sample ``v u_k``, V (complex
+    (P,)); the same at every rotor angle (here at ``theta = 0``). A surface motor's maps
+    are complex scalars (read off the units 1); an interior motor's are read off 1 and j.
     """
     mod = inputs.modulator
     if mod.carrier or mod.dead_time_amplitude > 0.0:
         raise InputError("dq_sample_map: the inverter is not linear (carrier PWM or dead time)")
     count = motor.R_s.shape[0]
+    interior = bool(np.any(motor.interior))
+    units = (
+        np.array([[1, 0], [0, 1], [0, 0]], dtype=complex)
+        if not interior
+        else np.array([[1, 0], [1j, 0], [0, 1], [0, 1j], [0, 0]], dtype=complex)
+    )
+    probes = units.shape[0]
     probe = MotorBatch(
-        **{name: np.tile(getattr(motor, name), 3) for name in motor.__dataclass_fields__}
+        **{name: np.tile(getattr(motor, name), probes) for name in motor.__dataclass_fields__}
     )
     rotor = np.exp(1j * probe.electrical_speed[:, np.newaxis] * np.array([0.0, mod.period]))
     turn = inputs.modulation[:1, :1] / inputs.rotor[:1, :1]  # exp(j eps)
     one = LoopInputs(
         motor=probe, modulator=mod, feedback=inputs.feedback, sensor=inputs.sensor,
-        rotor=rotor, modulation=np.repeat(turn, 3 * count, axis=0), w=inputs.w, rho=inputs.rho,
+        rotor=rotor, modulation=np.repeat(turn, probes * count, axis=0), w=inputs.w,
+        rho=inputs.rho,
     )  # fmt: skip
-    units = np.zeros((3, count), dtype=complex)
-    current, command = units.copy(), units.copy()
-    current[0], command[1] = 1.0, 1.0
-    after, mean = _step(
-        one, 0, current.ravel(), one.modulation[:, 0] * command.ravel(), 0 * units.ravel()
-    )
-    dq = (after * np.conj(one.rotor[:, 1])).reshape(3, count)
-    return dq[0] - dq[2], dq[1] - dq[2], dq[2], mean.reshape(3, count)[1]
+    current = np.repeat(units[:, :1], count, axis=1).ravel()
+    command = np.repeat(units[:, 1:], count, axis=1).ravel()
+    after, mean = _step(one, 0, current, one.modulation[:, 0] * command, 0 * current)
+    dq = (after * np.conj(one.rotor[:, 1])).reshape(probes, count)
+    free = dq[-1]
+    if not interior:
+        a, b = dq[0] - free, dq[1] - free
+        Ad = np.array([_real(complex(value)) for value in a]).reshape(count, 2, 2)
+        Bd = np.array([_real(complex(value)) for value in b]).reshape(count, 2, 2)
+        return Ad, Bd, _as_pairs(free), mean.reshape(probes, count)[1]
+    columns = _as_pairs(dq[:4] - free)  # (4, P, 2): the responses to 1, j; 1, j
+    Ad = np.stack([columns[0], columns[1]], axis=-1)
+    Bd = np.stack([columns[2], columns[3]], axis=-1)
+    return Ad, Bd, _as_pairs(free), mean.reshape(probes, count)[2]
 
 
 class LinearLoop:
@@ -113,15 +129,15 @@ class LinearLoop:
             if len(self._maps) + len(missing) > 256:
                 self._maps.clear()
                 missing = list(range(len(keys)))
-            a, b, c, v = dq_sample_map(inputs, stack_motors([motors[i] for i in missing]))
+            As, Bs, c, v = dq_sample_map(inputs, stack_motors([motors[i] for i in missing]))
             for row, index in enumerate(missing):
-                Ad, Bd = _real(a[row]), _real(b[row])
+                Ad, Bd = As[row], Bs[row]
                 step = self.base.copy()
                 step[:, :2] = self.base[:, :2] @ Bd.T
                 error = step[:2].copy()  # a measurement error acts through the law only
                 step[:2, :2] += Ad.T
                 forcing = np.zeros(step.shape[1])
-                forcing[:2] = c[row].real, c[row].imag
+                forcing[:2] = c[row]
                 lifted = Lifted(step[: self.base.shape[1]])
                 self._maps[keys[index]] = (step, error, forcing, complex(v[row]), lifted)
         return [self._maps[key] for key in keys]

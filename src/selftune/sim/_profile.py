@@ -7,6 +7,7 @@ just before, the second the value from that time on (right-continuous). A warm-u
 +40% on R_s and -8% on the flux over 120 s is the two points ``(0, 1, 1, 1)`` and
 ``(120, 1.4, 1, 0.92)``; a loose connection at 60 s adds ``(60, 1, 1, 1)`` and
 ``(60, 1.2, 1, 1)``.
+The L_s factor scales an interior motor's L_d and L_q both.
 """
 
 from __future__ import annotations

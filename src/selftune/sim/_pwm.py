@@ -23,6 +23,7 @@ from ..core._phases import CLARKE, PHASE_DIRECTIONS, ComplexArray, from_phases, 
 
 if TYPE_CHECKING:
     from ._inverter import LoopInputs, LoopState
+    from ._salient import RotorFrame
 
 __all__ = [
     "CLARKE",
@@ -194,6 +195,8 @@ def carrier_sample(
     period: float,
     emf: complex,
     rotor: complex,
+    frame: RotorFrame | None = None,
+    following: complex = 1.0,
 ) -> tuple[complex, complex]:
     """One motor over one carrier period (``period`` = T, s), exactly: ``i_ab`` at its end
     and the mean rotor-frame voltage over it, V.
@@ -209,21 +212,31 @@ def carrier_sample(
         mean = exp(-j theta) V_dc sum_x CLARKE_x w_x exp(-j w_e m_x) sinc_x / T
 
     ``m_x = (r_x + f_x) / 2``, ``sinc_x = sin(y) / y``, ``y = w_e w_x / 2``: the mean of
-    ``exp(-j w_e s)`` over the pulse. A leg that never rises adds nothing.
+    ``exp(-j w_e s)`` over the pulse. A leg that never rises adds nothing. An interior
+    motor gives its ``frame`` (:class:`~selftune.sim._salient.RotorFrame`; then
+    ``gamma``, ``R_s`` and ``emf`` are unused) and ``following``, ``exp(j theta)`` at the
+    period's end: each pulse is :meth:`RotorFrame.pulse` in the rotor frame.
     """
     gamma, R_s, w, decay = motor
+    turn = rotor.conjugate()
     forced = total = 0j
     for (rise, fall), direction in zip(edges, _CLARKE, strict=True):
         width = fall - rise
         if width == 0.0:
             continue
-        forced += direction * (-exp(-gamma * (period - fall)) * expm1(-gamma * width))
+        if frame is None:
+            forced += direction * (-exp(-gamma * (period - fall)) * expm1(-gamma * width))
+        else:
+            forced += frame.pulse(rise, fall, turn * direction)
         half = 0.5 * w * width
         middle = w * (rise + 0.5 * width)
         mean = sin(half) / half if half != 0.0 else 1.0
         total += direction * (width * mean) * complex(cos(middle), -sin(middle))
-    after = decay * current + dc_voltage * forced / R_s + emf
-    return after, rotor.conjugate() * (dc_voltage * total) / period
+    if frame is None:
+        after = decay * current + dc_voltage * forced / R_s + emf
+    else:
+        after = following * (frame.free(turn * current) + dc_voltage * forced)
+    return after, turn * (dc_voltage * total) / period
 
 
 # -- the time loop ----------------------------------------------------------------------
@@ -255,7 +268,9 @@ class _CarrierInverter:
             )
         )  # fmt: skip
         self.rotor, self.modulation = inputs.rotor.tolist(), inputs.modulation.tolist()
-        self.emf = inputs.emf.tolist()
+        frames = inputs.frames  # interior motors: the rotor frame (._salient)
+        self.frames = None if frames is None else frames.frames
+        self.emf = inputs.emf.tolist() if frames is None else []
         noise = sensor.noise
         if noise is not None and noise.shape[0] != plants:  # one noise for all motors
             noise = np.broadcast_to(noise, (plants, *noise.shape[1:]))
@@ -311,9 +326,15 @@ class _CarrierInverter:
             extra, current = extras[computed_at], self.current[i]
             dc, period = self.dc_voltage, self.period
             edges = carrier_edges(command + extra, dc, period, self.dead_time, self.signs[i])
-            self.current[i], self.applied[i][k] = carrier_sample(
-                self.motors[i], current, edges, dc, period, self.emf[i][k], self.rotor[i][k]
-            )
+            if self.frames is None:
+                self.current[i], self.applied[i][k] = carrier_sample(
+                    self.motors[i], current, edges, dc, period, self.emf[i][k], self.rotor[i][k]
+                )
+            else:
+                self.current[i], self.applied[i][k] = carrier_sample(
+                    self.motors[i], current, edges, dc, period, 0j, self.rotor[i][k],
+                    self.frames[i], self.rotor[i][k + 1],
+                )  # fmt: skip
 
     def results(self) -> _Results:
         """As :meth:`._inverter._Inverter.results`."""

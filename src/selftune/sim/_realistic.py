@@ -1,9 +1,12 @@
 """A realistic simulated drive: what a real digital current loop does to the data.
 
-:class:`RealisticDrive` runs a surface PMSM held at a speed by a load machine under a
+:class:`RealisticDrive` runs a PMSM (surface, :class:`~selftune.model.SPMSM`, or interior,
+:class:`~selftune.model.IPMSM`) held at a speed by a load machine under a
 :class:`~selftune.core.ControlLaw` and logs what a drive logs; the motor is propagated
-exactly in the stationary frame (:mod:`._inverter`); :func:`run_drive_batch` runs P motors
-in one time loop. The effects, and what each does to the ideal drive's sampled data
+exactly, a surface motor in the stationary frame (:mod:`._inverter`), an interior one in
+the rotor frame (:mod:`._salient`); :func:`run_drive_batch` runs P motors in one time loop.
+The formulas below are the surface motor's (``L_s``); an interior motor's effects are the
+same in kind. The effects, and what each does to the ideal drive's sampled data
 ``x_(k+1) = Ad x_k + Bd u_k + Ed w_k`` (SI units; ``w_e = p speed``, rad/s; h, s):
 
 - **Delay** d (``input_delay``): the command computed at ``t_k`` acts over
@@ -33,6 +36,8 @@ in one time loop. The effects, and what each does to the ideal drive's sampled d
   and as logged (errors in variables); ``i_d`` and ``i_q`` get ``sqrt(2/3) current_noise``.
 - **Temperature** dT: ``R_s (1 + 0.0039 dT)``, ``phi_pm (1 - 0.001 dT)``; the back-EMF is
   always the motor's own, whatever flux the controller's ``w`` assumes.
+- **Torque**: ``1.5 p (phi_pm + (L_d - L_q) i_d) i_q`` with the true flux (the reluctance
+  term is an interior motor's; a surface motor's is ``1.5 p phi_pm i_q``).
 
 The log holds the dq command, never the voltage the inverter made; :class:`DriveRecord`
 adds what a real drive cannot log. Timings (``python tests/test_drive_session.py``: this
@@ -48,7 +53,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Generic
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -57,19 +62,19 @@ from ..core import Array, ControlLaw, finite_float, positive_finite, positive_in
 from ..errors import InputError
 from ..learn import LoggedInput, Trajectory
 from ..loop import SampledLoop
-from ..model import SPMSM
+from ..model import IPMSM, SPMSM, Motor
 from ._checks import as_float_array
 from ._drive_settings import DriveSettings
 from ._exploration import Exploration
 from ._inverter import (
-    COPPER_COEFFICIENT,
-    MAGNET_COEFFICIENT,
     ComplexArray,
     CurrentSensor,
     LoopInputs,
     LoopOutputs,
     Modulator,
     MotorBatch,
+    MotorT,
+    heated_motor,
     random_inputs,
     run_loop,
 )
@@ -104,7 +109,8 @@ class DriveRecord:
     commanded_voltages : ndarray, shape (N, 2)
         The command computed at each sample (exploration included, limited), V.
     torque : ndarray, shape (N + 1,)
-        True electromagnetic torque ``1.5 p phi_pm i_q`` (true flux), N m.
+        True electromagnetic torque ``1.5 p (phi_pm + (L_d - L_q) i_d) i_q`` (true flux),
+        N m.
     """
 
     trajectory: Trajectory
@@ -115,7 +121,7 @@ class DriveRecord:
 
 
 @dataclass(frozen=True)
-class RealisticDrive:
+class RealisticDrive(Generic[MotorT]):
     """A realistic simulated drive (see the module docstring); implements the Drive protocol.
 
     Episodes (:meth:`record`, :meth:`run`) start from rest (currents, past commands and
@@ -124,7 +130,7 @@ class RealisticDrive:
 
     Attributes
     ----------
-    motor : SPMSM
+    motor : SPMSM or IPMSM
         The true motor (nameplate values; ``settings.temperature_rise`` heats it).
     speed : float
         Held mechanical speed, rad/s.
@@ -134,14 +140,16 @@ class RealisticDrive:
         The drive's effects (default: one-sample delay, average PWM, nothing else).
     """
 
-    motor: SPMSM
+    motor: MotorT
     speed: float
     h: float
     settings: DriveSettings = field(default_factory=DriveSettings)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.motor, SPMSM):
-            raise InputError(f"motor: expected an SPMSM, got {type(self.motor).__name__}")
+        if not isinstance(self.motor, SPMSM | IPMSM):
+            raise InputError(
+                f"motor: expected an SPMSM or an IPMSM, got {type(self.motor).__name__}"
+            )
         object.__setattr__(self, "speed", finite_float(self.speed, "speed"))
         object.__setattr__(self, "h", positive_finite(self.h, "h"))
         _check_settings(self.settings, self.h)
@@ -152,16 +160,10 @@ class RealisticDrive:
         return self.motor.p
 
     @property
-    def true_motor(self) -> SPMSM:
-        """The motor at its operating temperature (R_s and phi_pm corrected)."""
-        rise = self.settings.temperature_rise
-        return SPMSM(
-            R_s=self.motor.R_s * (1.0 + COPPER_COEFFICIENT * rise),
-            L_s=self.motor.L_s,
-            phi_pm=self.motor.phi_pm * (1.0 - MAGNET_COEFFICIENT * rise),
-            p=self.motor.p,
-            J=self.motor.J,
-        )
+    def true_motor(self) -> MotorT:
+        """The motor at its operating temperature (R_s and phi_pm corrected; of the
+        motor's own type)."""
+        return heated_motor(self.motor, self.settings.temperature_rise)
 
     @property
     def loop(self) -> SampledLoop:
@@ -217,9 +219,11 @@ class RealisticDrive:
         Parameters
         ----------
         law : ControlLaw
-            The controller (n = m = 2, q = 2).
+            The controller (n = m = 2; q = 2 for a surface motor, 3 for an interior one).
         reference : ExogenousSignal
-            ``w = [p speed phi, T*]`` as the controller sees it (held).
+            ``w`` as the controller sees it (held): the motor's
+            :meth:`~selftune.model.SPMSM.exogenous` form, ``[p speed phi, T*]`` (surface)
+            or ``[p speed phi, i_d*, i_q*]`` (interior).
         num_samples : int
             N, samples.
         exploration : Exploration or None
@@ -253,7 +257,8 @@ class RealisticDrive:
         seed : int
             Seed of the generator of the measurement noise.
         profile : ParameterProfile, optional
-            Factors on :attr:`true_motor`'s R_s, L_s, phi_pm over time (default: none).
+            Factors on :attr:`true_motor`'s R_s, L_s, phi_pm over time (default: none; an
+            interior motor's L_d and L_q both take the L_s factor).
         max_hold : float
             The longest interval the parameters are held constant over, s.
         integrator : array_like, shape (r,), optional
@@ -281,7 +286,7 @@ class RealisticDrive:
         seed : int
             Seed of the one generator of the exploration and the noise.
         """
-        reference = constant([self.motor.p * self.speed])
+        reference = constant(self.motor.no_load_exogenous(self.speed))
         return self.run(law, reference, num_samples=num_samples, exploration=exploration, seed=seed)
 
 
@@ -293,13 +298,15 @@ def _check_settings(settings: object, h: float) -> DriveSettings:
     return settings
 
 
-def _motors(motors: Sequence[SPMSM], speed: ArrayLike) -> tuple[list[SPMSM], Array]:
+def _motors(motors: Sequence[Motor], speed: ArrayLike) -> tuple[list[Motor], Array]:
     given = list(motors) if isinstance(motors, Sequence) else [motors]
     if not given:
         raise InputError("motors: no motor given")
     for index, motor in enumerate(given):
-        if not isinstance(motor, SPMSM):
-            raise InputError(f"motors: item {index} is a {type(motor).__name__}, not an SPMSM")
+        if not isinstance(motor, SPMSM | IPMSM):
+            raise InputError(
+                f"motors: item {index} is a {type(motor).__name__}, not an SPMSM or an IPMSM"
+            )
     speeds = as_float_array(speed, "speed")
     if speeds.ndim > 1 or (speeds.ndim == 1 and speeds.shape[0] not in (1, len(given))):
         raise InputError(
@@ -398,7 +405,7 @@ def _records(
         start = pad - settings.input_delay
         logged = outputs.commands[:, start : start + count]
     measured, true_pairs = _as_pairs(outputs.measured), _as_pairs(true_dq)
-    applied, torque = _as_pairs(outputs.applied), inputs.motor.torque(true_dq.imag)
+    applied, torque = _as_pairs(outputs.applied), inputs.motor.torque(true_dq.imag, true_dq.real)
     w = np.broadcast_to(inputs.w, (true_dq.shape[0], *inputs.w.shape[1:]))
     angles = np.angle(inputs.rotor)  # the rotor angle at each sample, in (-pi, pi]
     records = []
@@ -430,7 +437,7 @@ def _check_finite(values: ComplexArray, t: Array) -> None:
 
 
 def run_drive_batch(
-    motors: Sequence[SPMSM],
+    motors: Sequence[Motor],
     speed: ArrayLike,
     h: float,
     settings: DriveSettings,
@@ -449,8 +456,9 @@ def run_drive_batch(
 
     Parameters
     ----------
-    motors : sequence of SPMSM
-        The P motors (nameplate values).
+    motors : sequence of SPMSM or IPMSM
+        The P motors (nameplate values; a batch with an interior motor propagates all in
+        the rotor frame, :mod:`._salient`).
     speed : float or array_like, shape (P,)
         Held mechanical speed, rad/s (common or one per motor).
     h : float

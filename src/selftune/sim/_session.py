@@ -11,15 +11,15 @@ integrators and past inputs, and the random generator (the measurement noise con
 Run in chunks of any sizes with one law, the session gives the samples of one run over
 all of them (the same seed), to rounding.
 
-**Heating and faults** (:class:`~selftune.sim._profile.ParameterProfile`): the motor's R_s,
-L_s and phi_pm are the drive's true motor's (:attr:`RealisticDrive.true_motor`) times the
-profile's factors. The drive holds them constant over intervals of at most ``max_hold``
-on a grid fixed in time (sample ``j M``, ``M = round(max_hold / h)``), cut at the
-profile's times moved to the nearest sample instant (a step acts from the sample nearest
-its time: the current at that sample is the old motor's, the next the new one's); over
-each interval the values are the profile's at its midpoint, so a linear ramp's error is
-at most half its change over ``max_hold`` (+40% over 120 s held 10 ms, the default:
-1.7e-5 of R_s).
+**Heating and faults** (:class:`~selftune.sim._profile.ParameterProfile`): the motor's
+R_s, L_s and phi_pm are the drive's true motor's (:attr:`RealisticDrive.true_motor`)
+times the profile's factors (an interior motor's L_d and L_q both take the L_s factor).
+The drive holds them constant over intervals of at most ``max_hold`` on a grid fixed in
+time (sample ``j M``, ``M = round(max_hold / h)``), cut at the profile's times moved to
+the nearest sample instant (a step acts from the sample nearest its time: the current at
+that sample is the old motor's, the next the new one's); over each interval the values
+are the profile's at its midpoint, so a linear ramp's error is at most half its change
+over ``max_hold`` (+40% over 120 s held 10 ms, the default: 1.7e-5 of R_s).
 The motor is re-discretized only where the values change. The approximation: within a
 sample the parameters never move (they move between samples only).
 
@@ -49,7 +49,6 @@ from numpy.typing import ArrayLike, NDArray
 from ..core import Array, ControlLaw, positive_finite, positive_integer
 from ..errors import InputError
 from ..learn import Trajectory
-from ..model import SPMSM
 from ._checks import as_float_array, as_generator
 from ._inverter import (
     ComplexArray,
@@ -58,6 +57,7 @@ from ._inverter import (
     LoopState,
     MotorBatch,
     run_loop,
+    scaled_motor,
 )
 from ._linear import LinearLoop
 from ._profile import ParameterFactors, ParameterProfile, interpolate
@@ -106,9 +106,13 @@ class DriveChunk:
     commanded_voltages : ndarray, shape (N, 2)
         The command computed at each sample (probing included, limited), V.
     torque : ndarray, shape (N + 1,)
-        True torque ``1.5 p phi_pm i_q`` with the flux in effect, N m.
+        True torque ``1.5 p (phi_pm + (L_d - L_q) i_d) i_q`` with the values in effect, N m.
     R_s, L_s, phi_pm : ndarray, shape (N + 1,)
-        The true motor's values over ``[t_k, t_(k+1))``, ohm, H, Wb.
+        The true motor's values over ``[t_k, t_(k+1))``, ohm, H, Wb (``L_s``: the
+        nameplate's ``L_d`` times the inductance factor, a surface motor's L_s).
+    L_d, L_q : ndarray, shape (N + 1,)
+        The d- and q-axis inductances over the same intervals, H (equal for a surface
+        motor).
     """
 
     first_sample: int
@@ -124,6 +128,8 @@ class DriveChunk:
     R_s: Array
     L_s: Array
     phi_pm: Array
+    L_d: Array
+    L_q: Array
 
     @property
     def num_samples(self) -> int:
@@ -189,7 +195,7 @@ class DriveSession:
 
     def __init__(
         self,
-        drive: RealisticDrive,
+        drive: RealisticDrive[Any],
         law: ControlLaw,
         *,
         seed: int,
@@ -431,11 +437,7 @@ class DriveSession:
     def _motor(self, factors: ParameterFactors) -> MotorBatch:
         key = (float(factors.R_s), float(factors.L_s), float(factors.phi_pm))
         if key not in self._motors:
-            true = self._true
-            motor = SPMSM(
-                R_s=true.R_s * key[0], L_s=true.L_s * key[1], phi_pm=true.phi_pm * key[2],
-                p=true.p, J=true.J,
-            )  # fmt: skip
+            motor = scaled_motor(self._true, *key)
             if len(self._motors) > 64:
                 self._motors.clear()
             self._motors[key] = MotorBatch.build([motor], self._speed, 0.0)
@@ -526,7 +528,10 @@ class DriveSession:
         factors = np.array([piece.factors for piece in held] + [following], dtype=float)
         R_s, L_s, phi_pm = np.repeat(factors, lengths, axis=0).T
         true = self._true
-        torque = self._nameplate.torque(true_dq.imag[np.newaxis])[0] * phi_pm
+        # 1.5 p (phi f_phi + (L_d - L_q) f_L i_d) i_q as the nameplate's torque with i_d
+        # scaled by f_L / f_phi, times f_phi (a surface motor's as before, bit for bit)
+        scaled_d = (true_dq.real * (L_s / phi_pm))[np.newaxis]
+        torque = self._nameplate.torque(true_dq.imag[np.newaxis], scaled_d)[0] * phi_pm
         return DriveChunk(
             first_sample=first,
             h=h,
@@ -539,6 +544,8 @@ class DriveSession:
             commanded_voltages=_read_only(computed.copy()),
             torque=_read_only(torque),
             R_s=_read_only(true.R_s * R_s),
-            L_s=_read_only(true.L_s * L_s),
+            L_s=_read_only(true.L_d * L_s),
             phi_pm=_read_only(true.phi_pm * phi_pm),
+            L_d=_read_only(true.L_d * L_s),
+            L_q=_read_only(true.L_q * L_s),
         )
