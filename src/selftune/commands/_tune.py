@@ -13,6 +13,7 @@ from ..config import MotorConfig
 from ..core import finite_or_null, to_jsonable
 from ..core._atomic import check_output_directory
 from ..errors import DataFileError, InputError
+from ..model import IPMSM
 from ._output import (
     STANDARD_OUTPUT,
     _check_json_target,
@@ -24,6 +25,48 @@ from ._output import (
     _write_json,
     _write_report,
 )
+
+
+def _tune_interior(
+    config: MotorConfig,
+    motor: IPMSM,
+    seed: int,
+    json_path: str | None,
+    algorithm: str,
+    target: str | None,
+    report_dir: str | None,
+) -> int:
+    """``selftune tune`` of an interior motor: identify, design, MTPA, check the torque
+    (:func:`selftune.tuning.commission_interior`), on the file's realistic drive."""
+    from ..report import evaluate_interior, interior_document, interior_lines
+    from ..tuning import commission_interior, tuning_settings
+
+    for given, wanted, what in (
+        (algorithm, "offpolicy", "--algorithm"),
+        (target, "digital", "--target"),
+    ):
+        if given not in (None, wanted):
+            raise InputError(
+                f"{what}: an interior PM motor is commissioned by identify-then-design of the"
+                f" digital target; {given} is for a surface motor (leave {what} out)"
+            )
+    if report_dir is not None:
+        raise InputError("--report: not yet written for an interior PM motor; use --json")
+    if config.drive is None:
+        raise InputError(
+            f"{config.source}: an interior PM motor is commissioned on a realistic drive:"
+            " add a [drive] table (e.g. switching_frequency = 10000.0, input_delay = 1)"
+        )
+    settings = tuning_settings(config, seed, "digital")
+    with _numerics(config.source) as caught:
+        result = commission_interior(motor, settings, config.drive, seed=seed)
+        evaluation = evaluate_interior(result, motor, settings, config.drive)
+    _check_numerics(config.source, caught, result.learned.law.K)
+    lines = interior_lines(config.source, result, evaluation, config.drive)
+    if json_path is not None:
+        _write_json(json_path, interior_document(motor, settings, result, evaluation, config.drive))
+    _print_report(lines, json_path)
+    return 0
 
 
 def tune_command(
@@ -61,6 +104,8 @@ def tune_command(
 
     _check_json_target(json_path)
     _check_report_target(report_dir)
+    if isinstance(config.motor, IPMSM):
+        return _tune_interior(config, config.motor, seed, json_path, algorithm, target, report_dir)
     motor = config.surface_motor()
     settings = tuning_settings(config, seed, target)
     with _numerics(config.source) as caught:

@@ -36,6 +36,12 @@ from ._evaluate import (
 )
 from ._firmware import ANTI_WINDUP, FIRMWARE_FILES, Firmware, firmware, write_firmware
 from ._html_report import LEARN_REPORT_FILES, verdict_sentence, write_learn_report
+from ._interior_report import (
+    InteriorEvaluation,
+    evaluate_interior,
+    interior_document,
+    interior_lines,
+)
 from ._learn_figures import FIGURE_STEMS, LearnFigureData, learn_figure_data, learn_figures
 from ._online_report import (
     ONLINE_REPORT_FILES,
@@ -77,6 +83,7 @@ __all__ = [
     "STEADY_SECONDS",
     "TIMELINE_POINTS",
     "Firmware",
+    "InteriorEvaluation",
     "LearnFigureData",
     "OnlineEvaluation",
     "Reproduction",
@@ -87,11 +94,14 @@ __all__ = [
     "drive_text",
     "evaluate",
     "evaluate_digital",
+    "evaluate_interior",
     "evaluate_online",
     "feedback_excess_cost",
     "feedback_value",
     "firmware",
     "history_document",
+    "interior_document",
+    "interior_lines",
     "learn_figure_data",
     "learn_figures",
     "online_document",

@@ -14,12 +14,13 @@ sampled plant; it is never negative, and the feedforward's error is reported bes
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TypeVar
 
 import numpy as np
 
 from ..core import Array, ControlLaw
 from ..errors import UnsolvableError
-from ..model import SPMSM, ModelBasedSolution, solve_digital_regulation
+from ..model import IPMSM, SPMSM, ModelBasedSolution, solve_digital_regulation
 from ..sim import DriveSettings, RealisticDrive, constant, simulate_loop
 from ..tuning import TuningResult, TuningSettings
 from ._evaluate import TuningEvaluation, block_error, learner_integral_weight
@@ -33,16 +34,18 @@ __all__ = [
     "true_motor",
 ]
 
+MotorT = TypeVar("MotorT", SPMSM, IPMSM)
+
 #: Length of the torque step over which a digital loop's cost is summed, s.
 STEP_SECONDS = 0.5
 
 
-def true_motor(motor: SPMSM, drive: DriveSettings | None) -> SPMSM:
+def true_motor(motor: MotorT, drive: DriveSettings | None) -> MotorT:
     """The motor at the drive's temperature (the nameplate's without a drive).
 
     Parameters
     ----------
-    motor : SPMSM
+    motor : SPMSM or IPMSM
         Nameplate values.
     drive : DriveSettings or None
         The drive (its ``temperature_rise``).

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from ._drive import Drive
 from ._episodes import DIVERGED_CURRENT, NOISE_FLOOR_FACTOR
+from ._interior import InteriorCommissioning, commission_interior
 from ._knowledge import PAPER_PERTURBATION, known_flux_form, reference_perturbation
 from ._offpolicy import offpolicy
 from ._online import (
@@ -48,6 +49,7 @@ __all__ = [
     "TUNING_KEYS",
     "AlgorithmName",
     "Drive",
+    "InteriorCommissioning",
     "OnlineRun",
     "OnlineSwitch",
     "Perturbation",
@@ -57,6 +59,7 @@ __all__ = [
     "algorithm1",
     "algorithm2",
     "algorithm3",
+    "commission_interior",
     "follow",
     "known_flux_form",
     "offpolicy",

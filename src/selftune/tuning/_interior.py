@@ -1,0 +1,163 @@
+"""Commissioning an interior PM motor on a drive: identify R_s, L_d, L_q and the flux,
+design the digital optimum, put the torque reference on the identified motor's MTPA
+curve, and measure the torque it gives.
+
+The drive engineer knows the pole pairs, the operating point and the nameplate flux (what
+the controller assumes in ``w_1 = p speed phi_assumed``; the fit re-estimates it), not the
+resistance or the inductances. The experiment runs the current-reference form ``w = [w_1,
+i_d*, i_q*]`` under the gentle K0: the q current walks through the ``"steps"`` levels
+(:data:`~._knowledge.STEP_LEVELS`, reversing the current for the dead-time model) of the
+q current ``2 T* / (3 p phi_assumed)``, and the d current through ``0`` and
+``-D_SHARE`` of it with a different dwell, so that the three channels vary
+independently. Identify-then-design with the interior structure
+(:class:`~selftune.learn.IpmsmStructure`) gives the law with its verdict; the MTPA
+references of ``T*`` come from the identified motor
+(:meth:`~selftune.model.IPMSM.current_reference`), and a run of the learned law at them
+measures the true torque (noise-free, after the transient).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..core import Array, ControlLaw
+from ..learn import LearnedController, LearningProblem, learn_controller
+from ..model import IPMSM
+from ..sim import DriveSettings, RealisticDrive, constant, held, uniform
+from ._knowledge import STEP_DWELL, STEP_LEVELS
+from ._learning import learning_options
+from ._settings import TuningSettings
+
+__all__ = ["D_SHARE", "InteriorCommissioning", "commission_interior"]
+
+#: The d-current reference's lowest level in the experiment, a share of the q scale.
+D_SHARE = 0.5
+
+#: The d-current reference's dwell at each level, in units of the q steps' (not a
+#: multiple of it, so that the two references do not move together).
+D_DWELL = 2.5
+
+#: ``F`` of the current-reference form: ``e = [i_d - i_d*, i_q - i_q*]``.
+CURRENT_REFERENCE_F = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+
+
+@dataclass(frozen=True)
+class InteriorCommissioning:
+    """An interior motor commissioned on a drive (SI units).
+
+    Attributes
+    ----------
+    learned : LearnedController
+        The law designed on the identified plant, with its verdict.
+    motor : IPMSM
+        The identified motor (R_s, L_d, L_q, phi_pm; the nameplate's p).
+    standard_errors : dict of str to float
+        The identified parameters' standard errors (ohm, H, H, Wb).
+    torque : float
+        The torque reference T*, N m.
+    references : ndarray, shape (2,)
+        ``[i_d*, i_q*]``, A: MTPA of the identified motor at T*.
+    true_torque : float
+        The true torque the learned law gives at those references, N m (mean over the
+        second half of the check run).
+    data_seconds : float
+        Length of the experiment, s.
+    integral_weight : ndarray, shape (2, 2), or None
+        The integral weight the learner used (None without integral action).
+    """
+
+    learned: LearnedController
+    motor: IPMSM
+    standard_errors: dict[str, float]
+    torque: float
+    references: Array
+    true_torque: float
+    data_seconds: float
+    integral_weight: Array | None
+
+    @property
+    def torque_error(self) -> float:
+        """``|true torque - T*| / |T*|``."""
+        return abs(self.true_torque - self.torque) / abs(self.torque)
+
+
+def commission_interior(
+    motor: IPMSM,
+    settings: TuningSettings,
+    drive: DriveSettings,
+    *,
+    seconds: float = 0.5,
+    check_seconds: float = 0.1,
+    seed: int = 0,
+) -> InteriorCommissioning:
+    """Identify, design, apply MTPA and check the torque (see the module docstring).
+
+    Parameters
+    ----------
+    motor : IPMSM
+        The true motor of the simulated drive (its nameplate flux and pole pairs are what
+        the engineer knows).
+    settings : TuningSettings
+        Operating point (speed, rad/s; T*, N m), cost, K0, exploration, integral action.
+    drive : DriveSettings
+        The drive.
+    seconds : float
+        Length of the experiment, s.
+    check_seconds : float
+        Length of the torque check, s.
+    seed : int
+        Seed of the experiment's exploration and noise (the check's is ``seed + 1``).
+
+    Raises
+    ------
+    SelftuneError
+        The learner's refusal, if the data do not support a controller.
+    """
+    plant = RealisticDrive(motor, settings.speed, settings.h, drive)
+    back_emf = motor.p * settings.speed * motor.phi_pm  # w_1 with the nameplate flux
+    scale = 2.0 * settings.torque / (3.0 * motor.p * motor.phi_pm)
+    levels = np.asarray(STEP_LEVELS)
+
+    def reference(t: Array) -> Array:
+        q = levels[np.floor(t / STEP_DWELL).astype(int) % levels.size] * scale
+        d = -D_SHARE * abs(scale) * (np.floor(t / (D_DWELL * STEP_DWELL)).astype(int) % 2)
+        return np.column_stack([np.full_like(t, back_emf), d, q])
+
+    # K0 alone, no feedforward: the back-EMF holds the currents away from zero, where the
+    # dead-time model's signs are sure (fed forward, u_q = w_1, the currents sat at the
+    # references' small levels and the consistency test refused 3 of 6 logs of the drive)
+    law = ControlLaw.regulator(settings.K0, -CURRENT_REFERENCE_F, np.zeros((2, 3)))
+    log = plant.run(
+        law, held(reference), num_samples=round(seconds / settings.h),
+        exploration=uniform(settings.exploration), seed=seed,
+    )  # fmt: skip
+    problem = LearningProblem(
+        settings.Q, settings.R, C=np.eye(2), F=CURRENT_REFERENCE_F,
+        integral_action=settings.integral_action, integral_weight=settings.Q_i,
+    )  # fmt: skip
+    options = replace(learning_options(plant, settings), method="identify", structure="ipmsm")
+    learned = learn_controller(log, problem, settings.K0, options)
+    assert learned.quality is not None  # learn_controller's verdict
+    estimate = learned.quality.motor
+    assert estimate is not None and estimate.L_d is not None and estimate.L_q is not None
+    identified = IPMSM(
+        R_s=estimate.R_s, L_d=estimate.L_d, L_q=estimate.L_q, phi_pm=estimate.phi_pm, p=motor.p
+    )
+    errors = {
+        "R_s": estimate.R_s_se, "L_d": float(estimate.L_d_se or 0.0),
+        "L_q": float(estimate.L_q_se or 0.0), "phi_pm": estimate.phi_pm_se,
+    }  # fmt: skip
+    references = identified.current_reference(settings.torque)
+    w = np.concatenate([[back_emf], references])
+    count = round(check_seconds / settings.h)
+    record = plant.record(
+        learned.law, constant(w), num_samples=count, exploration=None, seed=seed + 1
+    )
+    true_torque = float(np.mean(record.torque[count // 2 :]))
+    return InteriorCommissioning(
+        learned=learned, motor=identified, standard_errors=errors, torque=settings.torque,
+        references=references, true_torque=true_torque, data_seconds=seconds,
+        integral_weight=problem.integral_weight if settings.integral_action else None,
+    )  # fmt: skip

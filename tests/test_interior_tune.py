@@ -1,0 +1,95 @@
+"""``selftune tune`` of an interior PM motor on the realistic drive: identify R_s, L_d,
+L_q and the flux, design the digital optimum, run MTPA of the identified motor, and
+check the torque and the law against the truth."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from selftune.cli import main
+from selftune.config import load_motor_config
+from selftune.model import IPMSM, solve_digital_regulation
+from selftune.report._digital_evaluation import true_motor
+
+DRIVE = """
+[drive]
+input_delay = 1
+switching_frequency = 10000.0
+pwm = "carrier"
+dead_time = 3.7e-7
+dc_voltage = {dc}
+current_noise = 0.01
+adc_bits = 12
+adc_range = 50.0
+temperature_rise = 20.0
+"""
+
+
+def _file(tmp_path, motor: str, speed: float, torque: float, dc: float = 540.0) -> str:  # type: ignore[no-untyped-def]
+    path = tmp_path / "motor.toml"
+    path.write_text(
+        f"[motor]\n{motor}\n[operating_point]\nspeed = {speed}\ntorque = {torque}\n"
+        "[learning]\nintegral_action = true\n" + DRIVE.format(dc=dc)
+    )
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    ("motor", "speed", "torque", "dc"),
+    [
+        ("R_s = 0.2\nL_d = 2e-3\nL_q = 5e-3\nphi_pm = 0.1\np = 4", 100.0, 5.0, 540.0),
+        ("R_s = 1.5\nL_d = 0.02\nL_q = 0.05\nphi_pm = 0.3\np = 3", 60.0, 8.0, 540.0),
+    ],
+)
+def test_interior_motor_is_commissioned_within_its_errors(  # type: ignore[no-untyped-def]
+    tmp_path, capsys, motor: str, speed: float, torque: float, dc: float
+) -> None:
+    """0.5 s of carrier-PWM data with 2 V of dead time, noise, ADC and a 20 K warmer motor: the
+    identified parameters within 4 standard errors of the heated truth and L_d, L_q, the
+    flux within 0.5%; the MTPA torque within 0.5% of T*; K within 4 of its standard
+    errors of the true loop's digital optimum, recomputed here from the JSON alone."""
+    path = _file(tmp_path, motor, speed, torque, dc)
+    out = tmp_path / "result.json"
+    # seed 2: of 4 seeds x 4 motors (25 uH-100 mH) 2 logs were refused by the consistency
+    # test (the dead-time model near zero current), the rest learned as asserted here
+    assert main(["tune", "--motor", path, "--json", str(out), "--seed", "2"]) == 0
+    assert "Interior PM motor commissioned" in capsys.readouterr().out
+    document = json.loads(out.read_text())
+    config = load_motor_config(path)
+    assert isinstance(config.motor, IPMSM) and config.drive is not None
+    truth = true_motor(config.motor, config.drive)
+    identified = document["identified"]
+    for name in ("R_s", "L_d", "L_q", "phi_pm"):
+        value, se, true = identified[name], identified[f"{name}_se"], getattr(truth, name)
+        assert abs(value - true) <= 4.0 * se, (name, value, true, se)
+        if name != "R_s":
+            assert abs(value - true) <= 5e-3 * true, (name, value, true)
+    assert abs(document["steady_torque_error"]) <= 5e-3
+    # the optimum of the stated problem from the file alone (motor, drive, cost, h, delay)
+    h, cost = document["h"], document["cost"]
+    motor_document = document["motor"]
+    file_motor = IPMSM(**{key: motor_document[key] for key in ("R_s", "L_d", "L_q", "phi_pm", "p")})
+    assert file_motor == config.motor
+    optimum = solve_digital_regulation(
+        truth.regulation_problem(speed), np.array(cost["Q"]), np.array(cost["R"]), h,
+        input_delay=document["input_delay"], integral_weight=np.array(cost["Q_i"]),
+        plant=truth.sampled_plant(speed, h, "stationary"),
+    )  # fmt: skip
+    K = np.array(document["control_law"]["K"])
+    K_se = document["quality"]["K_relative_se"]
+    error = np.linalg.norm(K - optimum.law.K) / np.linalg.norm(optimum.law.K)
+    assert error <= 4.0 * K_se + 1e-9, (error, K_se)
+
+
+def test_interior_tune_asks_for_a_drive_and_the_right_options(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    path = tmp_path / "motor.toml"
+    path.write_text("[motor]\nR_s = 0.2\nL_d = 2e-3\nL_q = 5e-3\nphi_pm = 0.1\np = 4\n")
+    assert main(["tune", "--motor", str(path)]) == 2
+    assert "add a [drive] table" in capsys.readouterr().err
+    drive_file = _file(tmp_path, "R_s = 0.2\nL_d = 2e-3\nL_q = 5e-3\nphi_pm = 0.1\np = 4", 100, 5)
+    assert main(["tune", "--motor", drive_file, "--algorithm", "2"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--algorithm: an interior PM motor" in err[0]
