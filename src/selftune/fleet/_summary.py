@@ -21,7 +21,7 @@ The threshold is a stated false-alarm rate, not a fixed z: :data:`FALSE_ALARM_RA
 (0.1%) per group, family-wise over its drives and the four :data:`PARAMETERS`
 (Bonferroni: 0.025% per parameter). ``outlier_threshold(n)`` is the 99.975th percentile
 of the largest ``|z|`` of ``n`` ordinary drives (``se = 0``), the larger of normally and
-uniformly spread values, simulated once (400,000 groups per size and spread, seed 6):
+uniformly spread values, simulated once (400,000 groups per size and spread):
 
 ==========  ======  =====  =====  =====  =====  =====  =====  =====
 n drives    5       8      10     12     15     20     30     50
