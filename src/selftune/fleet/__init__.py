@@ -10,8 +10,8 @@
 - the table (:mod:`._table`): :class:`ResultsTable`, ``results.parquet`` and
   ``results.csv`` written atomically batch by batch (:data:`RESULT_COLUMNS`);
 - the picture (:mod:`._summary`): :func:`summarize`, ``summary.md`` and the figure: the
-  spread of the identified parameters, the drives more than :data:`OUTLIER_Z` robust
-  standard deviations from their group's median, the refusals by cause;
+  spread of the identified parameters, the drives whose robust z exceeds their group's
+  :func:`outlier_threshold` (:data:`FALSE_ALARM_RATE` per group), the refusals by cause;
 - :func:`run_fleet` (:mod:`._run`): all of it, as ``selftune fleet`` runs it.
 
 Dask (``dask[distributed]``) and pyarrow are the optional extra ``fleet``
@@ -34,12 +34,14 @@ from ._engine import (
 from ._jobs import LOG_SUFFIXES, MANIFEST_COLUMNS, LogJob, find_jobs, learn_row, read_manifest
 from ._run import FLEET_OUTPUTS, FleetRun, run_fleet
 from ._summary import (
+    FALSE_ALARM_RATE,
     MIN_GROUP,
-    OUTLIER_Z,
     PARAMETERS,
+    SUMMARY_COLUMNS,
     FleetSummary,
     Outlier,
     RefusalCause,
+    outlier_threshold,
     robust_z,
     summarize,
     summary_markdown,
@@ -49,14 +51,15 @@ from ._table import RESULT_COLUMNS, ResultsTable
 
 __all__ = [
     "CONNECT_SECONDS",
+    "FALSE_ALARM_RATE",
     "FLEET_OUTPUTS",
     "INSTALL_HINT",
     "LOG_SUFFIXES",
     "MANIFEST_COLUMNS",
     "MIN_GROUP",
-    "OUTLIER_Z",
     "PARAMETERS",
     "RESULT_COLUMNS",
+    "SUMMARY_COLUMNS",
     "FleetRun",
     "FleetSummary",
     "LogJob",
@@ -68,6 +71,7 @@ __all__ = [
     "learn_row",
     "map_ordered",
     "map_unordered",
+    "outlier_threshold",
     "progress_bar",
     "read_manifest",
     "require_extra",

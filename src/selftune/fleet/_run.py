@@ -14,7 +14,7 @@ from ..core import write_text
 from ..core._atomic import check_output_directory
 from ._engine import map_unordered, progress_bar, require_extra, workers_count
 from ._jobs import LogJob, learn_row
-from ._summary import PARAMETERS, FleetSummary, summarize, summary_markdown, write_figure
+from ._summary import SUMMARY_COLUMNS, FleetSummary, summarize, summary_markdown, write_figure
 from ._table import ResultsTable
 
 __all__ = ["FLEET_OUTPUTS", "FleetRun", "run_fleet"]
@@ -106,8 +106,7 @@ def run_fleet(
     table.sort()
     if not table.parquet.exists():  # every log was skipped and there was no table
         table.append([])
-    names = ["path", "drive", "group", "verdict", "error"] + [c for c, _, _ in PARAMETERS]
-    summary = summarize(table.columns(names))
+    summary = summarize(table.columns(list(SUMMARY_COLUMNS)))
     write_text(Path(out) / "summary.md", summary_markdown(summary))
     write_figure(summary, Path(out) / "fleet")
     return FleetRun(
