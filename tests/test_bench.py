@@ -38,6 +38,7 @@ SECTIONS = (
     "refusals",
     "online",
     "fleet",
+    "interior",
 )
 
 #: A numeric key must name its unit (or say it is a ratio, a count, a relative error...).
@@ -276,6 +277,7 @@ def test_markdown_has_every_table_and_says_which_targets_are_met(report: BenchRe
         "## 10. Refusals and calibration",
         "## 11. The online tuner on drives that heat",
         "## 12. A fleet of drives on the distributed engine",
+        "## 13. Interior PM motors commissioned",
     ):
         assert heading in text
     section = text.split("## Targets")[1].split("\n## ")[0]

@@ -52,6 +52,9 @@ are the field names.
     x 50 units, 2 hot, 3 broken) learned serially and on a 2-worker Dask cluster:
     throughput, identical results, the outliers and broken logs named, the client's
     memory at two sizes.
+13. :func:`measure_interior` (:mod:`._interior`): interior PM motors (25 uH to 100 mH)
+    commissioned on the hardware-like drive: identified L_d, L_q and flux, the torque
+    with MTPA, refusals.
 
 Studies 6-8 run their seeded trials through the fleet's engine
 (:func:`selftune.fleet.map_ordered`): here by default, on a cluster when
@@ -80,6 +83,7 @@ from ._drive_rates import DelayCost, DriveRates, RateErrors, measure_drive_rates
 from ._fleet import FleetDesign, FleetStudy, FleetTruth, make_fleet, measure_fleet
 from ._gem import GymElectricMotor
 from ._honesty import HazardTally, Honesty, HonestyCase, HonestyOutcome, measure_honesty
+from ._interior import InteriorStudy, interior_targets, markdown_interior, measure_interior
 from ._learning_cost import LearningCost, LearningDataset, LearningRun, measure_learning_cost
 from ._loop import SimulatorMeasurement
 from ._noise_study import ConsistencyRatio, NoiseCell, NoiseConfig, NoiseStudy, measure_noise
@@ -147,6 +151,7 @@ __all__ = [
     "Honesty",
     "HonestyCase",
     "HonestyOutcome",
+    "InteriorStudy",
     "LearningCost",
     "LearningDataset",
     "LearningRun",
@@ -166,7 +171,9 @@ __all__ = [
     "SimulatorMeasurement",
     "TargetOutcome",
     "bench_command",
+    "interior_targets",
     "make_fleet",
+    "markdown_interior",
     "markdown_online",
     "markdown_realistic_drive",
     "markdown_refusals",
@@ -175,6 +182,7 @@ __all__ = [
     "measure_drive_rates",
     "measure_fleet",
     "measure_honesty",
+    "measure_interior",
     "measure_learning_cost",
     "measure_noise",
     "measure_online",

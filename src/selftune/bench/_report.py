@@ -49,6 +49,7 @@ from ._drive_rates import (
 from ._fleet import FleetDesign, FleetStudy, fleet_targets, markdown_fleet, measure_fleet
 from ._gem import gem_version
 from ._honesty import Honesty, honesty_target, markdown_honesty, measure_honesty
+from ._interior import InteriorStudy, interior_targets, markdown_interior, measure_interior
 from ._learning_cost import LearningCost, markdown_learning, measure_learning_cost
 from ._noise_report import markdown_noise, noise_targets
 from ._noise_study import NoiseConfig, NoiseStudy, measure_noise
@@ -178,6 +179,8 @@ class BenchReport:
     realistic_drive : RealisticDriveComparison
     refusals : Refusals
     online : OnlineStudy
+    interior : InteriorStudy
+        Study 13: interior PM motors commissioned.
     fleet : FleetStudy
     """
 
@@ -195,6 +198,7 @@ class BenchReport:
     realistic_drive: RealisticDriveComparison
     refusals: Refusals
     online: OnlineStudy
+    interior: InteriorStudy
     fleet: FleetStudy
 
     def targets(self) -> list[TargetOutcome]:
@@ -211,6 +215,7 @@ class BenchReport:
             *self.realistic_drive.targets(),
             refusals_target(self.refusals, self.quick),
             *online_targets(self.online, self.quick),
+            *interior_targets(self.interior, self.quick),
             *fleet_targets(self.fleet),
         ]
 
@@ -358,6 +363,7 @@ def run_bench(quick: bool, progress: bool = True, client: Any = None) -> BenchRe
     refusals = measure_refusals(sizes.refusals, progress)
     online = measure_online(quick, progress)
     fleet = measure_fleet(sizes.fleet, quick, progress)
+    interior = measure_interior(quick, progress)
     return BenchReport(
         quick=quick,
         wall_seconds=time.perf_counter() - started,
@@ -373,6 +379,7 @@ def run_bench(quick: bool, progress: bool = True, client: Any = None) -> BenchRe
         realistic_drive=realistic_drive,
         refusals=refusals,
         online=online,
+        interior=interior,
         fleet=fleet,
     )
 
@@ -426,6 +433,7 @@ def _markdown(report: BenchReport) -> str:
         markdown_refusals(report.refusals),
         markdown_online(report.online),
         markdown_fleet(report.fleet),
+        markdown_interior(report.interior),
     ):
         lines += ["", *section]
     return "\n".join(lines) + "\n"
