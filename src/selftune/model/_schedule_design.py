@@ -170,6 +170,28 @@ class ScheduleCheck:
 
 
 @dataclass(frozen=True, eq=False)
+class _Design:
+    """What every pointwise optimum of one schedule shares."""
+
+    motor: ScheduledMotor
+    Q: Array
+    R: Array
+    h: float
+    input_delay: int
+    integral_weight: Array | None
+    hold: Hold
+
+    def optimum(self, electrical_speed: float) -> ModelBasedSolution:
+        """The digital optimum at ``electrical_speed`` (rad/s)."""
+        speed = electrical_speed / self.motor.p
+        return solve_digital_regulation(
+            self.motor.regulation_problem(speed), self.Q, self.R, self.h,
+            input_delay=self.input_delay, integral_weight=self.integral_weight,
+            plant=self.motor.sampled_plant(speed, self.h, self.hold),
+        )  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
 class ScheduleDesign:
     """A designed schedule: the grid's optima, the schedule and its check.
 
@@ -195,6 +217,18 @@ class ScheduleDesign:
     added: tuple[float, ...]
     loop: SampledLoop
     hold: str
+    _design: _Design = field(repr=False)
+
+    def pointwise_optimum(self, electrical_speed: float) -> ModelBasedSolution:
+        """The digital optimum of this schedule's loop at one electrical speed (rad/s), as
+        at the grid's speeds (e.g. a single-speed controller at an operating point).
+
+        Parameters
+        ----------
+        electrical_speed : float
+            rad/s (electrical), anywhere the motor's model holds.
+        """
+        return self._design.optimum(electrical_speed)
 
     def excess_of(self, law: ControlLaw) -> Array:
         """The excess cost of one fixed ``law`` (e.g. one designed at a single speed) at
@@ -211,28 +245,6 @@ class ScheduleDesign:
         weights = self.loop.weights(optima[0].Q, optima[0].R, "digital")
         values, _ = self.loop.values(plants, law, weights)
         return worst_excess(values, np.array([optimum.P for optimum in optima]))
-
-
-@dataclass(frozen=True, eq=False)
-class _Design:
-    """What every pointwise optimum of one schedule shares."""
-
-    motor: ScheduledMotor
-    Q: Array
-    R: Array
-    h: float
-    input_delay: int
-    integral_weight: Array | None
-    hold: Hold
-
-    def optimum(self, electrical_speed: float) -> ModelBasedSolution:
-        """The digital optimum at ``electrical_speed`` (rad/s)."""
-        speed = electrical_speed / self.motor.p
-        return solve_digital_regulation(
-            self.motor.regulation_problem(speed), self.Q, self.R, self.h,
-            input_delay=self.input_delay, integral_weight=self.integral_weight,
-            plant=self.motor.sampled_plant(speed, self.h, self.hold),
-        )  # fmt: skip
 
 
 def _relative(error: Array, reference: Array) -> Array:
@@ -418,4 +430,5 @@ def design_schedule(
         added=tuple(added),
         loop=optima[grid[0]].loop,
         hold=hold,
+        _design=design,
     )
