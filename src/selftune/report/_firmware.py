@@ -21,8 +21,12 @@ float32. The functions (fixed by the interface)::
     void selftune_step(selftune_state *s, const float i_dq[2], const float w[2],
                        float omega_e, float u_dq[2]);
 
-``omega_e`` (electrical speed, rad/s) is the argument of a schedule over speed; a law
-with one is refused until the export interpolates it.
+``omega_e`` (electrical speed, rad/s) is the argument of a schedule over speed
+(:class:`~selftune.model.SpeedSchedule`, a JSON's ``schedule``): the source then holds
+``K``, ``K_i``, ``U`` and ``X`` as tables over the grid ``OMEGA_E`` and interpolates each
+entry linearly between the two neighbours of ``omega_e``, clamped to the table's first or
+last law outside the grid (a firmware cannot refuse a speed; the design covered only the
+grid's range). Without a schedule ``omega_e`` is unused.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ from ..config import LawResult
 from ..core import Array, ControlLaw, positive_finite
 from ..core._atomic import output_directory, write_text
 from ..errors import InputError
+from ..model import SpeedSchedule
 
 __all__ = ["ANTI_WINDUP", "FIRMWARE_FILES", "Firmware", "firmware", "write_firmware"]
 
@@ -95,14 +100,16 @@ def _c_matrix(name: str, matrix: Array, key: str, comment: str) -> str:
     )
 
 
+def _law(result: LawResult) -> ControlLaw:
+    """The law whose structure the firmware runs: the schedule's where there is one."""
+    return result.law if result.schedule is None else result.schedule.laws[0]
+
+
 def _check(result: LawResult, source: str) -> ControlLaw:
     """The law, if the firmware's interface can run it."""
-    law = result.law
-    if result.scheduled:
-        raise InputError(
-            f"{source}: schedule: a law scheduled over speed cannot be exported yet (the C "
-            "interface already takes omega_e for it)"
-        )
+    law = _law(result)
+    if result.scheduled and result.schedule is None:
+        raise InputError(f"{source}: schedule: the file names a schedule but states none")
     if (law.n, law.m, law.q) != (2, 2, 2):
         raise InputError(
             f"{source}: {result.key}: the firmware takes i_dq (2 currents) and w (2 channels) "
@@ -122,7 +129,7 @@ def _motor_text(result: LawResult) -> str:
 
 
 def _banner(result: LawResult, u_max_text: str, source: str, version: str, date: str) -> str:
-    law = result.law
+    law = _law(result)
     h = "not stated in the file" if result.h is None else f"{result.h:.9g} s"
     if result.input_delay is None:
         delay = (
@@ -149,9 +156,8 @@ def _banner(result: LawResult, u_max_text: str, source: str, version: str, date:
         "  z_(k+1) = z_k + h (C x_k + F w_k)",
         "x = i_dq = [i_d, i_q], the currents measured at sample k, A; w = [p speed phi_pm, "
         "T*], V and N m, as in the file, held over the sample; u = u_dq = [u_d, u_q], V; "
-        "omega_e, the electrical speed, rad/s, is unused (no schedule over speed). The "
-        "order of the state, K's columns then K_i's (u1[k-1]: u_d computed at sample "
-        "k - 1; z: the integrators, A s):",
+        f"{_omega_text(result)} The order of the state, K's columns then K_i's (u1[k-1]: "
+        "u_d computed at sample k - 1; z: the integrators, A s):",
         f"  {state}",
         "",
         f"Voltage limit: |u_dq| <= SELFTUNE_U_MAX = {u_max_text}, the linear modulation "
@@ -175,8 +181,22 @@ def _banner(result: LawResult, u_max_text: str, source: str, version: str, date:
     return "/*\n" + "\n".join(f" * {line}".rstrip() for line in wrapped) + "\n */\n"
 
 
+def _omega_text(result: LawResult) -> str:
+    """What the banner says of omega_e."""
+    if result.schedule is None:
+        return "omega_e, the electrical speed, rad/s, is unused (no schedule over speed)."
+    low, high = result.schedule.covered
+    return (
+        f"omega_e, the electrical speed, rad/s, selects the law: K, K_i, U and X are "
+        f"tables over {result.schedule.electrical_speed.size} speeds from {low:.9g} to "
+        f"{high:.9g} rad/s (OMEGA_E), each entry interpolated linearly between the two "
+        "neighbours of omega_e; below the first speed the first law, above the last the "
+        "last (clamped: the schedule was designed and checked within that range only)."
+    )
+
+
 def _header(result: LawResult, u_max: float, source: str, version: str, date: str) -> str:
-    law = result.law
+    law = _law(result)
     u_max_c = _c_float(u_max, "--u-max")
     u_max_text = f"{float(np.float32(u_max)):.9g} V"
     h_c = _c_float(result.h, "h") if result.h is not None else None
@@ -206,6 +226,12 @@ def _header(result: LawResult, u_max: float, source: str, version: str, date: st
         + f"#define SELFTUNE_U_MAX {u_max_c} /* the limit on |u_dq|, V */\n"
         + f"#define SELFTUNE_HISTORY {law.history} /* d: past voltages fed back */\n"
         + f"#define SELFTUNE_INTEGRATORS {law.r} /* integrator states */\n"
+        + (
+            ""
+            if result.schedule is None
+            else f"#define SELFTUNE_SPEEDS {result.schedule.electrical_speed.size} "
+            "/* grid speeds of the schedule over omega_e */\n"
+        )
         + "\n/* Everything the law remembers between samples; set by selftune_init. */\n"
         + "struct selftune_state {\n"
         + "\n".join(members)
@@ -242,13 +268,24 @@ def _init_body(law: ControlLaw) -> list[str]:
     return body
 
 
-def _step_body(law: ControlLaw) -> list[str]:
+def _step_body(law: ControlLaw, scheduled: bool) -> list[str]:
     columns = law.K.shape[1]
+    if scheduled:
+        tables = f"U[2][2], X[2][2], K[2][{columns}]" + (
+            "" if law.K_i is None else ", K_I[2][SELFTUNE_INTEGRATORS]"
+        )
+        speed = [
+            f"    float {tables};",
+            "    int i, j;",
+            "",
+            "    /* the law at omega_e: the tables interpolated (clamped at their ends) */",
+            "    selftune_schedule(omega_e, U, X, K" + (", K_I);" if law.K_i is not None else ");"),
+        ]
+    else:
+        speed = ["    int i, j;", "", "    (void)omega_e; /* no schedule over speed */"]
     body = [
         f"    float u_e[2], deviation[{columns}], u[2], magnitude;",
-        "    int i, j;",
-        "",
-        "    (void)omega_e; /* no schedule over speed */",
+        *speed,
         *(["    (void)s; /* the law keeps no state */"] if not (law.history or law.r) else []),
         "    /* u_e = U w; the deviations [x - X w; u_(k-d) - u_e; ...; u_(k-1) - u_e] */",
         "    for (i = 0; i < 2; ++i) {",
@@ -312,21 +349,106 @@ def _step_body(law: ControlLaw) -> list[str]:
     return body
 
 
-def _source(law: ControlLaw, key: str) -> str:
+def _c_tables(name: str, tables: Array, key: str, comment: str) -> str:
+    """``static const float NAME[SELFTUNE_SPEEDS][rows][columns]``: one matrix per speed."""
+    blocks = [
+        "    {\n" + ",\n".join(
+            "        {" + ", ".join(_c_float(value, key) for value in row) + "}" for row in matrix
+        ) + "\n    }"
+        for matrix in tables
+    ]  # fmt: skip
+    rows, columns = tables.shape[1:]
+    return (
+        f"/* {comment} */\n"
+        f"static const float {name}[SELFTUNE_SPEEDS][{rows}][{columns}] = {{\n"
+        + ",\n".join(blocks)
+        + "\n};\n"
+    )
+
+
+def _schedule_tables(schedule: SpeedSchedule, state: str) -> list[str]:
+    """The tables over omega_e and the function that interpolates them."""
+    columns = schedule.table("K").shape[2]
+    integral = schedule.laws[0].K_i is not None
+    speeds = ", ".join(
+        _c_float(value, "schedule.electrical_speed") for value in schedule.electrical_speed
+    )
+    parts = [
+        "/* OMEGA_E: the schedule's electrical speeds, rad/s, increasing */\n",
+        f"static const float OMEGA_E[SELFTUNE_SPEEDS] = {{{speeds}}};\n\n",
+        _c_tables("U_TABLE", schedule.table("U"), "schedule.U", "U at each speed: u_e = U w"),
+        "\n",
+        _c_tables("X_TABLE", schedule.table("X"), "schedule.X", "X at each speed: x_e = X w"),
+        "\n",
+        _c_tables(
+            "K_TABLE",
+            schedule.table("K"),
+            "schedule.K",
+            f"K at each speed: feedback on the deviations of [{state}]",
+        ),
+    ]
+    entries = [("U", "2"), ("X", "2"), ("K", str(columns))]
+    if integral:
+        parts += [
+            "\n",
+            _c_tables("K_I_TABLE", schedule.table("K_i"), "schedule.K_i", "K_i at each speed"),
+        ]
+        entries.append(("K_I", "SELFTUNE_INTEGRATORS"))
+    arguments = ", ".join(f"float {name}[2][{size}]" for name, size in entries)
+    body = [
+        "\n/* The law at omega_e: each entry (1 - s) T[g] + s T[g + 1] between the neighbours",
+        "   OMEGA_E[g] <= omega_e < OMEGA_E[g + 1]; the first law below (and for a NaN), the",
+        "   last above. */",
+        f"static void selftune_schedule(float omega_e, {arguments})",
+        "{",
+        "    int g = 0, i, j;",
+        "    float share = 0.0f;",
+        "",
+        "    if (omega_e >= OMEGA_E[SELFTUNE_SPEEDS - 1]) {",
+        "        g = SELFTUNE_SPEEDS - 2;",
+        "        share = 1.0f;",
+        "    } else if (omega_e > OMEGA_E[0]) {",
+        "        while (omega_e >= OMEGA_E[g + 1]) {",
+        "            ++g;",
+        "        }",
+        "        share = (omega_e - OMEGA_E[g]) / (OMEGA_E[g + 1] - OMEGA_E[g]);",
+        "    }",
+        "    for (i = 0; i < 2; ++i) {",
+    ]
+    for name, size in entries:
+        body += [
+            f"        for (j = 0; j < {size}; ++j) {{",
+            f"            {name}[i][j] = (1.0f - share) * {name}_TABLE[g][i][j]",
+            f"                + share * {name}_TABLE[g + 1][i][j];",
+            "        }",
+        ]
+    body += ["    }", "}\n"]
+    return [*parts, "\n".join(body)]
+
+
+def _source(law: ControlLaw, key: str, schedule: SpeedSchedule | None) -> str:
     state = ", ".join(law.state[: law.K.shape[1]])
     parts = [
         "/* selftune_law.c: the control law of selftune_law.h (generated; see there). */\n",
         '#include <math.h>\n\n#include "selftune_law.h"\n\n',
-        _c_matrix("U", law.U, f"{key}.U", "U: feedforward map, u_e = U w (V per unit of w)"),
-        "\n",
-        _c_matrix("X", law.X, f"{key}.X", "X: steady-state map, x_e = X w (A per unit of w)"),
-        "\n",
-        _c_matrix("K", law.K, f"{key}.K", f"K: feedback on the deviations of [{state}]"),
     ]
+    if schedule is None:
+        parts += [
+            _c_matrix("U", law.U, f"{key}.U", "U: feedforward map, u_e = U w (V per unit of w)"),
+            "\n",
+            _c_matrix("X", law.X, f"{key}.X", "X: steady-state map, x_e = X w (A per unit of w)"),
+            "\n",
+            _c_matrix("K", law.K, f"{key}.K", f"K: feedback on the deviations of [{state}]"),
+        ]
+        if law.K_i is not None:
+            parts += [
+                "\n",
+                _c_matrix("K_I", law.K_i, f"{key}.K_i", "K_i: integral gain, V/(A s)"),
+            ]
+    else:
+        parts += _schedule_tables(schedule, state)
     if law.K_i is not None and law.C is not None and law.F is not None:
         parts += [
-            "\n",
-            _c_matrix("K_I", law.K_i, f"{key}.K_i", "K_i: integral gain, V/(A s)"),
             "\n",
             _c_matrix("C", law.C, f"{key}.C", "C: the regulated error e = C x + F w"),
             "\n",
@@ -338,7 +460,7 @@ def _source(law: ControlLaw, key: str) -> str:
         "\n}\n\n",
         "void selftune_step(selftune_state *s, const float i_dq[2], const float w[2],\n",
         "                   float omega_e, float u_dq[2])\n{\n",
-        "\n".join(_step_body(law)),
+        "\n".join(_step_body(law, schedule is not None)),
         "\n}\n",
     ]
     return "".join(parts)
@@ -373,7 +495,8 @@ def firmware(result: LawResult, u_max: float, *, source: str, version: str, date
     law = _check(result, source)
     limit = positive_finite(u_max, "--u-max")
     return Firmware(
-        header=_header(result, limit, source, version, date), source=_source(law, result.key)
+        header=_header(result, limit, source, version, date),
+        source=_source(law, result.key, result.schedule),
     )
 
 
