@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core import finite_float
 from ..core._validation import check_electrical_speed, check_range
 from ..errors import InputError
 from ..model import SPMSM
@@ -63,7 +64,7 @@ def _speeds(table: ConfigTable, key: str, motor: SPMSM) -> tuple[float, ...]:
         if isinstance(entry, bool) or not isinstance(entry, int | float):
             raise table.error(key, f"entries must be numbers (rad/s), found {entry!r}")
         try:
-            speed = check_range(float(entry), "speed")
+            speed = check_range(finite_float(entry, "speed"), "speed")
             check_electrical_speed(speed, motor.p, motor.L_s)
         except (InputError, OverflowError) as exc:
             raise table.error(key, str(exc).removeprefix("speed: ")) from None

@@ -89,11 +89,27 @@ class ScheduledMotor(Protocol):
         ...
 
     def regulation_problem(self, speed: float) -> RegulationProblem:
-        """The regulation problem at the mechanical speed ``speed``, rad/s."""
+        """The regulation problem at a held speed.
+
+        Parameters
+        ----------
+        speed : float
+            Mechanical speed, rad/s.
+        """
         ...
 
     def sampled_plant(self, speed: float, h: float, hold: str = ...) -> tuple[Array, Array, Array]:
-        """``(Ad, Bd, Ed)`` at the mechanical speed ``speed`` sampled at h with ``hold``."""
+        """``(Ad, Bd, Ed)`` of :meth:`regulation_problem` sampled exactly.
+
+        Parameters
+        ----------
+        speed : float
+            Mechanical speed, rad/s.
+        h : float
+            Sampling period, s.
+        hold : {"rotor", "stationary"}
+            What the drive holds over a sample.
+        """
         ...
 
 
