@@ -224,3 +224,62 @@ def test_laws_of_different_structure_are_not_one_schedule() -> None:
         SpeedSchedule([1.0, 2.0], [one, delayed])
     with pytest.raises(InputError, match="2 laws for 3 speeds"):
         SpeedSchedule([1.0, 2.0, 3.0], [one, one])
+
+
+def test_the_figure_draws_the_interpolated_gains_and_both_excess_costs() -> None:
+    from selftune.report import figure_schedule
+
+    motor = SPMSM(R_s=0.2, L_s=0.05, phi_pm=0.3, p=4)
+    design = design_schedule(motor, [25.0, 100.0, 500.0], Q, R, H, integral_weight=Q_I)
+    single = design.pointwise_optimum(4 * 100.0).law
+    single_excess = design.excess_of(single)
+    figure = figure_schedule(design, single_excess, 400.0)
+    gains, _, _, excess = figure.axes
+    line = gains.get_lines()[0]
+    speeds, values = line.get_xdata(), line.get_ydata()
+    size = design.schedule.electrical_speed.size
+    assert len(speeds) == size + FINE_POINTS * (size - 1)
+    for speed, value in zip(speeds[::17], values[::17], strict=True):
+        assert value == design.schedule.law_at(float(speed)).K[0, 0]
+    drawn = {line.get_label(): line.get_ydata() for line in excess.get_lines()}
+    np.testing.assert_array_equal(
+        drawn["single-speed controller"], np.maximum(single_excess, 1e-12)
+    )
+    np.testing.assert_array_equal(
+        drawn["interpolated schedule"], np.maximum(design.check.excess, 1e-12)
+    )
+
+
+#: The study of docs/schedule.md: seeded motors across the issue's range.
+STUDY_MOTORS = 20
+
+
+@pytest.mark.slow
+def test_the_study_of_random_motors_meets_one_percent() -> None:
+    """``pytest tests/test_schedule.py -k study -s`` prints docs/schedule.md's table."""
+    rng = np.random.default_rng(2026)
+    rows = []
+    for index in range(STUDY_MOTORS):
+        L_s = float(np.exp(rng.uniform(np.log(25e-6), np.log(0.1))))
+        tau = float(np.exp(rng.uniform(np.log(1e-3), np.log(0.1))))
+        p = int(rng.integers(2, 21))
+        rated = float(np.exp(rng.uniform(np.log(300.0), np.log(3000.0)))) / p
+        motor = SPMSM(R_s=L_s / tau, L_s=L_s, phi_pm=0.1, p=p)
+        integral = index % 2 == 1
+        design = design_schedule(
+            motor, [0.05 * rated, rated], Q, R, H, input_delay=DELAY,
+            integral_weight=Q_I if integral else None, hold="stationary",
+        )  # fmt: skip
+        single = design.pointwise_optimum(motor.p * 0.5 * rated).law
+        single_excess = design.excess_of(single)
+        worst = float(np.max(design.check.excess))
+        assert worst <= EXCESS
+        rows.append(
+            f"| {L_s * 1e3:.3g} | {tau * 1e3:.3g} | {p} | {rated * p:.0f} | "
+            f"{'yes' if integral else 'no'} | {design.schedule.electrical_speed.size} | "
+            f"{worst:.2g} | {single_excess[-1]:.2g} |"
+        )
+    print("\n| L_s (mH) | L_s/R_s (ms) | p | rated omega_e (rad/s) | K_i | grid | "
+          "worst excess | single-speed excess at top |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|")
+    print("\n".join(rows))
