@@ -426,13 +426,14 @@ def design_schedule(
         low, high = failing
         check = checks.pop(failing)
         if len(grid) >= limit:
-            worst = check.worst
+            margin = (1.0 - check.radius) / (1.0 - check.optimal_radius)
             raise UnsolvableError(
                 f"speeds: the schedule needs more than max_points = {limit} speeds: between "
-                f"{low:g} and {high:g} rad/s (electrical) the interpolated law still costs "
-                f"{check.excess[worst]:.3g} more than the optimum at "
-                f"{check.electrical_speed[worst]:g} rad/s (limit {allowed:g}), or loses its "
-                "stability margin or feedforward there"
+                f"{low:g} and {high:g} rad/s (electrical) the interpolated law still has an "
+                f"excess cost up to {np.max(check.excess):.3g} (limit {allowed:g}), 1 - rho "
+                f"down to {np.min(margin):.3g} of the optimum's (limit {MARGIN_FRACTION:g}) "
+                f"and a feedforward error up to {np.max(check.feedforward_error):.3g} "
+                f"(limit {FEEDFORWARD_ERROR:g})"
             )
         middle = 0.5 * (low + high)
         optima[middle] = design.optimum(middle)
