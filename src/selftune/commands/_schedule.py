@@ -19,6 +19,7 @@ import numpy as np
 
 from ..config import MotorConfig
 from ..core import Array, ControlLaw, cost_document
+from ..errors import SelftuneError
 from ..model import ModelBasedSolution, ScheduleDesign, bandwidth, design_schedule
 
 __all__ = ["ScheduleRun", "schedule_document", "schedule_lines", "scheduled"]
@@ -72,10 +73,13 @@ def scheduled(config: MotorConfig) -> ScheduleRun | None:
 
     settings, drive = _online_drive(config, 0)
     Q_i = learner_integral_weight(config.motor, settings) if settings.integral_action else None
-    design = design_schedule(
-        config.motor, config.schedule.speeds, config.Q, config.R, settings.h,
-        input_delay=drive.input_delay, integral_weight=Q_i, hold=drive.voltage_hold,
-    )  # fmt: skip
+    try:
+        design = design_schedule(
+            config.motor, config.schedule.speeds, config.Q, config.R, settings.h,
+            input_delay=drive.input_delay, integral_weight=Q_i, hold=drive.voltage_hold,
+        )  # fmt: skip
+    except SelftuneError as exc:  # said against the file's [schedule]
+        raise exc.retold(f"{config.source}: [schedule] {exc}") from None
     single = design.pointwise_optimum(config.motor.p * config.speed)
     return ScheduleRun(
         design=design,
