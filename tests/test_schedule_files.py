@@ -127,8 +127,14 @@ def test_the_json_states_the_schedule_and_its_whole_problem(solved: Path) -> Non
     assert check["single_speed_excess"][-1] > max(check["excess"])
     result = load_law_result(solved)
     assert result.schedule is not None and result.h == h and result.input_delay == 1
-    for speed in (30.0, 100.0, 599.0):
-        assert result.schedule.law_at(speed).K.shape == (2, 4)
+    loaded = result.schedule
+    for index, law in enumerate(loaded.laws):  # the JSON's numbers, bit for bit
+        for name in ("K", "K_i", "U", "X"):
+            np.testing.assert_array_equal(getattr(law, name), schedule[name][index])
+    middle = 0.5 * (schedule["electrical_speed"][0] + schedule["electrical_speed"][1])
+    halfway = 0.5 * (np.array(schedule["K"][0]) + np.array(schedule["K"][1]))
+    np.testing.assert_allclose(loaded.law_at(middle).K, halfway, rtol=1e-15, atol=1e-15)
+    assert loaded.laws[0].C is not None and loaded.laws[0].h == h
 
 
 def test_a_broken_schedule_in_a_json_is_refused_in_one_line(
