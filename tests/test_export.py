@@ -435,7 +435,7 @@ def test_export_takes_the_limit_and_the_motor_from_an_online_result(tmp_path: Pa
     ("change", "message"),
     [
         (lambda d: d.pop("control_law"), "control_law: missing"),
-        (lambda d: d.update(schedule={"electrical_speed": [0, 1]}), "schedule: a law scheduled"),
+        (lambda d: d.update(schedule={"electrical_speed": [0, 1]}), "schedule.K: missing"),
         (lambda d: d["control_law"]["K"][0].__setitem__(0, 1e39), "is not a finite float32"),
         (lambda d: d["control_law"]["K"][0].__setitem__(0, float("nan")), "control_law"),
         (

@@ -21,7 +21,8 @@ def export_command(result_path: str, out: str, u_max: float | None) -> int:
     Parameters
     ----------
     result_path : str
-        The JSON of ``selftune learn``, ``tune`` or ``tune --online``.
+        The JSON of ``selftune learn``, ``tune`` or ``tune --online`` (or ``solve`` with a
+        schedule over speed: its tables over ``omega_e``).
     out : str
         The output directory: absent, empty, or a previous export (its two files are
         replaced as one set); checked before anything is read.
@@ -55,10 +56,17 @@ def export_command(result_path: str, out: str, u_max: float | None) -> int:
     date = datetime.now(UTC).strftime("%Y-%m-%d")
     files = firmware(result, limit, source=source, version=__version__, date=date)
     paths = write_firmware(files, out)
-    law = result.law
+    law = result.law if result.schedule is None else result.schedule.laws[0]
+    what = f"the law of {result_path} ({result.key})"
+    if result.schedule is not None:
+        low, high = result.schedule.covered
+        what = (
+            f"the schedule of {result_path}: {result.schedule.electrical_speed.size} speeds, "
+            f"omega_e {low:g} to {high:g} rad/s (clamped outside)"
+        )
     print(
-        f"the law of {result_path} ({result.key}): d = {law.history} past voltage(s), "
-        f"{law.r} integrator(s), h = " + ("not stated" if result.h is None else f"{result.h:g} s")
+        f"{what}: d = {law.history} past voltage(s), {law.r} integrator(s), h = "
+        + ("not stated" if result.h is None else f"{result.h:g} s")
     )
     print(f"voltage limit SELFTUNE_U_MAX = {limit:.9g} V ({origin}); anti-windup: clamping")
     print(f"wrote {', '.join(path.name for path in paths)} to {out}/")

@@ -9,6 +9,7 @@ from ..core import compact, cost_document, matrix_block, vector
 from ..errors import InputError
 from ..model import ModelBasedSolution, solve_optimal_regulation
 from ._output import _check_json_target, _check_numerics, _numerics, _print_report, _write_json
+from ._schedule import schedule_document, schedule_lines, scheduled
 
 #: Relative residual of the Riccati and regulator equations above which the model-based
 #: solution is not trusted (it is about 1e-15 on any motor in the plausible ranges).
@@ -127,7 +128,10 @@ def solve_report(config: MotorConfig, solution: ModelBasedSolution) -> str:
 def solve_command(config: MotorConfig, json_path: str | None) -> int:
     """``selftune solve``: print the model-based optimum of ``config``; write its JSON
     (with the whole problem: the motor, the operating point, the cost ``Q, R, Q_i``, the
-    sampling period and the delay, 0 for this continuous-time optimum).
+    sampling period and the delay, 0 for this continuous-time optimum). With a
+    ``[schedule]`` table, also the digital optimum scheduled over speed and its check
+    (:mod:`._schedule`): printed as a table, and in the JSON ``schedule``,
+    ``schedule_design`` and ``control_law`` (the digital optimum at the operating point).
 
     Parameters
     ----------
@@ -139,6 +143,12 @@ def solve_command(config: MotorConfig, json_path: str | None) -> int:
     _check_json_target(json_path)
     solution = model_based(config)
     w = config.exogenous()
+    with _numerics(config.source) as caught:
+        run = scheduled(config)
+    lines = [solve_report(config, solution)]
+    if run is not None:
+        _check_numerics(config.source, caught, run.design.schedule.table("K"))
+        lines += schedule_lines(run, config.speed)
     if json_path is not None:
         document = {name: getattr(solution, name) for name in ("K", "P", "X", "U", "theta")}
         document.update({"x_e": solution.X @ w, "u_e": solution.U @ w, "w": w})
@@ -146,6 +156,8 @@ def solve_command(config: MotorConfig, json_path: str | None) -> int:
         document.update({"operating_point": {"speed": config.speed, "torque": config.torque}})
         document.update({"cost": cost_document(config.Q, config.R, solution.integral_weight)})
         document.update({"h": solution.h, "input_delay": solution.input_delay})
+        if run is not None:
+            document.update(schedule_document(run, config))
         _write_json(json_path, document)
-    _print_report([solve_report(config, solution)], json_path)
+    _print_report(lines, json_path)
     return 0

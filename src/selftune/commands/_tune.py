@@ -25,6 +25,7 @@ from ._output import (
     _write_json,
     _write_report,
 )
+from ._schedule import schedule_document, schedule_lines, scheduled
 
 
 def _tune_interior(
@@ -81,7 +82,9 @@ def tune_command(
 
     The drive is the ideal one, or the realistic one of the file's ``[drive]`` table; the
     report gives the controller a drive can run, its quality, and what it does on the
-    simulated drive (steady torque, also after R_s rose 40%).
+    simulated drive (steady torque, also after R_s rose 40%). With a ``[schedule]``
+    table, the model-based digital optimum scheduled over speed too (:mod:`._schedule`:
+    a table in the report, ``schedule`` and ``schedule_design`` in the JSON).
 
     Parameters
     ----------
@@ -115,8 +118,17 @@ def tune_command(
     _check_numerics(config.source, caught, result.P, result.K)
     pi = tuned_pi(motor, settings, result)
     lines = tune_lines(config.source, result, evaluation, torque, config.drive, pi)
+    with _numerics(config.source) as caught:
+        run = scheduled(config)
+    if run is not None:
+        _check_numerics(config.source, caught, run.design.schedule.table("K"))
+        lines = [*lines, *schedule_lines(run, config.speed)]
     if json_path is not None:
         document = tune_document(motor, settings, result, evaluation, torque, pi[0])
+        if run is not None:  # the model's schedule; the learned law stays the control_law
+            document.update(
+                {k: v for k, v in schedule_document(run, config).items() if k != "control_law"}
+            )
         _write_json(json_path, document)
     # the step response's step: the torque reference from 0 at the operating point's speed
     step = (result.w * np.array([1.0, 0.0]), result.w)

@@ -10,6 +10,7 @@
   drive's own columns, units and frame (:mod:`._log_table`);
   :func:`learn_log` -> :class:`LearnedLog`: a
   log learned with it, as ``selftune learn`` and ``selftune fleet`` do (:mod:`._learn_run`);
+- :class:`ScheduleConfig`: MOTOR.toml's ``[schedule]`` speeds (:mod:`._schedule_file`);
 - :func:`load_online_config` -> :class:`OnlineConfig`: an online run's duration and the
   profile of the motor's R_s, L_s and phi_pm over time (:mod:`._online_file`);
 - :func:`load_control_law` -> :class:`~selftune.core.ControlLaw`: the controller a JSON
@@ -25,6 +26,7 @@ from ._learn_run import LearnedLog, learn_log, learn_with_config, learning_probl
 from ._log_table import LOG_KEYS, load_log_format
 from ._motor_file import MOTOR_TABLES, MotorConfig, load_motor_config
 from ._online_file import ONLINE_TABLES, PROFILE_KEYS, OnlineConfig, load_online_config
+from ._schedule_file import SCHEDULE_KEYS, ScheduleConfig
 from ._toml import RENAMED_KEYS, ConfigFile, ConfigTable, read_toml
 
 __all__ = [
@@ -34,6 +36,7 @@ __all__ = [
     "ONLINE_TABLES",
     "PROFILE_KEYS",
     "RENAMED_KEYS",
+    "SCHEDULE_KEYS",
     "ConfigFile",
     "ConfigTable",
     "LawResult",
@@ -41,6 +44,7 @@ __all__ = [
     "LearnedLog",
     "MotorConfig",
     "OnlineConfig",
+    "ScheduleConfig",
     "learn_log",
     "learn_with_config",
     "learning_problem",

@@ -5,7 +5,9 @@ Every selftune JSON that carries a controller names it ``control_law`` with ever
 --json``. :func:`load_control_law` reads it back; an online run's JSON
 (``selftune tune --online --json``) gives its last switch's law, or the cold law if it
 switched none. :func:`load_law_result` adds what the file says of the drive the law was
-made for (:class:`LawResult`). Every error is one line naming the file and the key.
+made for (:class:`LawResult`), and the law's schedule over speed where the file has one
+(``schedule``, :meth:`selftune.model.SpeedSchedule.document`: ``selftune solve`` and
+``tune`` with a ``[schedule]`` table). Every error is one line naming the file and the key.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from typing import Any
 from ..core import ControlLaw
 from ..core._atomic import read_regular_file
 from ..errors import DataFileError, InputError
+from ..model import SpeedSchedule
 
 __all__ = ["LawResult", "load_control_law", "load_law_result"]
 
@@ -66,6 +69,8 @@ class LawResult:
     scheduled : bool
         Whether the file schedules the law over speed (a ``schedule`` key beside the
         law or at the top).
+    schedule : SpeedSchedule or None
+        That schedule (its laws in the convention of ``law``); None without one.
     """
 
     law: ControlLaw
@@ -75,6 +80,7 @@ class LawResult:
     motor: dict[str, float] | None
     dc_voltage: float | None
     scheduled: bool
+    schedule: SpeedSchedule | None = None
 
 
 def _read_document(path: str | os.PathLike[str]) -> Any:
@@ -158,10 +164,13 @@ def load_law_result(path: str | os.PathLike[str]) -> LawResult:
     law, mapping, key = _law_of(document, os.fspath(path))
     drive = document.get("drive")
     drive_settings = drive.get("settings", drive) if isinstance(drive, Mapping) else None
+    schedule = _schedule(mapping.get("schedule", document.get("schedule")), os.fspath(path))
+    design = document.get("schedule_design") if schedule is not None else None
     h = law.h
-    for table in (document, document.get("settings")):
+    for table in (design, document, document.get("settings")):
         h = h if h is not None else _number(table, "h")
-    delay = _number(document, "input_delay")
+    delay = _number(design, "input_delay")
+    delay = delay if delay is not None else _number(document, "input_delay")
     if delay is None:
         delay = _number(drive_settings, "input_delay")
     return LawResult(
@@ -172,4 +181,46 @@ def load_law_result(path: str | os.PathLike[str]) -> LawResult:
         motor=_motor(document),
         dc_voltage=_number(drive_settings, "dc_voltage"),
         scheduled="schedule" in mapping or "schedule" in document,
+        schedule=schedule,
     )
+
+
+def _schedule(table: Any, name: str) -> SpeedSchedule | None:
+    """The schedule a JSON result's ``schedule`` states (None if it has none)."""
+    if table is None:
+        return None
+    if not isinstance(table, Mapping):
+        raise DataFileError(f"{name}: schedule: must be an object, got {type(table).__name__}")
+    for field in ("electrical_speed", "K", "U", "X", "history"):
+        if field not in table:
+            raise DataFileError(f"{name}: schedule.{field}: missing")
+    speeds = table["electrical_speed"]
+    if not isinstance(speeds, list):
+        raise DataFileError(f"{name}: schedule.electrical_speed: must be a list of speeds")
+    laws = []
+    for field in ("K", "U", "X", "K_i"):
+        entries = table.get(field)
+        if (field != "K_i" or entries is not None) and (
+            not isinstance(entries, list) or len(entries) != len(speeds)
+        ):
+            raise DataFileError(
+                f"{name}: schedule.{field}: must list one matrix per speed ({len(speeds)})"
+            )
+    K_i = table.get("K_i")
+    try:
+        for index in range(len(speeds)):
+            gains = (table["K"][index], table["X"][index], table["U"][index])
+            integral = None if K_i is None else K_i[index]
+            laws.append(
+                ControlLaw(
+                    *gains,
+                    table["history"],
+                    integral,
+                    table.get("C"),
+                    table.get("F"),
+                    table.get("h"),
+                )
+            )
+        return SpeedSchedule(speeds, laws)
+    except (InputError, TypeError, ValueError) as exc:
+        raise DataFileError(f"{name}: schedule: {exc}") from None

@@ -17,6 +17,7 @@
                        # perturbation, flux_length (s), h, K0, exploration, ...
     [drive]            # optional: tune on a realistic drive (see ._drive_table)
     input_delay = 1
+    [schedule]         # optional: speeds = [...] or speed_range = [min, max] (._schedule_file)
 
 A ``[learning]`` table (``selftune tune``'s settings) is also allowed; its keys and each
 value's type and range are checked here, and the table is kept in
@@ -61,6 +62,7 @@ from ..core._validation import (
 )
 from ..errors import DataFileError, InputError
 from ..model import IPMSM, SPMSM, Motor, RegulationProblem
+from ._schedule_file import SCHEDULE_KEYS, ScheduleConfig, schedule_config
 from ._toml import ConfigFile, ConfigTable
 
 if TYPE_CHECKING:
@@ -121,6 +123,7 @@ MOTOR_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
             "logged_input",
             "voltage_hold",
         ),
+        "schedule": SCHEDULE_KEYS,
     }
 )
 
@@ -153,6 +156,8 @@ class MotorConfig:
     source : str
         Where the configuration came from (a file name, or ``"paper preset"``), for
         messages.
+    schedule : ScheduleConfig or None
+        The speeds of the ``[schedule]`` table; None without one.
 
     Raises
     ------
@@ -174,6 +179,7 @@ class MotorConfig:
     drive: DriveSettings | None = None
     drive_h: float | None = None
     Q_i: Array | None = None
+    schedule: ScheduleConfig | None = None  # [schedule]: the speeds (._schedule_file)
 
     def __post_init__(self) -> None:
         for name in ("speed", "torque"):
@@ -290,9 +296,12 @@ def load_motor_config(path: str | os.PathLike[str]) -> MotorConfig:
         from ._drive_table import drive_settings  # here: solve loads no simulator
 
         drive, drive_h = drive_settings(config.table("drive"))
+    schedule = schedule_config(config.table("schedule"), motor) if "schedule" in config else None
     try:
         raw = config.data.get("learning", {})  # as written: read with its names by the tuner
-        return MotorConfig(motor, speed, torque, Q, R, raw, config.file, drive, drive_h, Q_i)
+        return MotorConfig(
+            motor, speed, torque, Q, R, raw, config.file, drive, drive_h, Q_i, schedule=schedule
+        )
     except InputError as exc:  # a rule across tables (the speed for the motor)
         key, _, reason = str(exc).partition(": ")
         table = operating_point if key in ("speed", "torque") else cost

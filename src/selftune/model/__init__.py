@@ -12,7 +12,9 @@ import it (an import contract checks that); the learners see only sampled data.
   ``integral_weight``, the optimal servo controller: ``K_i`` too), a
   :class:`ModelBasedSolution` of the continuous loop;
 - :func:`solve_digital_regulation`: the optimal digital controller of the sampled loop
-  with a computation delay (:mod:`._digital`), with integral action if asked.
+  with a computation delay (:mod:`._digital`), with integral action if asked;
+- :func:`design_schedule`: that optimum on a grid of speeds, as a :class:`SpeedSchedule`
+  a drive interpolates linearly, checked between the grid speeds (:mod:`._schedule_design`).
 """
 
 from __future__ import annotations
@@ -23,20 +25,40 @@ from ._ipmsm import IPMSM, motor_from_parameters
 from ._motor import SPMSM
 from ._optimum import ModelBasedSolution, solve_optimal_regulation
 from ._problem import RegulationProblem
+from ._schedule import SpeedSchedule
+from ._schedule_design import (
+    EXCESS,
+    FINE_POINTS,
+    ScheduleCheck,
+    ScheduleDesign,
+    ScheduledMotor,
+    bandwidth,
+    design_schedule,
+    worst_excess,
+)
 
 #: A PMSM of either kind: the surface motor (the paper's) or the interior one.
 Motor = SPMSM | IPMSM
 
 __all__ = [
+    "EXCESS",
+    "FINE_POINTS",
     "IPMSM",
     "SPMSM",
     "DigitalCost",
     "ModelBasedSolution",
     "Motor",
     "RegulationProblem",
+    "ScheduleCheck",
+    "ScheduleDesign",
+    "ScheduledMotor",
+    "SpeedSchedule",
+    "bandwidth",
+    "design_schedule",
     "lqr",
     "motor_from_parameters",
     "policy_value",
     "solve_digital_regulation",
     "solve_optimal_regulation",
+    "worst_excess",
 ]

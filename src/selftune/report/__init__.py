@@ -13,7 +13,9 @@
 - :func:`firmware`, :func:`write_firmware` (:mod:`._firmware`): a law as C99 firmware
   with its voltage limit and anti-windup (``selftune export``);
 - :func:`write_learn_report` (:mod:`._html_report`, figures :mod:`._learn_figures`): a
-  learned controller's report, one HTML page and its figures (``--report DIR``).
+  learned controller's report, one HTML page and its figures (``--report DIR``);
+- :func:`figure_schedule` (:mod:`._schedule_figure`): a speed schedule's gains,
+  bandwidth and excess cost against speed, with the single-speed controller's.
 """
 
 from __future__ import annotations
@@ -62,6 +64,7 @@ from ._reproduce import (
     results_document,
     write_outputs,
 )
+from ._schedule_figure import figure_schedule
 from ._tune_report import (
     HOT_RESISTANCE,
     TorqueCheck,
@@ -98,6 +101,7 @@ __all__ = [
     "evaluate_online",
     "feedback_excess_cost",
     "feedback_value",
+    "figure_schedule",
     "firmware",
     "history_document",
     "interior_document",

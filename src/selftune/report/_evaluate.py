@@ -14,9 +14,9 @@ import numpy as np
 from ..core import Array, policy_value
 from ..errors import UnsolvableError
 from ..learn import LearningProblem, Trajectory
-from ..model import SPMSM, ModelBasedSolution, solve_optimal_regulation
+from ..model import SPMSM, ModelBasedSolution, Motor, solve_optimal_regulation
 from ..sim import DriveSettings, constant, simulate
-from ..tuning import TuningResult, TuningSettings, known_flux_form
+from ..tuning import TuningResult, TuningSettings
 
 __all__ = [
     "TuningEvaluation",
@@ -213,22 +213,22 @@ def block_error(learned: Array | None, best: Array | None) -> float:
     return float(np.linalg.norm(learned - best) / np.linalg.norm(best))
 
 
-def learner_integral_weight(motor: SPMSM, settings: TuningSettings) -> Array | None:
+def learner_integral_weight(motor: Motor, settings: TuningSettings) -> Array | None:
     """The integral weight a session's learner uses (the settings' ``Q_i``, else the
     default of :class:`selftune.learn.LearningProblem`), so the optimum compared is of the
     same cost.
 
     Parameters
     ----------
-    motor : SPMSM
-        The motor (its pole pairs and flux give F).
+    motor : SPMSM or IPMSM
+        The motor (kept for the callers; the weight depends on C and Q only).
     settings : TuningSettings
         Cost weights and K0.
     """
-    C, _, F, _ = known_flux_form(motor.p, settings.speed, settings.torque, motor.phi_pm)
-    problem = LearningProblem(
-        settings.Q, settings.R, C=C, F=F, integral_action=True, integral_weight=settings.Q_i
-    )
+    problem = LearningProblem(  # the integrated current error's weight: C's and Q's only
+        settings.Q, settings.R, C=np.eye(2), F=np.zeros((2, 1)), integral_action=True,
+        integral_weight=settings.Q_i,
+    )  # fmt: skip
     return problem.integral_weight
 
 

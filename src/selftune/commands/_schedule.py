@@ -1,0 +1,185 @@
+"""The speed schedule of a motor file's ``[schedule]`` table: designed, printed, written.
+
+``selftune solve`` and ``selftune tune`` design it when MOTOR.toml has a ``[schedule]``
+table (:mod:`selftune.config._schedule_file`): the optimal digital controller on a grid of
+speeds (:func:`selftune.model.design_schedule`) for the loop the file's drive runs (the
+digital servo settings of an online tuner: the ``[learning]`` or ``[drive]`` sampling
+period, the ``[drive]`` delay and hold, or a drive's defaults, one sample and the
+stationary-frame hold; integral action and its weight as ``[learning]`` and ``[cost]``
+say). Beside it, the single-speed controller: the same optimum at the operating point's
+speed, and its excess cost at each speed the schedule is checked at.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..config import MotorConfig
+from ..core import Array, ControlLaw, cost_document
+from ..errors import SelftuneError
+from ..model import ModelBasedSolution, ScheduleDesign, bandwidth, design_schedule
+
+__all__ = ["ScheduleRun", "schedule_document", "schedule_lines", "scheduled"]
+
+
+@dataclass(frozen=True, eq=False)
+class ScheduleRun:
+    """A motor file's schedule, its loop, and the single-speed controller beside it.
+
+    Attributes
+    ----------
+    design : ScheduleDesign
+        The schedule, its grid's optima and its check.
+    single : ModelBasedSolution
+        The optimum at the operating point's speed (the single-speed controller).
+    single_excess : ndarray
+        Its excess cost at each speed of the check's fine grid.
+    Q_i : ndarray or None
+        The integral weight of the design (None without integral action).
+    key : str
+        The [schedule] key the speeds came from.
+    speeds : tuple of float
+        The speeds the file gave, mechanical rad/s.
+    """
+
+    design: ScheduleDesign
+    single: ModelBasedSolution
+    single_excess: Array
+    Q_i: Array | None
+    key: str
+    speeds: tuple[float, ...]
+
+    @property
+    def single_law(self) -> ControlLaw:
+        """The single-speed controller's law."""
+        return self.single.law
+
+
+def scheduled(config: MotorConfig) -> ScheduleRun | None:
+    """The schedule of ``config`` (None without a ``[schedule]`` table).
+
+    Parameters
+    ----------
+    config : MotorConfig
+        The motor file's content.
+    """
+    if config.schedule is None:
+        return None
+    from ..report._evaluate import learner_integral_weight
+    from ._tune import _online_drive
+
+    settings, drive = _online_drive(config, 0)
+    Q_i = learner_integral_weight(config.motor, settings) if settings.integral_action else None
+    try:
+        design = design_schedule(
+            config.motor, config.schedule.speeds, config.Q, config.R, settings.h,
+            input_delay=drive.input_delay, integral_weight=Q_i, hold=drive.voltage_hold,
+        )  # fmt: skip
+    except SelftuneError as exc:  # said against the file's [schedule]
+        raise exc.retold(f"{config.source}: [schedule] {exc}") from None
+    single = design.pointwise_optimum(config.motor.p * config.speed)
+    return ScheduleRun(
+        design=design,
+        single=single,
+        single_excess=design.excess_of(single.law),
+        Q_i=Q_i,
+        key=config.schedule.key,
+        speeds=config.schedule.speeds,
+    )
+
+
+def _norm(matrix: Array | None) -> str:
+    return "-" if matrix is None else f"{float(np.linalg.norm(matrix)):.4g}"
+
+
+def schedule_lines(run: ScheduleRun, operating_speed: float) -> list[str]:
+    """The schedule as a short table: per grid speed the gains' norms, the closed loop's
+    dominant-pole bandwidth and the worst excess cost up to the next speed.
+
+    Parameters
+    ----------
+    run : ScheduleRun
+        The schedule.
+    operating_speed : float
+        The operating point's mechanical speed, rad/s (the single-speed controller's).
+    """
+    design, check = run.design, run.design.check
+    loop = design.loop
+    grid = design.schedule.electrical_speed
+    lines = [
+        "",
+        f"Speed schedule ([schedule] {run.key}): the digital optimum at {grid.size} electrical"
+        f" speeds, h = {loop.h:g} s, delay {loop.input_delay} sample(s), {design.hold} hold,"
+        f" {'with' if loop.r else 'without'} integral action",
+        f"  {'omega_e (rad/s)':>16} {'|K|':>10} {'|K_i|':>10} {'bandwidth (rad/s)':>18}"
+        f" {'worst excess to next':>21}",
+    ]
+    for index, (speed, optimum) in enumerate(zip(grid, design.optima, strict=True)):
+        radius = loop.spectral_radius(optimum.sampled_plant[:2], optimum.law)
+        rate = float(bandwidth(radius, loop.h))
+        if index + 1 < grid.size:
+            inside = (check.electrical_speed > speed) & (check.electrical_speed < grid[index + 1])
+            worst = f"{float(np.max(check.excess[inside])):.3g}"
+        else:
+            worst = "-"
+        lines.append(
+            f"  {speed:16.6g} {_norm(optimum.law.K):>10} {_norm(optimum.law.K_i):>10}"
+            f" {rate:18.5g} {worst:>21}"
+        )
+    worst_index = check.worst
+    top = int(np.argmax(check.electrical_speed))
+    lines += [
+        f"  worst excess cost {check.excess[worst_index]:.3g} at omega_e ="
+        f" {check.electrical_speed[worst_index]:.6g} rad/s (limit {check.limit:g}; "
+        f"{check.electrical_speed.size} speeds checked, {len(design.added)} added)",
+        f"  the single-speed controller (designed at {operating_speed:g} rad/s mechanical):"
+        f" excess {run.single_excess[top]:.3g} at omega_e = {check.electrical_speed[top]:.6g}"
+        f" rad/s, at most {float(np.max(run.single_excess)):.3g} over the schedule",
+    ]
+    return lines
+
+
+def schedule_document(run: ScheduleRun, config: MotorConfig) -> dict[str, Any]:
+    """The JSON keys of a schedule: ``schedule`` (the tables, :meth:`~selftune.model.
+    SpeedSchedule.document`) and ``schedule_design``: everything the design needs to be
+    recomputed from the file (the loop's period, delay and hold, the cost with ``Q_i``, the
+    speeds given) and its check on the fine grid, with the single-speed controller's
+    excess (``control_law`` is that controller).
+
+    Parameters
+    ----------
+    run : ScheduleRun
+        The schedule.
+    config : MotorConfig
+        The motor file's content.
+    """
+    design, check = run.design, run.design.check
+    return {
+        "schedule": design.schedule.document(),
+        "schedule_design": {
+            "h": design.loop.h,
+            "input_delay": design.loop.input_delay,
+            "hold": design.hold,
+            "cost": cost_document(config.Q, config.R, run.Q_i),
+            "pole_pairs": config.motor.p,
+            run.key: list(run.speeds),
+            "added": list(design.added),
+            "excess_limit": check.limit,
+            "check": {
+                "electrical_speed": check.electrical_speed,
+                "excess": check.excess,
+                "spectral_radius": check.radius,
+                "optimal_spectral_radius": check.optimal_radius,
+                "feedforward_error": check.feedforward_error,
+                "single_speed_excess": run.single_excess,
+            },
+            "single_speed": {
+                "speed": config.speed,
+                "electrical_speed": config.motor.p * config.speed,
+            },
+        },
+        "control_law": run.single_law.document(),
+    }

@@ -1,0 +1,203 @@
+"""The speed schedule through its files: MOTOR.toml's [schedule], the JSON, the C tables.
+
+- ``[schedule]`` refusals are one line naming the file, the table and the key;
+- ``selftune solve`` writes a JSON from which the schedule's pointwise optimum is
+  recomputed with nothing but the file (the motor, the loop, the cost, the speeds);
+- ``selftune export`` of that JSON compiles to C that runs the scheduled law as
+  :meth:`selftune.model.SpeedSchedule.law_at` does, on grid speeds, between them, and
+  clamped outside them (compared with the drives' stepper, to float32 rounding).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from selftune.cli import main
+from selftune.config import load_law_result, load_motor_config
+from selftune.core import ControlLaw
+from selftune.errors import DataFileError
+from selftune.model import SPMSM, solve_digital_regulation
+from test_export import CompiledLaw, needs_compiler, rounding_bound, stepper_commands
+
+MOTOR = """
+[motor]
+R_s = 0.6
+L_s = 8e-3
+phi_pm = 0.35
+p = 3
+[operating_point]
+speed = 50.0
+torque = 5.0
+[learning]
+h = 1e-4
+integral_action = true
+target = "digital"
+"""
+
+
+def motor_file(tmp_path: Path, schedule: str) -> Path:
+    path = tmp_path / "motor.toml"
+    path.write_text(MOTOR + "[schedule]\n" + schedule + "\n")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("schedule", "message"),
+    [
+        ("", "[schedule]: give exactly one of speeds"),
+        ("speeds = [10.0, 20.0]\nspeed_range = [10.0, 20.0]", "[schedule] speed_range: give"),
+        ("speeds = 10.0", "[schedule] speeds: must be a list"),
+        ("speeds = []", "[schedule] speeds: must be a list"),
+        ("speeds = [10.0]", "[schedule] speeds: needs at least two"),
+        ("speeds = [10.0, 'fast']", "[schedule] speeds: entries must be numbers"),
+        ("speeds = [10.0, true]", "[schedule] speeds: entries must be numbers"),
+        ("speeds = [20.0, 10.0]", "[schedule] speeds: must increase strictly"),
+        ("speeds = [10.0, 10.0]", "[schedule] speeds: must increase strictly"),
+        ("speeds = [10.0, nan]", "[schedule] speeds: must be finite"),
+        ("speeds = [10.0, 1e9]", "[schedule] speeds: "),
+        ("speeds = [10.0, 20000.0]", "[schedule] speeds: 20000 rad/s is too fast"),
+        ("speed_range = [10.0, 20.0, 30.0]", "[schedule] speed_range: must be [min, max]"),
+        ("speed_range = [30.0, 20.0]", "[schedule] speed_range: must increase strictly"),
+        ("speed = [10.0, 20.0]", "[schedule] speed: unknown key"),
+    ],
+)
+def test_bad_schedule_tables_are_refused_in_one_line(
+    tmp_path: Path, schedule: str, message: str
+) -> None:
+    with pytest.raises(DataFileError) as caught:
+        load_motor_config(motor_file(tmp_path, schedule))
+    text = str(caught.value)
+    assert text.startswith(f"{tmp_path / 'motor.toml'}: ") and message in text, text
+    assert "\n" not in text
+
+
+def test_a_schedule_table_is_read_as_written(tmp_path: Path) -> None:
+    config = load_motor_config(motor_file(tmp_path, "speeds = [-20, 10.0, 150]"))
+    assert config.schedule is not None
+    assert config.schedule.speeds == (-20.0, 10.0, 150.0) and not config.schedule.automatic
+    config = load_motor_config(motor_file(tmp_path, "speed_range = [10, 150.0]"))
+    assert config.schedule is not None and config.schedule.automatic
+    assert load_motor_config(_without_schedule(tmp_path)).schedule is None
+
+
+def _without_schedule(tmp_path: Path) -> Path:
+    path = tmp_path / "plain.toml"
+    path.write_text(MOTOR)
+    return path
+
+
+@pytest.fixture(scope="module")
+def solved(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``selftune solve --json`` of a motor file with a three-speed schedule."""
+    directory = tmp_path_factory.mktemp("schedule")
+    path = directory / "motor.toml"
+    path.write_text(MOTOR + "[schedule]\nspeeds = [10.0, 60.0, 200.0]\n")
+    out = directory / "solve.json"
+    assert main(["solve", "--motor", str(path), "--json", str(out)]) == 0
+    return out
+
+
+def test_the_json_states_the_schedule_and_its_whole_problem(solved: Path) -> None:
+    """From the file alone: the motor, the loop (h, delay, hold), the cost with Q_i and
+    the speeds give each grid law again (solve_digital_regulation at that speed)."""
+    document = json.loads(solved.read_text())
+    schedule, design = document["schedule"], document["schedule_design"]
+    assert set(schedule) >= {"electrical_speed", "K", "K_i", "U", "X"}
+    motor = SPMSM(**{key: document["motor"][key] for key in ("R_s", "L_s", "phi_pm", "p")})
+    assert schedule["electrical_speed"][0] == pytest.approx(10.0 * motor.p)
+    cost, h = design["cost"], design["h"]
+    assert cost["Q_i"] is not None and design["speeds"] == [10.0, 60.0, 200.0]
+    for index, electrical in enumerate(schedule["electrical_speed"]):
+        speed = electrical / motor.p
+        law = solve_digital_regulation(
+            motor.regulation_problem(speed), cost["Q"], cost["R"], h,
+            input_delay=design["input_delay"], integral_weight=cost["Q_i"],
+            plant=motor.sampled_plant(speed, h, design["hold"]),
+        ).law  # fmt: skip
+        for name in ("K", "K_i", "U", "X"):
+            np.testing.assert_allclose(schedule[name][index], getattr(law, name), rtol=1e-12)
+    check = design["check"]
+    assert len(check["electrical_speed"]) >= 50 * (len(schedule["electrical_speed"]) - 1)
+    assert max(check["excess"]) <= design["excess_limit"] == 0.01
+    # the single-speed law (the file's control_law) costs more at the top of the range
+    assert check["single_speed_excess"][-1] > max(check["excess"])
+    result = load_law_result(solved)
+    assert result.schedule is not None and result.h == h and result.input_delay == 1
+    loaded = result.schedule
+    for index, law in enumerate(loaded.laws):  # the JSON's numbers, bit for bit
+        for name in ("K", "K_i", "U", "X"):
+            np.testing.assert_array_equal(getattr(law, name), schedule[name][index])
+    middle = 0.5 * (schedule["electrical_speed"][0] + schedule["electrical_speed"][1])
+    halfway = 0.5 * (np.array(schedule["K"][0]) + np.array(schedule["K"][1]))
+    np.testing.assert_allclose(loaded.law_at(middle).K, halfway, rtol=1e-15, atol=1e-15)
+    assert loaded.laws[0].C is not None and loaded.laws[0].h == h
+
+
+def test_a_broken_schedule_in_a_json_is_refused_in_one_line(
+    solved: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    document = json.loads(solved.read_text())
+    for change, message in [
+        (lambda s: s.pop("K"), "schedule.K: missing"),
+        (lambda s: s["U"].pop(), "schedule.U: must list one matrix per speed (3)"),
+        (lambda s: s.update(electrical_speed=[1.0, 0.5, 2.0]), "must increase strictly"),
+    ]:
+        broken = json.loads(json.dumps(document))
+        change(broken["schedule"])
+        path = tmp_path / "broken.json"
+        path.write_text(json.dumps(broken))
+        assert main(["export", str(path), "--out", str(tmp_path / "out"), "--u-max", "100"]) == 2
+        error = capsys.readouterr().err
+        assert message in error and error.count("\n") == 1, error
+        assert not (tmp_path / "out").exists()
+
+
+def envelope(first: ControlLaw, second: ControlLaw) -> ControlLaw:
+    """The law whose every gain is the larger magnitude of two neighbours': the float32
+    rounding of an interpolated gain is bounded by that of the larger of the two."""
+
+    def big(name: str) -> np.ndarray:
+        return np.maximum(np.abs(getattr(first, name)), np.abs(getattr(second, name)))
+
+    return ControlLaw(
+        big("K"), big("X"), big("U"), first.history, big("K_i"), first.C, first.F, first.h
+    )
+
+
+@needs_compiler
+def test_the_exported_tables_run_the_law_at_every_speed(solved: Path, tmp_path: Path) -> None:
+    """On grid speeds, between them and outside them (clamped), the C law returns what
+    the stepper computes with ``law_at`` of the float32 speed, within float32 rounding."""
+    result = load_law_result(solved)
+    schedule = result.schedule
+    assert schedule is not None
+    grid = schedule.electrical_speed
+    speeds = [*grid, 0.5 * (grid[0] + grid[1]), grid[1] + 0.1 * (grid[2] - grid[1]),
+              grid[0] - 5.0, grid[-1] + 50.0]  # fmt: skip
+    u_max = 150.0
+    compiled = CompiledLaw(solved, u_max, tmp_path)
+    rng = np.random.default_rng(7)
+    count = 4000
+    law0 = schedule.laws[0]
+    for speed in speeds:
+        omega = float(np.float32(speed))
+        inside = float(np.clip(omega, grid[0], grid[-1]))
+        law = schedule.law_at(inside)
+        w = np.repeat(np.c_[np.full(count // 500, 0.35 * omega), rng.normal(0, 5.0, count // 500)],
+                      500, axis=0)  # fmt: skip
+        x = w @ law0.X.T + rng.normal(0, 1.0, (count, 2))
+        expected = stepper_commands(law, x, w, u_max)
+        u = compiled.run(x, w, np.full(count, omega))
+        index = min(int(np.searchsorted(grid, inside, side="right")) - 1, grid.size - 2)
+        bound = rounding_bound(
+            envelope(schedule.laws[index], schedule.laws[index + 1]), x, w, expected, u_max
+        )
+        error = np.hypot(*(u - expected).T)
+        assert np.all(error <= bound), (speed, float(np.max(error / bound)))
+    # a law away from the speed it runs at differs by far more than the rounding
+    wrong = stepper_commands(schedule.laws[0], x, w, u_max)
+    assert np.max(np.hypot(*(wrong - expected).T)) > 1e3 * np.max(bound)
