@@ -68,7 +68,7 @@ void harness_run(selftune_state *s, long count, const float *i_dq, const float *
 
     selftune_init(s);
     for (k = 0; k < count; ++k) {
-        selftune_step(s, i_dq + 2 * k, w + 2 * k, omega_e[k], u_dq + 2 * k);
+        selftune_step(s, i_dq + 2 * k, w + HARNESS_Q * k, omega_e[k], u_dq + 2 * k);
     }
 }
 """
@@ -101,7 +101,8 @@ class CompiledLaw:
         )
         for name, text in files.files.items():
             (directory / name).write_text(text)
-        (directory / "harness.c").write_text(HARNESS)
+        q = load_law_result(result).law.q
+        (directory / "harness.c").write_text(f"#define HARNESS_Q {q}\n" + HARNESS)
         library = directory / "libselftune_law.so"
         sources = [str(directory / "selftune_law.c"), str(directory / "harness.c")]
         compiled = subprocess.run(
@@ -115,7 +116,7 @@ class CompiledLaw:
         self.lib.harness_state_size.restype = ctypes.c_size_t
 
     def run(self, x: Array, w: Array, omega_e: Array) -> Array:
-        """The voltages the C law returns from rest, fed ``x`` (N, 2), ``w`` (N, 2) and
+        """The voltages the C law returns from rest, fed ``x`` (N, 2), ``w`` (N, q) and
         ``omega_e`` (N,) as float32."""
         count = x.shape[0]
         single = [np.ascontiguousarray(a, dtype=np.float32) for a in (x, w, omega_e)]
@@ -283,26 +284,31 @@ def test_the_c_law_compiles_clean_and_calls_nothing_but_sqrtf(tmp_path: Path) ->
 
 
 @needs_compiler
-@pytest.mark.parametrize(("history", "integral"), [(0, False), (1, False), (2, True)])
+@pytest.mark.parametrize(
+    ("history", "integral", "q"), [(0, False, 2), (1, False, 2), (2, True, 2), (1, True, 3)]
+)
 def test_every_form_of_the_law_runs_as_the_stepper_runs_it(
-    history: int, integral: bool, tmp_path: Path
+    history: int, integral: bool, q: int, tmp_path: Path
 ) -> None:
-    """Laws with 0, 1 and 2 past voltages, with and without integrators, on random
-    measurements whose commands often exceed the limit: the C law is the stepper's."""
-    rng = np.random.default_rng(history)
-    X = rng.normal(0, 1, (2, 2))
+    """Laws with 0, 1 and 2 past voltages, with and without integrators, with 2 reference
+    channels or 3 (an interior motor's [w_1, i_d*, i_q*]), on random measurements whose
+    commands often exceed the limit: the C law is the stepper's."""
+    # seeds whose integrators leave the limit acting at 1-90% of the samples
+    rng = np.random.default_rng(history if q == 2 else 7)
+    X = rng.normal(0, 1, (2, q))
     extra = {}
     if integral:  # e = x - X w: zero on average about the steady state
         extra = dict(K_i=rng.normal(0, 300.0, (2, 2)), C=np.eye(2), F=-X, h=H)
     law = ControlLaw(
         K=rng.normal(0, 5.0, (2, 2 + 2 * history)) * np.r_[np.ones(2), 0.05 * np.ones(2 * history)],
-        X=X, U=rng.normal(0, 1, (2, 2)), history=history, **extra,
+        X=X, U=rng.normal(0, 1, (2, q)), history=history, **extra,
     )  # fmt: skip
     result = write_result(tmp_path / "law.json", law)
     u_max = 20.0
     compiled = CompiledLaw(result, u_max, tmp_path)
     count = 20_000
-    w = np.repeat(rng.normal(0, 10.0, (count // 1000, 2)), 1000, axis=0)
+    # |U w| as large with q channels as with 2: the limit acts about as often
+    w = np.repeat(rng.normal(0, 10.0 * np.sqrt(2 / q), (count // 1000, q)), 1000, axis=0)
     x = w @ X.T + rng.normal(0, 2.0, (count, 2))
     expected = stepper_commands(law, x, w, u_max)
     assert 0.01 < np.mean(np.hypot(*expected.T) >= u_max * (1 - 1e-12)) < 0.9
@@ -438,9 +444,11 @@ def test_export_takes_the_limit_and_the_motor_from_an_online_result(tmp_path: Pa
         (lambda d: d.update(schedule={"electrical_speed": [0, 1]}), "schedule.K: missing"),
         (lambda d: d["control_law"]["K"][0].__setitem__(0, 1e39), "is not a finite float32"),
         (lambda d: d["control_law"]["K"][0].__setitem__(0, float("nan")), "control_law"),
-        (
-            lambda d: d["control_law"].update(X=[[0.0], [0.0]], U=[[0.0], [0.0]], F=[[0.0], [0.0]]),
-            "(n, m, q) = (2, 2, 1)",
+        (  # three states: not a current loop
+            lambda d: d["control_law"].update(
+                K=[[0.0] * 5] * 2, X=[[0.0, 0.0]] * 3, C=[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+            ),
+            "(n, m) = (3, 2)",
         ),
     ],
 )

@@ -18,8 +18,11 @@ Every number is printed with ``%.9g`` of its float32 value, which reads back to 
 float32. The functions (fixed by the interface)::
 
     void selftune_init(selftune_state *s);
-    void selftune_step(selftune_state *s, const float i_dq[2], const float w[2],
+    void selftune_step(selftune_state *s, const float i_dq[2], const float w[q],
                        float omega_e, float u_dq[2]);
+
+with ``q`` the law's reference channels: 2 for a surface motor's ``[p speed phi_pm, T*]``,
+3 for an interior one's ``[p speed phi_pm, i_d*, i_q*]``.
 
 ``omega_e`` (electrical speed, rad/s) is the argument of a schedule over speed
 (:class:`~selftune.model.SpeedSchedule`, a JSON's ``schedule``): the source then holds
@@ -115,10 +118,10 @@ def _check(result: LawResult, source: str) -> ControlLaw:
     law = _law(result)
     if result.scheduled and result.schedule is None:
         raise InputError(f"{source}: schedule: the file names a schedule but states none")
-    if (law.n, law.m, law.q) != (2, 2, 2):
+    if (law.n, law.m) != (2, 2):
         raise InputError(
-            f"{source}: {_key(result)}: the firmware takes i_dq (2 currents) and w (2 channels) "
-            f"and gives u_dq (2 voltages); this law has (n, m, q) = {(law.n, law.m, law.q)}"
+            f"{source}: {_key(result)}: the firmware takes i_dq (2 currents) and gives u_dq (2"
+            f" voltages); this law has (n, m) = {(law.n, law.m)}"
         )
     return law
 
@@ -155,8 +158,8 @@ def _banner(result: LawResult, u_max_text: str, source: str, version: str, date:
         "  u_k = U w_k - K [x_k - X w_k; u_(k-d) - U w_k; ...; u_(k-1) - U w_k]",
         "        - K_i z_k",
         "  z_(k+1) = z_k + h (C x_k + F w_k)",
-        "x = i_dq = [i_d, i_q], the currents measured at sample k, A; w = [p speed phi_pm, "
-        "T*], V and N m, as in the file, held over the sample; u = u_dq = [u_d, u_q], V; "
+        f"x = i_dq = [i_d, i_q], the currents measured at sample k, A; {_reference_text(law)},"
+        " as in the file, held over the sample; u = u_dq = [u_d, u_q], V; "
         f"{_omega_text(result)} The order of the state, K's columns then K_i's (u1[k-1]: "
         "u_d computed at sample k - 1; z: the integrators, A s):",
         f"  {state}",
@@ -180,6 +183,20 @@ def _banner(result: LawResult, u_max_text: str, source: str, version: str, date:
         )
     ]
     return "/*\n" + "\n".join(f" * {line}".rstrip() for line in wrapped) + "\n */\n"
+
+
+def _reference_text(law: ControlLaw) -> str:
+    """What the banner says ``w`` is."""
+    if law.q == 3:
+        return "w = [p speed phi_pm, i_d*, i_q*], V, A and A (an interior motor's currents)"
+    if law.q == 2:
+        return "w = [p speed phi_pm, T*], V and N m"
+    return f"w = the file's {law.q} reference channels"
+
+
+def _dot(matrix: str, vector: str, q: int) -> str:
+    """``matrix[i][0] * vector[0] + ...``: row i of a matrix times a vector of q."""
+    return " + ".join(f"{matrix}[i][{j}] * {vector}[{j}]" for j in range(q))
 
 
 def _omega_text(result: LawResult) -> str:
@@ -239,10 +256,10 @@ def _header(result: LawResult, u_max: float, source: str, version: str, date: st
         + "\n};\ntypedef struct selftune_state selftune_state;\n\n"
         + "/* Set the state to rest: past voltages and integrators zero. */\n"
         + "void selftune_init(selftune_state *s);\n\n"
-        + "/* One sample: i_dq the measured currents, A; w the reference [p speed phi_pm, T*]\n"
-        + "   as in the JSON; omega_e the electrical speed, rad/s; u_dq the voltage to\n"
+        + "/* One sample: i_dq the measured currents, A; w the reference as in the JSON\n"
+        + "   (see above); omega_e the electrical speed, rad/s; u_dq the voltage to\n"
         + "   apply, V (|u_dq| <= SELFTUNE_U_MAX). */\n"
-        + "void selftune_step(selftune_state *s, const float i_dq[2], const float w[2],\n"
+        + f"void selftune_step(selftune_state *s, const float i_dq[2], const float w[{law.q}],\n"
         + "                   float omega_e, float u_dq[2]);\n\n"
         + "#endif /* SELFTUNE_LAW_H */\n"
     )
@@ -272,7 +289,7 @@ def _init_body(law: ControlLaw) -> list[str]:
 def _step_body(law: ControlLaw, scheduled: bool) -> list[str]:
     columns = law.K.shape[1]
     if scheduled:
-        tables = f"U[2][2], X[2][2], K[2][{columns}]" + (
+        tables = f"U[2][{law.q}], X[2][{law.q}], K[2][{columns}]" + (
             "" if law.K_i is None else ", K_I[2][SELFTUNE_INTEGRATORS]"
         )
         speed = [
@@ -290,8 +307,8 @@ def _step_body(law: ControlLaw, scheduled: bool) -> list[str]:
         *(["    (void)s; /* the law keeps no state */"] if not (law.history or law.r) else []),
         "    /* u_e = U w; the deviations [x - X w; u_(k-d) - u_e; ...; u_(k-1) - u_e] */",
         "    for (i = 0; i < 2; ++i) {",
-        "        u_e[i] = U[i][0] * w[0] + U[i][1] * w[1];",
-        "        deviation[i] = i_dq[i] - (X[i][0] * w[0] + X[i][1] * w[1]);",
+        f"        u_e[i] = {_dot('U', 'w', law.q)};",
+        f"        deviation[i] = i_dq[i] - ({_dot('X', 'w', law.q)});",
         "    }",
     ]
     if law.history:
@@ -332,7 +349,7 @@ def _step_body(law: ControlLaw, scheduled: bool) -> list[str]:
             "        /* anti-windup: z += h (C x + F w) only where the limit did not act */",
             "        for (i = 0; i < SELFTUNE_INTEGRATORS; ++i) {",
             "            s->z[i] += SELFTUNE_H * (C[i][0] * i_dq[0] + C[i][1] * i_dq[1]",
-            "                                     + F[i][0] * w[0] + F[i][1] * w[1]);",
+            f"                                     + {_dot('F', 'w', law.q)});",
             "        }",
         ]
     body.append("    }")
@@ -388,7 +405,8 @@ def _schedule_tables(schedule: SpeedSchedule, state: str) -> list[str]:
             f"K at each speed: feedback on the deviations of [{state}]",
         ),
     ]
-    entries = [("U", "2"), ("X", "2"), ("K", str(columns))]
+    q = schedule.table("U").shape[2]
+    entries = [("U", str(q)), ("X", str(q)), ("K", str(columns))]
     if integral:
         parts += [
             "\n",
@@ -459,7 +477,7 @@ def _source(law: ControlLaw, key: str, schedule: SpeedSchedule | None) -> str:
         "\nvoid selftune_init(selftune_state *s)\n{\n",
         "\n".join(_init_body(law)),
         "\n}\n\n",
-        "void selftune_step(selftune_state *s, const float i_dq[2], const float w[2],\n",
+        f"void selftune_step(selftune_state *s, const float i_dq[2], const float w[{law.q}],\n",
         "                   float omega_e, float u_dq[2])\n{\n",
         "\n".join(_step_body(law, schedule is not None)),
         "\n}\n",
@@ -491,7 +509,7 @@ def firmware(result: LawResult, u_max: float, *, source: str, version: str, date
     ------
     InputError
         One line, if the law has a schedule over speed, does not fit the interface
-        (n = m = q = 2), has integral action without h, or a number is no finite float32.
+        (n = m = 2), has integral action without h, or a number is no finite float32.
     """
     law = _check(result, source)
     limit = positive_finite(u_max, "--u-max")
