@@ -93,3 +93,30 @@ def test_interior_tune_asks_for_a_drive_and_the_right_options(tmp_path, capsys) 
     assert main(["tune", "--motor", drive_file, "--algorithm", "2"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--algorithm: an interior PM motor" in err[0]
+
+
+def test_tune_schedules_the_identified_motor_never_the_files(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """An interior motor's schedule is designed on the motor its tune identified (the
+    JSON says so and states it); a surface motor's tune, which identifies no R_s and L_s,
+    refuses a [schedule] table in one line instead of writing the model's."""
+    motor = "R_s = 0.2\nL_d = 2e-3\nL_q = 5e-3\nphi_pm = 0.1\np = 4"
+    path = _file(tmp_path, motor, 100.0, 5.0)
+    with open(path, "a") as handle:
+        handle.write("[schedule]\nspeed_range = [20.0, 200.0]\n")
+    out = tmp_path / "result.json"
+    assert main(["tune", "--motor", path, "--json", str(out), "--seed", "2"]) == 0
+    document = json.loads(out.read_text())
+    design = document["schedule_design"]
+    assert design["designed_on"] == "the identified motor"
+    for name in ("R_s", "L_d", "L_q", "phi_pm"):
+        assert design["motor"][name] == document["identified"][name]
+    assert design["motor"]["L_d"] != 2e-3  # identified, not the file's
+    surface = tmp_path / "surface.toml"
+    surface.write_text(
+        "[motor]\nR_s = 0.2\nL_s = 2e-3\nphi_pm = 0.1\np = 4\n"
+        "[schedule]\nspeed_range = [20.0, 200.0]\n"
+    )
+    capsys.readouterr()
+    assert main(["tune", "--motor", str(surface)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "[schedule]: selftune tune learns a surface motor's law" in err[0]

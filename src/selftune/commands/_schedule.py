@@ -8,6 +8,11 @@ period, the ``[drive]`` delay and hold, or a drive's defaults, one sample and th
 stationary-frame hold; integral action and its weight as ``[learning]`` and ``[cost]``
 say). Beside it, the single-speed controller: the same optimum at the operating point's
 speed, and its excess cost at each speed the schedule is checked at.
+
+``solve`` designs on the file's motor (the model). ``tune`` never does: it designs on the
+motor it identified (an interior motor's commissioning), which the JSON states in
+``schedule_design.motor``; a surface motor's tune identifies no R_s and L_s, and refuses
+a ``[schedule]`` table.
 """
 
 from __future__ import annotations
@@ -20,7 +25,7 @@ import numpy as np
 from ..config import MotorConfig
 from ..core import Array, ControlLaw, cost_document
 from ..errors import SelftuneError
-from ..model import ModelBasedSolution, ScheduleDesign, bandwidth, design_schedule
+from ..model import ModelBasedSolution, Motor, ScheduleDesign, bandwidth, design_schedule
 
 __all__ = ["ScheduleRun", "schedule_document", "schedule_lines", "scheduled"]
 
@@ -43,6 +48,10 @@ class ScheduleRun:
         The [schedule] key the speeds came from.
     speeds : tuple of float
         The speeds the file gave, mechanical rad/s.
+    motor : SPMSM or IPMSM
+        The motor the schedule was designed on.
+    designed_on : str
+        What that motor is: ``"the model"`` (the file's) or ``"the identified motor"``.
     """
 
     design: ScheduleDesign
@@ -51,6 +60,8 @@ class ScheduleRun:
     Q_i: Array | None
     key: str
     speeds: tuple[float, ...]
+    motor: Motor
+    designed_on: str
 
     @property
     def single_law(self) -> ControlLaw:
@@ -58,13 +69,15 @@ class ScheduleRun:
         return self.single.law
 
 
-def scheduled(config: MotorConfig) -> ScheduleRun | None:
+def scheduled(config: MotorConfig, identified: Motor | None = None) -> ScheduleRun | None:
     """The schedule of ``config`` (None without a ``[schedule]`` table).
 
     Parameters
     ----------
     config : MotorConfig
         The motor file's content.
+    identified : SPMSM or IPMSM, optional
+        The motor a tuner identified, to design on; default: the file's (the model).
     """
     if config.schedule is None:
         return None
@@ -72,15 +85,16 @@ def scheduled(config: MotorConfig) -> ScheduleRun | None:
     from ._tune import _online_drive
 
     settings, drive = _online_drive(config, 0)
-    Q_i = learner_integral_weight(config.motor, settings) if settings.integral_action else None
+    motor = config.motor if identified is None else identified
+    Q_i = learner_integral_weight(motor, settings) if settings.integral_action else None
     try:
         design = design_schedule(
-            config.motor, config.schedule.speeds, config.Q, config.R, settings.h,
+            motor, config.schedule.speeds, config.Q, config.R, settings.h,
             input_delay=drive.input_delay, integral_weight=Q_i, hold=drive.voltage_hold,
         )  # fmt: skip
     except SelftuneError as exc:  # said against the file's [schedule]
         raise exc.retold(f"{config.source}: [schedule] {exc}") from None
-    single = design.pointwise_optimum(config.motor.p * config.speed)
+    single = design.pointwise_optimum(motor.p * config.speed)
     return ScheduleRun(
         design=design,
         single=single,
@@ -88,6 +102,8 @@ def scheduled(config: MotorConfig) -> ScheduleRun | None:
         Q_i=Q_i,
         key=config.schedule.key,
         speeds=config.schedule.speeds,
+        motor=motor,
+        designed_on="the model" if identified is None else "the identified motor",
     )
 
 
@@ -165,6 +181,8 @@ def schedule_document(run: ScheduleRun, config: MotorConfig) -> dict[str, Any]:
             "hold": design.hold,
             "cost": cost_document(config.Q, config.R, run.Q_i),
             "pole_pairs": config.motor.p,
+            "designed_on": run.designed_on,
+            "motor": run.motor,
             run.key: list(run.speeds),
             "added": list(design.added),
             "excess_limit": check.limit,

@@ -62,10 +62,19 @@ def _tune_interior(
     with _numerics(config.source) as caught:
         result = commission_interior(motor, settings, config.drive, seed=seed)
         evaluation = evaluate_interior(result, motor, settings, config.drive)
+        run = scheduled(config, result.motor)  # on the identified motor, never the file's
     _check_numerics(config.source, caught, result.learned.law.K)
     lines = interior_lines(config.source, result, evaluation, config.drive)
+    if run is not None:
+        _check_numerics(config.source, caught, run.design.schedule.table("K"))
+        lines = [*lines, *schedule_lines(run, config.speed)]
     if json_path is not None:
-        _write_json(json_path, interior_document(motor, settings, result, evaluation, config.drive))
+        document = interior_document(motor, settings, result, evaluation, config.drive)
+        if run is not None:  # the learned law at the operating speed stays the control_law
+            document.update(
+                {k: v for k, v in schedule_document(run, config).items() if k != "control_law"}
+            )
+        _write_json(json_path, document)
     _print_report(lines, json_path)
     return 0
 
@@ -82,9 +91,11 @@ def tune_command(
 
     The drive is the ideal one, or the realistic one of the file's ``[drive]`` table; the
     report gives the controller a drive can run, its quality, and what it does on the
-    simulated drive (steady torque, also after R_s rose 40%). With a ``[schedule]``
-    table, the model-based digital optimum scheduled over speed too (:mod:`._schedule`:
-    a table in the report, ``schedule`` and ``schedule_design`` in the JSON).
+    simulated drive (steady torque, also after R_s rose 40%). An interior motor is
+    commissioned by identify-then-design (:func:`_tune_interior`); with a ``[schedule]``
+    table its identified motor's optimum is scheduled over speed too (:mod:`._schedule`: a
+    table in the report, ``schedule`` and ``schedule_design`` in the JSON). A surface
+    motor's session identifies no R_s and L_s, and refuses a ``[schedule]`` table.
 
     Parameters
     ----------
@@ -110,6 +121,13 @@ def tune_command(
     if isinstance(config.motor, IPMSM):
         return _tune_interior(config, config.motor, seed, json_path, algorithm, target, report_dir)
     motor = config.surface_motor()
+    if config.schedule is not None:
+        raise InputError(
+            f"{config.source}: [schedule]: selftune tune learns a surface motor's law at one"
+            " speed and identifies no R_s and L_s to schedule it over speed; selftune solve"
+            " designs the model's schedule (an interior motor's tune schedules the motor it"
+            " identifies)"
+        )
     settings = tuning_settings(config, seed, target)
     with _numerics(config.source) as caught:
         result = run_algorithm(algorithm, motor, settings, drive=config.drive)  # type: ignore[arg-type]
@@ -118,18 +136,8 @@ def tune_command(
     _check_numerics(config.source, caught, result.P, result.K)
     pi = tuned_pi(motor, settings, result)
     lines = tune_lines(config.source, result, evaluation, torque, config.drive, pi)
-    with _numerics(config.source) as caught:
-        run = scheduled(config)
-    if run is not None:
-        _check_numerics(config.source, caught, run.design.schedule.table("K"))
-        lines = [*lines, *schedule_lines(run, config.speed)]
     if json_path is not None:
-        document = tune_document(motor, settings, result, evaluation, torque, pi[0])
-        if run is not None:  # the model's schedule; the learned law stays the control_law
-            document.update(
-                {k: v for k, v in schedule_document(run, config).items() if k != "control_law"}
-            )
-        _write_json(json_path, document)
+        _write_json(json_path, tune_document(motor, settings, result, evaluation, torque, pi[0]))
     # the step response's step: the torque reference from 0 at the operating point's speed
     step = (result.w * np.array([1.0, 0.0]), result.w)
     _write_report(result.learned, f"selftune tune: {config.source}", lines, report_dir, step)
