@@ -201,3 +201,23 @@ def test_the_exported_tables_run_the_law_at_every_speed(solved: Path, tmp_path: 
     # a law away from the speed it runs at differs by far more than the rounding
     wrong = stepper_commands(schedule.laws[0], x, w, u_max)
     assert np.max(np.hypot(*(wrong - expected).T)) > 1e3 * np.max(bound)
+
+
+def test_solve_writes_the_schedules_figure_as_one_set(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``solve --report DIR`` writes schedule.png and schedule.svg (a PNG and an SVG,
+    nothing else); without a [schedule] table it refuses in one line and writes
+    nothing."""
+    path = motor_file(tmp_path, "speed_range = [10.0, 200.0]")
+    report = tmp_path / "report"
+    assert main(["solve", "--motor", str(path), "--report", str(report)]) == 0
+    assert sorted(item.name for item in report.iterdir()) == ["schedule.png", "schedule.svg"]
+    assert (report / "schedule.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "<svg" in (report / "schedule.svg").read_text()
+    capsys.readouterr()
+    other = tmp_path / "other"
+    assert main(["solve", "--report", str(other)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--report: the figure is a speed schedule's" in err[0]
+    assert not other.exists()

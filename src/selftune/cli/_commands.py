@@ -33,12 +33,22 @@ def _add_solve(subparsers: _Subparsers) -> None:
     )
     _add_motor_options(parser)
     _add_json_option(parser)
+    parser.add_argument(
+        "--report",
+        metavar="DIR",
+        default=None,
+        help=(
+            "with a [schedule] table: write its figure into DIR, schedule.png and"
+            " schedule.svg (the gains, the closed loop's bandwidth and the excess costs"
+            " of the schedule and of the single-speed controller against speed)"
+        ),
+    )
 
 
 def _run_solve(args: argparse.Namespace) -> int:
     from ..commands import solve_command
 
-    return solve_command(_motor_config(args), args.json)
+    return solve_command(_motor_config(args), args.json, args.report)
 
 
 def _add_learn(subparsers: _Subparsers) -> None:

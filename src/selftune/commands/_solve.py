@@ -6,10 +6,18 @@ import numpy as np
 
 from ..config import MotorConfig
 from ..core import compact, cost_document, matrix_block, vector
+from ..core._atomic import check_output_directory, output_directory
 from ..errors import InputError
 from ..model import ModelBasedSolution, solve_optimal_regulation
-from ._output import _check_json_target, _check_numerics, _numerics, _print_report, _write_json
-from ._schedule import schedule_document, schedule_lines, scheduled
+from ._output import (
+    STANDARD_OUTPUT,
+    _check_json_target,
+    _check_numerics,
+    _numerics,
+    _print_report,
+    _write_json,
+)
+from ._schedule import ScheduleRun, schedule_document, schedule_lines, scheduled
 
 #: Relative residual of the Riccati and regulator equations above which the model-based
 #: solution is not trusted (it is about 1e-15 on any motor in the plausible ranges).
@@ -125,7 +133,11 @@ def solve_report(config: MotorConfig, solution: ModelBasedSolution) -> str:
     return "\n".join(lines)
 
 
-def solve_command(config: MotorConfig, json_path: str | None) -> int:
+#: The files ``selftune solve --report DIR`` writes (the schedule's figure).
+SCHEDULE_REPORT_FILES = ("schedule.png", "schedule.svg")
+
+
+def solve_command(config: MotorConfig, json_path: str | None, report_dir: str | None = None) -> int:
     """``selftune solve``: print the model-based optimum of ``config``; write its JSON
     (with the whole problem: the motor, the operating point, the cost ``Q, R, Q_i``, the
     sampling period and the delay, 0 for this continuous-time optimum). With a
@@ -139,8 +151,18 @@ def solve_command(config: MotorConfig, json_path: str | None) -> int:
         The motor, operating point and weights.
     json_path : str or None
         Where to write the JSON (``-``: standard output, without the report).
+    report_dir : str or None
+        Where to write the schedule's figure (:data:`SCHEDULE_REPORT_FILES`); needs a
+        ``[schedule]`` table.
     """
     _check_json_target(json_path)
+    if report_dir is not None:
+        if config.schedule is None:
+            raise InputError(
+                f"--report: the figure is a speed schedule's, and {config.source} has no"
+                " [schedule] table (speeds = [...] or speed_range = [min, max])"
+            )
+        check_output_directory(report_dir, SCHEDULE_REPORT_FILES, "schedule report")
     solution = model_based(config)
     w = config.exogenous()
     with _numerics(config.source) as caught:
@@ -159,5 +181,19 @@ def solve_command(config: MotorConfig, json_path: str | None) -> int:
         if run is not None:
             document.update(schedule_document(run, config))
         _write_json(json_path, document)
+    if report_dir is not None and run is not None:
+        _write_schedule_figure(run, config, report_dir)
     _print_report(lines, json_path)
+    if report_dir is not None and json_path != STANDARD_OUTPUT:
+        print(f"wrote {report_dir}/ ({', '.join(SCHEDULE_REPORT_FILES)})")
     return 0
+
+
+def _write_schedule_figure(run: ScheduleRun, config: MotorConfig, directory: str) -> None:
+    """The schedule's figure as one set of files in ``directory``."""
+    from ..report import figure_schedule
+    from ..report._figures import save_figure
+
+    figure = figure_schedule(run.design, run.single_excess, run.motor.p * config.speed)
+    with output_directory(directory, SCHEDULE_REPORT_FILES, "schedule report") as temporary:
+        save_figure(figure, temporary / "schedule")

@@ -28,10 +28,10 @@ from ..model import ScheduleDesign, bandwidth
 __all__ = ["figure_schedule"]
 
 #: The entries of K and K_i drawn: (row, column, label), as ``u_row`` on ``x_column``.
-_ENTRIES = ((0, 0, "d on d"), (0, 1, "d on q"), (1, 0, "q on d"))
+_ENTRIES = ((0, 0, "d on d"), (0, 1, "d on q"), (1, 0, "q on d"), (1, 1, "q on q"))
 
 #: Colours of the entries, the schedule, the optimum and the single-speed controller.
-_COLOURS = ("#1f77b4", "#d62728", "#2ca02c")
+_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd")
 _SCHEDULE, _OPTIMUM, _SINGLE = "#1f77b4", "#2ca02c", "#ff7f0e"
 
 
