@@ -12,7 +12,10 @@ stays below 0.1 and the back-EMF within the bus, and a low-voltage motor on a 48
 
 Reported: per run, the identified L_d, L_q and flux against the heated truth (relative
 error and in standard errors), the torque error, the law's excess cost on the true loop,
-or the refusal's cause; over the runs, the share of true errors within one standard error
+the speed schedule designed on the identified motor over 5-100% of the top speed (twice
+the operating point's) judged against the true motor's pointwise optimum at 50 speeds
+between its grid speeds, beside the learned single-speed law's excess at the top, or the
+refusal's cause; over the runs, the share of true errors within one standard error
 (about 68% if the error bars mean what they say).
 """
 
@@ -25,11 +28,11 @@ import numpy as np
 
 from ..config import MotorConfig
 from ..errors import SelftuneError
-from ..model import IPMSM
+from ..model import IPMSM, design_schedule
 from ..report import evaluate_interior
 from ..report._digital_evaluation import true_motor
 from ..sim import DriveSettings
-from ..tuning import commission_interior, tuning_settings
+from ..tuning import InteriorCommissioning, TuningSettings, commission_interior, tuning_settings
 from ._common import table, with_progress
 from ._targets import TargetOutcome
 
@@ -60,6 +63,12 @@ TEMPERATURE_RISE = 20.0
 #: R_s came out 86% high and L_d 4% low at 4-5 standard errors (docs/interior.md).
 LOW_VOLTAGE_DEAD_TIME = 0.5e-6
 
+#: The top of the schedule's speed range, in units of the operating point's speed.
+TOP_SPEED_FACTOR = 2.0
+
+#: The bottom of the schedule's speed range, a share of the top.
+BOTTOM_SPEED_SHARE = 0.05
+
 #: The parameters judged.
 _JUDGED = ("L_d", "L_q", "phi_pm")
 
@@ -83,6 +92,11 @@ class InteriorCase:
         ``|T - T*| / T*`` at the MTPA references, %.
     excess_cost_percent : float
         The learned feedback's cost over the true loop's optimum, %.
+    schedule_excess_percent : float
+        The identified motor's schedule over 5-100% of the top speed: its largest excess
+        over the true pointwise optimum (worst initial state), %.
+    single_speed_excess_percent : float
+        The learned single-speed law's excess at the top speed, %.
     w_e_h_ratio : float
         ``p speed h``, rad per sample.
     bus_volts : float
@@ -100,6 +114,8 @@ class InteriorCase:
     phi_pm_error_ratio_to_se: float
     torque_error_percent: float
     excess_cost_percent: float
+    schedule_excess_percent: float
+    single_speed_excess_percent: float
     w_e_h_ratio: float
     bus_volts: float
     wall_seconds: float
@@ -150,7 +166,8 @@ def _case(index: int, seed: int) -> InteriorCase:
     except SelftuneError as error:
         nan = float("nan")
         return InteriorCase(
-            label, seed, str(error)[:90], nan, nan, nan, nan, nan, nan, nan, nan, w_e_h, bus,
+            label, seed, str(error)[:90], nan, nan, nan, nan, nan, nan, nan, nan, nan, nan,
+            w_e_h, bus,
             time.perf_counter() - started,
         )  # fmt: skip
     evaluation = evaluate_interior(result, motor, settings, drive)
@@ -160,11 +177,37 @@ def _case(index: int, seed: int) -> InteriorCase:
         (getattr(result.motor, name) - getattr(truth, name)) / result.standard_errors[name]
         for name in _JUDGED
     ]
+    schedule, single = _schedule_excess(result, truth, settings, drive, TOP_SPEED_FACTOR * speed)
     return InteriorCase(
         label, seed, "", errors[0], errors[1], errors[2], z[0], z[1], z[2],
-        100.0 * result.torque_error, 100.0 * evaluation.excess_cost, w_e_h, bus,
-        time.perf_counter() - started,
+        100.0 * result.torque_error, 100.0 * evaluation.excess_cost, 100.0 * schedule,
+        100.0 * single, w_e_h, bus, time.perf_counter() - started,
     )  # fmt: skip
+
+
+def _schedule_excess(
+    result: InteriorCommissioning, truth: IPMSM, settings: TuningSettings,
+    drive: DriveSettings, top: float,
+) -> tuple[float, float]:  # fmt: skip
+    """The identified motor's schedule's largest excess over the true pointwise optimum,
+    and the learned law's excess at the top speed (the fine grid's last speed)."""
+    speeds = (BOTTOM_SPEED_SHARE * top, top)
+    designs = [
+        design_schedule(
+            motor,
+            speeds,
+            settings.Q,
+            settings.R,
+            settings.h,
+            input_delay=result.learned.law.history,
+            integral_weight=result.integral_weight,
+            hold=drive.voltage_hold,
+        )
+        for motor in (result.motor, truth)
+    ]
+    identified, true = designs
+    single = true.excess_of(result.learned.law)
+    return float(np.max(true.excess_of(identified.schedule))), float(single[-1])
 
 
 def measure_interior(quick: bool, progress: bool = True, seeds: int = 4) -> InteriorStudy:
@@ -232,13 +275,14 @@ def markdown_interior(study: InteriorStudy) -> list[str]:
     for case in study.cases:
         if not case.learned:
             rows.append([case.motor_text, str(case.seed), "refused: " + case.refusal_text,
-                         "-", "-", "-", f"{case.wall_seconds:.1f}"])  # fmt: skip
+                         "-", "-", "-", "-", f"{case.wall_seconds:.1f}"])  # fmt: skip
             continue
         errors = ", ".join(
             f"{name} {case.error_percent(name):+.3f}% ({case.z(name):+.1f})" for name in _JUDGED
         )
         rows.append([case.motor_text, str(case.seed), errors, f"{case.torque_error_percent:.3f}",
                      f"{case.excess_cost_percent:.2e}",
+                     f"{case.schedule_excess_percent:.3f} / {case.single_speed_excess_percent:.3f}",
                      f"{case.w_e_h_ratio:.3f}, {case.bus_volts:g} V",
                      f"{case.wall_seconds:.1f}"])  # fmt: skip
     learned = [case for case in study.cases if case.learned]
@@ -258,6 +302,7 @@ def markdown_interior(study: InteriorStudy) -> list[str]:
                 "identified (error, z)",
                 "torque error %",
                 "excess cost %",
+                "schedule / single-speed excess %",
                 "w_e h, bus",
                 "s",
             ],

@@ -246,20 +246,24 @@ class ScheduleDesign:
         """
         return self._design.optimum(electrical_speed)
 
-    def excess_of(self, law: ControlLaw) -> Array:
-        """The excess cost of one fixed ``law`` (e.g. one designed at a single speed) at
-        each speed of the check's fine grid (:func:`worst_excess`; ``inf`` where it does
-        not stabilize the loop).
+    def excess_of(self, law: ControlLaw | SpeedSchedule) -> Array:
+        """The excess cost of one fixed ``law`` (e.g. one designed at a single speed), or
+        of another schedule interpolated at each speed (e.g. one designed on an identified
+        motor, judged on this design's true one), at each speed of the check's fine grid
+        (:func:`worst_excess`; ``inf`` where it does not stabilize the loop).
 
         Parameters
         ----------
-        law : ControlLaw
-            The law (the loop's delay and integrator).
+        law : ControlLaw or SpeedSchedule
+            The law or the schedule (the loop's delay and integrator).
         """
         optima = self.check.optima
         plants = [optimum.sampled_plant[:2] for optimum in optima]
         weights = self.loop.weights(optima[0].Q, optima[0].R, "digital")
-        values, _ = self.loop.values(plants, law, weights)
+        laws: ControlLaw | list[ControlLaw] = law if isinstance(law, ControlLaw) else [
+            law.law_at(float(speed)) for speed in self.check.electrical_speed
+        ]  # fmt: skip
+        values, _ = self.loop.values(plants, laws, weights)
         return worst_excess(values, np.array([optimum.P for optimum in optima]))
 
 
