@@ -120,3 +120,15 @@ def test_tune_schedules_the_identified_motor_never_the_files(tmp_path, capsys) -
     assert main(["tune", "--motor", str(surface)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "[schedule]: selftune tune learns a surface motor's law" in err[0]
+
+
+def test_the_online_tuner_refuses_an_interior_motor_in_one_line(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    path = _file(tmp_path, "R_s = 0.2\nL_d = 2e-3\nL_q = 5e-3\nphi_pm = 0.1\np = 4", 100, 5)
+    profile = tmp_path / "profile.toml"
+    profile.write_text(
+        "[online]\nduration = 1.0\n[[online.profile]]\ntime = 0.0\nR_s = 1.0\nphi_pm = 1.0\n"
+        "[[online.profile]]\ntime = 1.0\nR_s = 1.1\nphi_pm = 1.0\n"
+    )
+    assert main(["tune", "--motor", path, "--online", str(profile)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "has no online tuner yet" in err[0]

@@ -162,7 +162,7 @@ def test_motor_file_inductance_mistakes_name_the_key(tmp_path, motor: str, messa
         load_motor_config(_write(tmp_path, motor))
 
 
-def test_solve_prints_the_interior_motor_and_tune_refuses_it(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+def test_solve_prints_the_interior_motor_and_tune_asks_for_a_drive(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     from selftune.cli import main
 
     path = _write(tmp_path, "R_s = 0.2\nL_d = 2e-3\nL_q = 5e-3\nphi_pm = 0.1\np = 4")
@@ -171,4 +171,4 @@ def test_solve_prints_the_interior_motor_and_tune_refuses_it(tmp_path, capsys) -
     assert "L_d = 0.002 H, L_q = 0.005 H" in out and "i_d* (A, MTPA)" in out
     assert main(["tune", "--motor", path]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "an interior PM motor (L_q / L_d = 2.5)" in err[0]
+    assert len(err) == 1 and "an interior PM motor is commissioned on a realistic drive" in err[0]

@@ -224,8 +224,9 @@ class MotorConfig:
         return cls(motor=SPMSM.paper())
 
     def surface_motor(self) -> SPMSM:
-        """The motor, if it is a surface motor (``L_d = L_q``): what the simulated drives
-        and the tuners model.
+        """The motor, if it is a surface motor (``L_d = L_q``): what the paper's algorithms
+        and the online tuner model (an interior motor is commissioned by
+        :func:`selftune.tuning.commission_interior`).
 
         Raises
         ------
@@ -236,8 +237,8 @@ class MotorConfig:
             return self.motor
         raise InputError(
             f"{self.source}: [motor] L_d, L_q: an interior PM motor (L_q / L_d ="
-            f" {self.motor.saliency:.3g}) cannot be tuned on a simulated drive yet (they"
-            " model L_d = L_q); selftune solve gives its model-based optimum"
+            f" {self.motor.saliency:.3g}) has no online tuner yet (it follows a surface"
+            " motor's R_s, L_s and flux); selftune tune without --online commissions it"
         )
 
     def regulation_problem(self) -> RegulationProblem:
