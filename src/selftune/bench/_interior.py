@@ -249,6 +249,8 @@ def interior_targets(study: InteriorStudy, quick: bool = False) -> list[TargetOu
     refused = len(study.cases) - len(learned)
     worst = max((abs(c.error_percent(name)) for c in learned for name in _JUDGED), default=0.0)
     torque = max((c.torque_error_percent for c in learned), default=0.0)
+    schedule = max((c.schedule_excess_percent for c in learned), default=0.0)
+    single = max((c.single_speed_excess_percent for c in learned), default=0.0)
     why = f"{len(learned)} of {len(study.cases)} learned; within one se: {_within_one(learned)}"
     return [
         TargetOutcome("interior L_d, L_q, phi_pm", "within 0.5% from <= 0.5 s of data",
@@ -257,6 +259,13 @@ def interior_targets(study: InteriorStudy, quick: bool = False) -> list[TargetOu
         TargetOutcome("interior steady torque (MTPA)", "<= 0.5% at rated torque",
                       f"largest {torque:.3f}%" if learned else "-",
                       bool(learned) and torque <= 0.5, why),
+        TargetOutcome("interior speed schedule",
+                      "<= 1% over the pointwise optimum at 50 speeds between grid speeds",
+                      f"largest {schedule:.3f}%" if learned else "-",
+                      bool(learned) and schedule <= 1.0,
+                      f"designed on the motor identified from 0.5 s at one speed, 5-100% of "
+                      f"the top speed; the learned single-speed law at the top: up to "
+                      f"{single:.2f}%"),
         TargetOutcome("interior refusals", "none of good data", f"{refused} refused",
                       None if quick else refused == 0,
                       "the consistency test near zero current: see docs/interior.md"),
