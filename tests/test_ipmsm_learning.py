@@ -4,6 +4,8 @@ from a noisy log against the truth and the model-based digital optimum."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -122,3 +124,39 @@ def test_interior_motor_is_identified_within_its_standard_errors(motor: IPMSM) -
     optimum = solve_digital_regulation(problem, known[0].Q, known[0].R, 1e-4, input_delay=0)
     error = np.linalg.norm(learned.K - optimum.K) / np.linalg.norm(optimum.K)
     assert error <= 4.0 * learned.quality.K_relative_se + 1e-9
+
+
+def test_learn_reads_the_interior_structure_from_the_config_and_reports_the_motor(  # type: ignore[no-untyped-def]
+    tmp_path, capsys
+) -> None:
+    """``selftune learn`` with ``structure = "ipmsm"`` in CONFIG.toml: the log's three
+    reference channels, the identified L_d and L_q printed and in the JSON (L_s null)."""
+    from selftune.cli import main
+    from selftune.learn import save_csv
+
+    motor = IPMSM(R_s=0.2, L_d=2e-3, L_q=5e-3, phi_pm=0.1, p=4)
+    log, _, known = _log(motor, 100.0, 0.5, 0.01, seed=1)
+    save_csv(log, tmp_path / "log.csv")
+    K0 = known[1]
+    (tmp_path / "learn.toml").write_text(
+        "[cost]\nQ = [[1000.0, 0.0], [0.0, 1000.0]]\nR = [[1.0, 0.0], [0.0, 1.0]]\n"
+        f"[policy]\nK0 = [[{K0[0, 0]}, 0.0], [0.0, {K0[1, 1]}]]\n"
+        "[regulation]\nC = [[1.0, 0.0], [0.0, 1.0]]\n"
+        "E = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]\n"
+        "F = [[0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]\n"
+        '[learning]\ntarget = "digital"\nmethod = "identify"\nstructure = "ipmsm"\n'
+        'electrical_speed = 400.0\nvoltage_hold = "rotor"\ninput_delay = 0\n'
+    )
+    out = tmp_path / "out.json"
+    code = main([
+        "learn", str(tmp_path / "log.csv"), "--config", str(tmp_path / "learn.toml"),
+        "--json", str(out),
+    ])  # fmt: skip
+    printed = capsys.readouterr()
+    assert code == 0, printed.err
+    assert "identified motor: R_s = " in printed.out and "L_q = " in printed.out
+    estimate = json.loads(out.read_text())["quality"]["motor"]
+    assert estimate["L_s"] is None
+    for name in ("L_d", "L_q", "phi_pm"):
+        truth = getattr(motor, name)
+        assert abs(estimate[name] - truth) <= 4.0 * estimate[f"{name}_se"]

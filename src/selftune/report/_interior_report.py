@@ -111,13 +111,7 @@ def interior_lines(
         f"controller{servo}, identify-then-design from {result.data_seconds * 1e3:.3g} ms "
         "of motor data",
         "",
-        "identified (the truth, only to compare: relative error):",
     ]
-    for name, unit in _PARAMETERS:
-        value, se = getattr(result.motor, name), result.standard_errors[name]
-        lines.append(
-            f"  {name} = {value:.6g} +- {se:.2g} {unit}  ({evaluation.parameter_errors[name]:+.3%})"
-        )
     i_d, i_q = result.references
     lines += [
         f"MTPA of the identified motor at T* = {result.torque:g} N m: i_d* = {i_d:.5g} A, "
@@ -132,7 +126,11 @@ def interior_lines(
     if law.K_i is not None:
         lines += matrix_block("K_i", law.K_i, ["u_d", "u_q"], ["z_d", "z_q"])
     lines += matrix_block("U", law.U, ["u_d", "u_q"], ["w1", "i_d*", "i_q*"])
-    lines += ["", *result.learned.verdict.lines(), ""]
+    lines += ["", *result.learned.verdict.lines()]
+    errors = ", ".join(
+        f"{name} {evaluation.parameter_errors[name]:+.3%}" for name, _ in _PARAMETERS
+    )
+    lines += [f"  the identified motor against the truth (only to compare): {errors}", ""]
     lines.append(
         f"on the simulated drive at the MTPA references: true torque {result.true_torque:.6g}"
         f" N m, error {result.true_torque / result.torque - 1.0:+.3%}"

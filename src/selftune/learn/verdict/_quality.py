@@ -150,6 +150,16 @@ class MotorEstimate:
     L_q: float | None = None
     L_q_se: float | None = None
 
+    def text(self) -> str:
+        """The parameters with their standard errors in one line."""
+        parts = [f"R_s = {self.R_s:.6g} +- {self.R_s_se:.2g} ohm"]
+        for name in ("L_s", "L_d", "L_q"):
+            value, se = getattr(self, name), getattr(self, f"{name}_se")
+            if value is not None:
+                parts.append(f"{name} = {value:.6g} +- {se:.2g} H")
+        parts.append(f"phi_pm = {self.phi_pm:.6g} +- {self.phi_pm_se:.2g} Wb")
+        return ", ".join(parts)
+
 
 @dataclass(frozen=True)
 class Quality:
@@ -264,6 +274,8 @@ class Quality:
         ]
         if self.voltage_error is not None:
             lines.append(f"  inverter dead-time voltage {self.voltage_error:.3g} V per phase")
+        if self.motor is not None:
+            lines.append(f"  identified motor: {self.motor.text()}")
         return lines + [f"  note: {note}" for note in self.notes]
 
 
