@@ -20,6 +20,7 @@ import numpy as np
 
 from ..core import Array
 from ..core._phases import CLARKE, PHASE_DIRECTIONS, ComplexArray, from_phases, to_phases
+from ._saturation import SaturatedMotors
 
 if TYPE_CHECKING:
     from ._inverter import LoopInputs, LoopState
@@ -269,6 +270,7 @@ class _CarrierInverter:
         )  # fmt: skip
         self.rotor, self.modulation = inputs.rotor.tolist(), inputs.modulation.tolist()
         frames = inputs.frames  # interior motors: the rotor frame (._salient)
+        assert not isinstance(frames, SaturatedMotors), "saturation runs with average PWM"
         self.frames = None if frames is None else frames.frames
         self.emf = inputs.emf.tolist() if frames is None else []
         noise = sensor.noise
