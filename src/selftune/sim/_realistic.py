@@ -40,7 +40,7 @@ same in kind. The effects, and what each does to the ideal drive's sampled data
   term is an interior motor's; a surface motor's is ``1.5 p phi_pm i_q``).
 - **Saturation** (``saturation``, :mod:`._saturation`): current-dependent flux linkages,
   analytic or a flux-map table; the motor is then propagated in the rotor frame by RK4
-  steps (not exactly: about 1e-9 of the current's scale) and its torque is ``1.5 p (psi_d
+  steps (not exactly: to 2e-7 of the current's scale, measured) and its torque is ``1.5 p (psi_d
   i_q - psi_q i_d)``. Average PWM only, at the nameplate temperature, not in a session.
 
 The log holds the dq command, never the voltage the inverter made; :class:`DriveRecord`

@@ -52,7 +52,7 @@ change): ``rate = R_s / L_min + |w_e|`` bounds the linearized dynamics' eigenval
 and the second rule keeps a step from crossing the knee of the saturation curve (without
 it a large voltage step at low speed erred by 6e-4). RK4's global error is of the order
 ``STEP_RATE^4 = 6e-6`` of the current; against DOP853 at ``rtol = 1e-10`` the currents
-agree to 3e-9 to 1.2e-7 of their scale over 300 samples (tests/test_saturation.py;
+agree to 9e-9 to 2.2e-7 of their scale over 300 samples (tests/test_saturation.py;
 docs/saturation.md). Each step evaluates the flux linkages and ``L_inc`` four times in
 numpy on arrays of P: about 0.1 ms per evaluation, so a sample costs about ``0.4 n``
 ms, not the exact paths' microseconds.
