@@ -20,6 +20,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from selftune.core import ControlLaw
+from selftune.core._phases import to_phases
 from selftune.errors import InputError
 from selftune.model import IPMSM
 from selftune.sim import (
@@ -34,6 +35,7 @@ from selftune.sim import (
     uniform,
 )
 from selftune.sim._inverter import phasor_mean
+from selftune.sim._pwm import carrier_segments
 from selftune.sim._saturation import STEP_RATE
 
 Array = NDArray[np.float64]
@@ -243,34 +245,47 @@ def law_for(speed: float, share: float = 0.25) -> ControlLaw:
     return ControlLaw(K, X, U, K_i=20.0 * K, C=np.eye(2), F=-X, h=H)
 
 
-def record(saturation: Saturation | None, speed: float, current: float, count: int) -> DriveRecord:
-    drive = RealisticDrive(MOTOR, speed, H, AVERAGE_DEAD_TIME, saturation)
+def record(
+    saturation: Saturation | None,
+    speed: float,
+    current: float,
+    count: int,
+    settings: DriveSettings = AVERAGE_DEAD_TIME,
+) -> DriveRecord:
+    drive = RealisticDrive(MOTOR, speed, H, settings, saturation)
     w = np.array([MOTOR.p * speed * MOTOR.phi_pm, 0.0, current])  # i_d* = 0, i_q* = current
     return drive.record(law_for(speed), constant(w), num_samples=count, exploration=uniform(3.0),
                         seed=5)  # fmt: skip
 
 
-def integrate(saturation: Saturation, speed: float, rec: DriveRecord) -> Array:
-    """The rotor-frame currents at each sample's end from rest: ``d psi/dt = u - R_s i -
-    w_e J psi`` in the currents (``di/dt = L_inc^-1 (...)``) with the stationary vector
-    held over sample k rebuilt from the mean dq voltage, by DOP853 at ``rtol = atol /
-    1 A = 1e-10``."""
+def average_segments(speed: float, rec: DriveRecord) -> list[tuple[float, float, complex]]:
+    """Each sample's ``(t_k, t_(k+1), V)``: the stationary vector held over it rebuilt
+    from the mean dq voltage, ``applied_k exp(j theta_k) / mean(exp(-j w_e s))``."""
     w_e = MOTOR.p * speed
     count = rec.applied_voltages.shape[0]
     t = H * np.arange(count + 1)
     applied = rec.applied_voltages[:, 0] + 1j * rec.applied_voltages[:, 1]
     held = applied * np.exp(1j * w_e * t[:-1]) / phasor_mean(w_e * H)
-    current, ends = np.zeros(2), []
-    for k in range(count):
+    return [(t[k], t[k + 1], complex(held[k])) for k in range(count)]
 
-        def rate(s: float, i: Array, V: complex = complex(held[k])) -> Array:
+
+def integrate(
+    saturation: Saturation, speed: float, segments: list[tuple[float, float, complex]]
+) -> Array:
+    """The rotor-frame currents at each segment's end from rest: ``d psi/dt = u - R_s i -
+    w_e J psi`` in the currents (``di/dt = L_inc^-1 (...)``), the stationary vector V of
+    each ``(t0, t1, V)`` held over it, by DOP853 at ``rtol = atol / 1 A = 1e-10``."""
+    w_e = MOTOR.p * speed
+    current, ends = np.zeros(2), []
+    for t0, t1, held in segments:
+
+        def rate(s: float, i: Array, V: complex = held) -> Array:
             psi_d, psi_q = saturation.flux(i[0], i[1])
             u = np.exp(-1j * w_e * s) * V
             e = [u.real - MOTOR.R_s * i[0] + w_e * psi_q, u.imag - MOTOR.R_s * i[1] - w_e * psi_d]
             return np.linalg.solve(saturation.incremental(i[0], i[1]), e)
 
-        solution = solve_ivp(rate, (t[k], t[k + 1]), current, method="DOP853", rtol=1e-10,
-                             atol=1e-10)  # fmt: skip
+        solution = solve_ivp(rate, (t0, t1), current, method="DOP853", rtol=1e-10, atol=1e-10)
         current = solution.y[:, -1]
         ends.append(current)
     return np.array(ends)
@@ -287,7 +302,7 @@ RK4_AGREES = STEP_RATE**4
 def test_the_saturating_drive_is_the_integrated_motor(speed: float, current: float) -> None:
     count = 300
     rec = record(SATURATION, speed, current, count)
-    expected = integrate(SATURATION, speed, rec)
+    expected = integrate(SATURATION, speed, average_segments(speed, rec))
     scale = np.max(np.abs(rec.true_currents))
     i_q = np.mean(rec.true_currents[count // 2 :, 1])
     assert abs(i_q - current) < 0.25 * current  # near it: the law is the unsaturated motor's
@@ -299,11 +314,46 @@ def test_the_saturating_drive_is_the_integrated_motor(speed: float, current: flo
     )
 
 
+CARRIER = dataclasses.replace(
+    DriveSettings.hardware_like(), current_noise=0.0, adc_bits=None, adc_range=None
+)
+
+
+@pytest.mark.parametrize("speed", [HIGH_SPEED, LOW_SPEED], ids=["w_e h = 0.3", "w_e h = 0.02"])
+def test_carrier_pwm_is_the_integrated_saturating_motor(speed: float) -> None:
+    """Carrier PWM with dead time at 12 A: each carrier period's seven segments rebuilt
+    from the applied command (``exp(j (theta_k + w_e h / 2)) u_k``, angle compensation)
+    and the true phase currents' signs at its start (:func:`carrier_segments`), as
+    tests/test_salient_drive.py does for the exact path."""
+    count = 150
+    rec = record(SATURATION, speed, HIGH_CURRENT, count, CARRIER)
+    w_e = MOTOR.p * speed
+    t = H * np.arange(count + 1)
+    assert CARRIER.logged_input == "applied" and CARRIER.angle_compensation
+    assert CARRIER.dc_voltage is not None
+    u = rec.trajectory.u[:, 0] + 1j * rec.trajectory.u[:, 1]
+    command = np.exp(1j * w_e * (t[:-1] + 0.5 * H)) * u
+    true = rec.true_currents[:, 0] + 1j * rec.true_currents[:, 1]
+    signs = np.sign(to_phases(true[:-1] * np.exp(1j * w_e * t[:-1])))
+    pwm = carrier_segments(command, CARRIER.dc_voltage, H, CARRIER.dead_time, signs)
+    segments, ends = [], []
+    for k in range(count):
+        bounds = t[k] + pwm.boundaries[k]
+        for j in range(7):
+            if bounds[j + 1] > bounds[j]:
+                segments.append((bounds[j], bounds[j + 1], complex(pwm.voltages[k, j])))
+        ends.append(len(segments) - 1)
+    expected = integrate(SATURATION, speed, segments)[ends]
+    scale = np.max(np.abs(rec.true_currents))
+    assert np.mean(rec.true_currents[count // 2 :, 1]) > 0.75 * HIGH_CURRENT
+    np.testing.assert_allclose(rec.true_currents[1:], expected, rtol=0, atol=RK4_AGREES * scale)
+
+
 def test_the_drive_on_a_flux_map_is_the_integrated_table() -> None:
     table = FluxMap.sampled(SATURATION, GRID, GRID)
     rec = record(table, LOW_SPEED, HIGH_CURRENT, 200)
     scale = np.max(np.abs(rec.true_currents))
-    expected = integrate(table, LOW_SPEED, rec)
+    expected = integrate(table, LOW_SPEED, average_segments(LOW_SPEED, rec))
     np.testing.assert_allclose(rec.true_currents[1:], expected, rtol=0, atol=RK4_AGREES * scale)
 
 
@@ -345,15 +395,12 @@ def test_a_table_drive_leaving_the_grid_is_refused() -> None:
 def test_the_drive_refuses_what_it_does_not_model() -> None:
     with pytest.raises(InputError, match=r"^saturation: expected"):
         RealisticDrive(MOTOR, 100.0, H, DriveSettings(), "saturated")  # type: ignore[arg-type]
-    carrier = DriveSettings.hardware_like()
-    with pytest.raises(InputError, match=r"^saturation: .* average PWM"):
-        RealisticDrive(MOTOR, 100.0, H, carrier, SATURATION)
     warm = DriveSettings(temperature_rise=40.0)
     with pytest.raises(InputError, match=r"^saturation: .* temperature"):
         RealisticDrive(MOTOR, 100.0, H, warm, SATURATION)
-    with pytest.raises(InputError, match=r"^saturation: .* average PWM"):
+    with pytest.raises(InputError, match=r"^saturation: .* temperature"):
         run_drive_batch(
-            [MOTOR], 100.0, H, carrier, law_for(100.0), constant(MOTOR.exogenous(100.0, 1.0)),
+            [MOTOR], 100.0, H, warm, law_for(100.0), constant(MOTOR.exogenous(100.0, 1.0)),
             num_samples=10, exploration=None, seed=0, saturation=SATURATION,
         )  # fmt: skip
     drive = RealisticDrive(MOTOR, 100.0, H, DriveSettings(), SATURATION)

@@ -40,8 +40,9 @@ same in kind. The effects, and what each does to the ideal drive's sampled data
   term is an interior motor's; a surface motor's is ``1.5 p phi_pm i_q``).
 - **Saturation** (``saturation``, :mod:`._saturation`): current-dependent flux linkages,
   analytic or a flux-map table; the motor is then propagated in the rotor frame by RK4
-  steps (not exactly: to 2e-7 of the current's scale, measured) and its torque is ``1.5 p (psi_d
-  i_q - psi_q i_d)``. Average PWM only, at the nameplate temperature, not in a session.
+  steps (not exactly: to 2e-7 of the current's scale, measured; carrier PWM segment by
+  segment) and its torque is ``1.5 p (psi_d i_q - psi_q i_d)``. At the nameplate
+  temperature only, not in a session.
 
 The log holds the dq command, never the voltage the inverter made; :class:`DriveRecord`
 adds what a real drive cannot log. Timings (``python tests/test_drive_session.py``: this
@@ -323,8 +324,6 @@ def _check_saturation(saturation: object, settings: DriveSettings) -> Saturation
             f"saturation: expected a SaturationModel, a FluxMap or None, got "
             f"{type(saturation).__name__}"
         )
-    if settings.pwm != "average":
-        raise InputError("saturation: the saturating motor runs with average PWM only")
     if settings.temperature_rise != 0.0:
         raise InputError(
             "saturation: its flux linkages hold at one temperature; give them at the "

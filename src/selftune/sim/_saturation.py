@@ -44,7 +44,8 @@ the rotor frame, ``d psi/dt = u - R_s i - w_e J psi``, ``J = [[0, -1], [1, 0]]``
 currents, ``di/dt = L_inc(i)^-1 (u - R_s i - w_e J psi(i))``. Nonlinear, so not exact: one
 sample is ``n`` fixed steps of the classical Runge-Kutta method (RK4) in the currents,
 the voltage (a stationary vector held over the sample, turning as ``exp(-j w_e s)`` in
-the rotor frame, plus a rotor-frame one) evaluated at each stage's instant. ``n`` is the
+the rotor frame, plus a rotor-frame one) evaluated at each stage's instant; with carrier
+PWM each of the period's constant segments so (:meth:`SaturatedMotors.carrier`). ``n`` is the
 smallest with both ``rate h / n <= STEP_RATE`` and ``|di/dt| h / n <= STEP_RATE scale``
 (``di/dt`` at the sample's start; ``scale`` the current over which the inductances
 change): ``rate = R_s / L_min + |w_e|`` bounds the linearized dynamics' eigenvalues
@@ -62,6 +63,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from math import ceil
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -71,6 +73,9 @@ from ..core import Array, finite_float, positive_finite
 from ..core._phases import ComplexArray
 from ..errors import InputError
 from ..model import Motor
+
+if TYPE_CHECKING:
+    from ._pwm import PwmSegments
 
 __all__ = ["STEP_RATE", "FluxMap", "SaturatedMotors", "Saturation", "SaturationModel"]
 
@@ -420,8 +425,13 @@ class SaturatedMotors:
 
     def __init__(self, saturation: Saturation, R_s: Array, speed: Array, period: float) -> None:
         self.saturation, self.R_s, self.speed, self.period = saturation, R_s, speed, period
-        rate = float(np.max(R_s / saturation.bounds[0] + np.abs(speed)))
-        self.steps = max(1, ceil(rate * period / STEP_RATE))
+        #: ``rate``, 1/s (see the module docstring)
+        self.bound = float(np.max(R_s / saturation.bounds[0] + np.abs(speed)))
+
+    def motor(self, index: int) -> SaturatedMotors:
+        """Motor ``index`` alone (P = 1; the carrier PWM's)."""
+        pick = slice(index, index + 1)
+        return SaturatedMotors(self.saturation, self.R_s[pick], self.speed[pick], self.period)
 
     def rate(self, current: ComplexArray, voltage: ComplexArray) -> ComplexArray:
         """``di/dt = L_inc^-1 (u - R_s i - w_e J psi)`` (A/s, ``d + j q``) at the
@@ -433,22 +443,30 @@ class SaturatedMotors:
         return ((d * e.real - b * e.imag) + 1j * (a * e.imag - c * e.real)) / det
 
     def propagate(
-        self, current: ComplexArray, stationary: ComplexArray, rotor: ComplexArray | None
+        self,
+        current: ComplexArray,
+        stationary: ComplexArray,
+        rotor: ComplexArray | None,
+        duration: float | None = None,
     ) -> ComplexArray:
-        """The rotor-frame current (P,) at the sample's end from ``current`` at its start
-        (A), under ``stationary`` (V, the rotor-frame value at the start of a stationary
-        vector held over the sample: ``exp(-j w_e s) stationary`` at ``s``) and ``rotor``
-        (a rotor-frame vector held, V; None: none)."""
+        """The rotor-frame current (P,) at the interval's end from ``current`` at its
+        start (A), under ``stationary`` (V, the rotor-frame value at the start of a
+        stationary vector held over the interval: ``exp(-j w_e s) stationary`` at ``s``)
+        and ``rotor`` (a rotor-frame vector held, V; None: none); the interval is
+        ``duration`` (s; None: the sample), its step count the module docstring's rule
+        over it."""
         held = 0.0 if rotor is None else rotor
+        length = self.period if duration is None else duration
 
         def voltage(s: float) -> ComplexArray:
             return np.exp(-1j * self.speed * s) * stationary + held
 
         i, start = current, self.rate(current, voltage(0.0))
         # the current moves by at most STEP_RATE of the saturation's scale per step
-        moves = float(np.max(np.abs(start))) * self.period / (STEP_RATE * self.saturation.scale)
-        steps = max(self.steps, ceil(moves)) if np.isfinite(moves) else self.steps
-        tau = self.period / steps
+        steps = max(1, ceil(self.bound * length / STEP_RATE))
+        moves = float(np.max(np.abs(start))) * length / (STEP_RATE * self.saturation.scale)
+        steps = max(steps, ceil(moves)) if np.isfinite(moves) else steps
+        tau = length / steps
         for n in range(steps):
             s = n * tau
             middle = voltage(s + 0.5 * tau)
@@ -476,3 +494,21 @@ class SaturatedMotors:
         turn = np.conj(rotor)
         held = None if turning is None else turn * turning
         return following * self.propagate(turn * current, turn * steady, held)
+
+    def carrier(
+        self, current: complex, segments: PwmSegments, rotor: complex, following: complex
+    ) -> complex:
+        """One motor's (P = 1) ``i_ab`` at the carrier period's end from ``current``
+        (``i_ab`` at its start), A, segment by segment (its
+        :func:`~selftune.sim._pwm.carrier_segments`, each stationary voltage held), the
+        rotor at ``rotor`` and ``following`` (``exp(j theta)``) at the period's start
+        and end."""
+        turn = rotor.conjugate()
+        i = np.array([turn * current])
+        bounds, voltages = segments.boundaries[0].tolist(), segments.voltages[0]
+        for j in range(voltages.shape[0]):
+            start, end = bounds[j], bounds[j + 1]
+            if end > start:
+                held = turn * voltages[j : j + 1] * np.exp(-1j * self.speed * start)
+                i = self.propagate(i, held, None, end - start)
+        return following * complex(i[0])
