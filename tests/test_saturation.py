@@ -34,7 +34,8 @@ from selftune.sim import (
     run_drive_batch,
     uniform,
 )
-from selftune.sim._inverter import phasor_mean
+from selftune.sim._inverter import MotorBatch, phasor_mean
+from selftune.sim._linear import stack_motors
 from selftune.sim._pwm import carrier_segments
 from selftune.sim._saturation import STEP_RATE
 
@@ -406,6 +407,12 @@ def test_the_drive_refuses_what_it_does_not_model() -> None:
     drive = RealisticDrive(MOTOR, 100.0, H, DriveSettings(), SATURATION)
     with pytest.raises(InputError, match=r"^saturation: a drive session"):
         drive.start(law_for(100.0), seed=0)
+
+
+def test_a_saturating_motor_has_no_linear_sample_map() -> None:
+    batch = MotorBatch.build([MOTOR], np.array([100.0]), 0.0)
+    with pytest.raises(InputError, match=r"^stack_motors: a saturating motor is not linear"):
+        stack_motors([batch, dataclasses.replace(batch, saturation=SATURATION)])
 
 
 if __name__ == "__main__":  # python tests/test_saturation.py: the timings of docs/saturation.md

@@ -49,6 +49,8 @@ def _linear_batch(array: Callable[[str], Array]) -> MotorBatch:
 
 def stack_motors(motors: list[MotorBatch]) -> MotorBatch:
     """The motors of several batches as one batch (in order; none saturating)."""
+    if any(m.saturation is not None for m in motors):
+        raise InputError("stack_motors: a saturating motor is not linear")
     return _linear_batch(lambda name: np.concatenate([getattr(m, name) for m in motors]))
 
 
