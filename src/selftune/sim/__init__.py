@@ -13,7 +13,8 @@
   dead time, noise, ADC, voltage limit, temperature; :mod:`._realistic`);
   :meth:`RealisticDrive.start` keeps it running chunk by chunk (:class:`DriveSession`,
   :class:`DriveChunk`), its motor heating or failing along a :class:`ParameterProfile`
-  (:mod:`._session`, :mod:`._profile`);
+  (:mod:`._session`, :mod:`._profile`); with magnetic saturation, :class:`SaturationModel`
+  or a :class:`FluxMap` (:mod:`._saturation`);
 - :class:`GemDrive`: gym-electric-motor's PMSM environment as a drive (the ``gem`` extra;
   :mod:`._gem`), so a gym-electric-motor current loop is tuned by the same sessions.
 """
@@ -36,6 +37,7 @@ from ._gem import GEM_ENVIRONMENT, GEM_SOLVERS, GemDrive
 from ._loop import LoopLogs, simulate_loop
 from ._profile import ParameterFactors, ParameterProfile
 from ._realistic import DriveRecord, DriveSettings, RealisticDrive, run_drive_batch
+from ._saturation import FluxMap, Saturation, SaturationModel
 from ._session import DriveChunk, DriveSession
 from ._signals import (
     ConstantSignal,
@@ -63,12 +65,15 @@ __all__ = [
     "ExogenousSignal",
     "Exosystem",
     "Exploration",
+    "FluxMap",
     "GemDrive",
     "HeldSignal",
     "LoopLogs",
     "ParameterFactors",
     "ParameterProfile",
     "RealisticDrive",
+    "Saturation",
+    "SaturationModel",
     "Seed",
     "SimulatedDrive",
     "SinusoidalExploration",

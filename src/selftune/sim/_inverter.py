@@ -17,7 +17,10 @@ integral ``int_0^tau exp(-gamma (tau - s)) exp(j w_e s) ds``. No ODE solver. An 
 motor (``L_d != L_q``, :class:`~selftune.model.IPMSM`) is not a complex scalar in the
 stationary frame: it is propagated in the rotor frame, as exactly (:mod:`._salient`), and
 its torque has the reluctance term. A batch with an interior motor takes that path for
-all its motors (a surface motor's numbers then agree with its own path to rounding).
+all its motors (a surface motor's numbers then agree with its own path to rounding). A
+batch with magnetic saturation (:mod:`._saturation`) is propagated in the rotor frame by
+Runge-Kutta steps of its current-dependent flux linkages, not exactly, and its torque is
+``1.5 p (psi_d i_q - psi_q i_d)``.
 
 **Inverter**: two-level legs on ``V_dc``; space-vector duties ``d_x = 1/2 + (v_x + v_0) /
 V_dc``, ``v_0 = -(max v_x + min v_x) / 2``, in ``[0, 1]`` while ``|v| <= V_dc / sqrt(3)``.
@@ -65,6 +68,7 @@ from ._pwm import (
     to_phases,
 )
 from ._salient import RotorFrames
+from ._saturation import SaturatedMotors, Saturation
 from ._stepper import Feedback, run_closed_loop
 
 __all__ = [
@@ -152,6 +156,9 @@ class MotorBatch:
     interior : ndarray of bool
         Whether the motor is an :class:`~selftune.model.IPMSM` (propagated in the rotor
         frame, :mod:`._salient`, even with ``L_d == L_q``).
+    saturation : SaturationModel or FluxMap or None
+        The motors' flux linkages (:mod:`._saturation`; then ``L_d``, ``L_q`` and
+        ``phi_pm`` are unused); None: the constant inductances.
     """
 
     R_s: Array
@@ -161,6 +168,7 @@ class MotorBatch:
     p: Array
     electrical_speed: Array
     interior: Array
+    saturation: Saturation | None = None
 
     @classmethod
     def build(cls, motors: Sequence[Motor], speed: Array, temperature_rise: float) -> MotorBatch:
@@ -183,9 +191,12 @@ class MotorBatch:
         """A surface motor's inductance ``L_d = L_q``, H (the complex path's)."""
         return self.L_d
 
-    def frames(self, period: float) -> RotorFrames | None:
-        """The motors in the rotor frame over ``period`` (s) if one is an interior motor
-        (:mod:`._salient`), else None (the complex path)."""
+    def frames(self, period: float) -> RotorFrames | SaturatedMotors | None:
+        """The motors in the rotor frame over ``period`` (s): saturating
+        (:mod:`._saturation`), or if one is an interior motor (:mod:`._salient`); else
+        None (the complex path)."""
+        if self.saturation is not None:
+            return SaturatedMotors(self.saturation, self.R_s, self.electrical_speed, period)
         if not np.any(self.interior):
             return None
         return RotorFrames.build(
@@ -211,8 +222,12 @@ class MotorBatch:
 
     def torque(self, i_q: Array, i_d: Array) -> Array:
         """``1.5 p (phi_pm + (L_d - L_q) i_d) i_q``, N m, with the true (heated) flux;
-        ``i_q``, ``i_d`` (P, ...) in A (a surface motor's ``1.5 p phi_pm i_q``, bit for bit)."""
+        ``i_q``, ``i_d`` (P, ...) in A (a surface motor's ``1.5 p phi_pm i_q``, bit for bit);
+        saturating, ``1.5 p (psi_d i_q - psi_q i_d)`` with the flux linkages there."""
         shape = (-1,) + (1,) * (i_q.ndim - 1)
+        if self.saturation is not None:
+            psi_d, psi_q = self.saturation.flux(i_d, i_q)
+            return 1.5 * self.p.reshape(shape) * (psi_d * i_q - psi_q * i_d)
         flux = self.phi_pm.reshape(shape) + (self.L_d - self.L_q).reshape(shape) * i_d
         return 1.5 * (self.p.reshape(shape) * flux) * i_q
 
@@ -343,7 +358,7 @@ class LoopInputs:
     rho: Array
 
     @cached_property
-    def frames(self) -> RotorFrames | None:
+    def frames(self) -> RotorFrames | SaturatedMotors | None:
         """:meth:`MotorBatch.frames` over a sample: None for surface motors only."""
         return self.motor.frames(self.modulator.period)
 
@@ -451,7 +466,7 @@ def _step(
     if turning is not None:
         mean = mean + turning * np.conj(rotor)
     frames = inputs.frames
-    if frames is not None:  # an interior motor: the rotor frame (._salient)
+    if frames is not None:  # interior or saturating: the rotor frame (._salient, ._saturation)
         return frames.advance(current, steady, turning, rotor, inputs.rotor[:, k + 1]), mean
     after = inputs.decay * current + inputs.charge * steady + inputs.emf[:, k]
     if turning is not None:

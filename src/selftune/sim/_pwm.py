@@ -20,6 +20,8 @@ import numpy as np
 
 from ..core import Array
 from ..core._phases import CLARKE, PHASE_DIRECTIONS, ComplexArray, from_phases, to_phases
+from ._salient import RotorFrames
+from ._saturation import SaturatedMotors
 
 if TYPE_CHECKING:
     from ._inverter import LoopInputs, LoopState
@@ -219,7 +221,7 @@ def carrier_sample(
     """
     gamma, R_s, w, decay = motor
     turn = rotor.conjugate()
-    forced = total = 0j
+    forced = 0j
     for (rise, fall), direction in zip(edges, _CLARKE, strict=True):
         width = fall - rise
         if width == 0.0:
@@ -228,15 +230,29 @@ def carrier_sample(
             forced += direction * (-exp(-gamma * (period - fall)) * expm1(-gamma * width))
         else:
             forced += frame.pulse(rise, fall, turn * direction)
-        half = 0.5 * w * width
-        middle = w * (rise + 0.5 * width)
-        mean = sin(half) / half if half != 0.0 else 1.0
-        total += direction * (width * mean) * complex(cos(middle), -sin(middle))
     if frame is None:
         after = decay * current + dc_voltage * forced / R_s + emf
     else:
         after = following * (frame.free(turn * current) + dc_voltage * forced)
-    return after, turn * (dc_voltage * total) / period
+    return after, pulses_mean(edges, dc_voltage, period, w, rotor)
+
+
+def pulses_mean(
+    edges: Sequence[tuple[float, float]], dc_voltage: float, period: float, w: float, rotor: complex
+) -> complex:
+    """The mean rotor-frame voltage (V) over a carrier period of the legs' pulses
+    ``edges`` (:func:`carrier_sample`'s ``mean``; ``w`` = ``w_e``, rad/s; ``rotor`` =
+    ``exp(j theta)`` at the period's start)."""
+    total = 0j
+    for (rise, fall), direction in zip(edges, _CLARKE, strict=True):
+        width = fall - rise
+        if width == 0.0:
+            continue
+        half = 0.5 * w * width
+        middle = w * (rise + 0.5 * width)
+        mean = sin(half) / half if half != 0.0 else 1.0
+        total += direction * (width * mean) * complex(cos(middle), -sin(middle))
+    return rotor.conjugate() * (dc_voltage * total) / period
 
 
 # -- the time loop ----------------------------------------------------------------------
@@ -269,7 +285,12 @@ class _CarrierInverter:
         )  # fmt: skip
         self.rotor, self.modulation = inputs.rotor.tolist(), inputs.modulation.tolist()
         frames = inputs.frames  # interior motors: the rotor frame (._salient)
-        self.frames = None if frames is None else frames.frames
+        self.frames = frames.frames if isinstance(frames, RotorFrames) else None
+        self.saturated = (  # saturating motors: segment by segment (._saturation)
+            [frames.motor(i) for i in range(plants)]
+            if isinstance(frames, SaturatedMotors)
+            else None
+        )
         self.emf = inputs.emf.tolist() if frames is None else []
         noise = sensor.noise
         if noise is not None and noise.shape[0] != plants:  # one noise for all motors
@@ -326,7 +347,20 @@ class _CarrierInverter:
             extra, current = extras[computed_at], self.current[i]
             dc, period = self.dc_voltage, self.period
             edges = carrier_edges(command + extra, dc, period, self.dead_time, self.signs[i])
-            if self.frames is None:
+            if self.saturated is not None:
+                segments = carrier_segments(
+                    np.array([command + extra]),
+                    dc,
+                    period,
+                    self.dead_time,
+                    np.array([self.signs[i]]),
+                )
+                rotor = self.rotor[i][k]
+                self.current[i] = self.saturated[i].carrier(
+                    current, segments, rotor, self.rotor[i][k + 1]
+                )
+                self.applied[i][k] = pulses_mean(edges, dc, period, self.motors[i][2], rotor)
+            elif self.frames is None:
                 self.current[i], self.applied[i][k] = carrier_sample(
                     self.motors[i], current, edges, dc, period, self.emf[i][k], self.rotor[i][k]
                 )
