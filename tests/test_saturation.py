@@ -75,7 +75,7 @@ def models(draw: st.DrawFn) -> SaturationModel:
     so that ``L_dinf >= 0.1 L_d``."""
     L_d, L_q = draw(st.floats(1e-4, 1e-2)), draw(st.floats(1e-4, 1e-2))
     drop, cross = draw(st.floats(0.0, 0.9)), draw(st.floats(0.0, 0.5))
-    if drop > 0.0:
+    if drop * L_q > 0.0:  # (a subnormal drop times L_q can round to 0)
         cross = min(cross, 0.9 * L_d / (drop * L_q))
     return SaturationModel(L_d, L_q, draw(st.floats(0.0, 0.5)), draw(st.floats(0.5, 50.0)),
                            drop, cross)  # fmt: skip

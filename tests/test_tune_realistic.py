@@ -21,6 +21,7 @@ from selftune.cli import main
 from selftune.report import evaluate, torque_check, true_motor
 from selftune.sim import DriveSettings
 from selftune.tuning import run_algorithm, tuning_settings
+from selftune.tuning._offpolicy import LONGEST_BATCH_FACTOR
 
 HARDWARE = DriveSettings.hardware_like()  # 10 kHz, 1-sample delay, carrier, 2 V, 10 mA
 
@@ -88,7 +89,12 @@ def test_the_servo_controller_holds_the_torque_on_a_hardware_like_drive(
         assert "dead time" in str(error) or "too little data" in str(error), error
         return
     assert result.target == "digital" and result.law.K_i is not None
-    assert result.data_seconds <= 0.1 + 1e-12
+    # a 0.1 s batch, or the longer one the learner asked for when 0.1 s was too short for
+    # its noise (tuning._offpolicy: at most LONGEST_BATCH_FACTOR times, said in a note)
+    assert result.data_seconds <= 0.1 + 1e-12 or (
+        result.data_seconds <= LONGEST_BATCH_FACTOR * tuning.episode_length + 1e-12
+        and any("as the learner asked" in note for note in result.notes)
+    )
     torque = torque_check(motor, tuning, result, HARDWARE)
     assert abs(torque.steady_error) <= 1e-3
     assert abs(torque.hot_error) <= 1e-3  # R_s +40% without re-tuning
