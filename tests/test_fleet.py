@@ -8,6 +8,8 @@ import importlib
 import json
 import subprocess
 import sys
+import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +26,7 @@ from selftune.fleet import (
     find_jobs,
     fleet_client,
     learn_row,
+    map_in_order,
     map_ordered,
     outlier_threshold,
     read_manifest,
@@ -162,10 +165,54 @@ def test_a_rerun_adds_what_is_new(runs: dict[str, Any], tmp_path: Path) -> None:
     assert learned["drive"] == serial["drive"][:3]
 
 
+def test_a_rerun_s_rows_are_merged_with_the_earlier_ones(
+    runs: dict[str, Any], tmp_path: Path
+) -> None:
+    jobs = sorted(runs["jobs"], key=lambda job: (job.drive, job.path))
+    run_fleet(jobs[2:4], tmp_path / "out")
+    run_fleet(jobs[:4], tmp_path / "out")  # two sorted runs of rows, then merged
+    table = ResultsTable(tmp_path / "out")
+    assert table.runs() == [0]
+    assert _columns(tmp_path / "out")["drive"] == [job.drive for job in jobs[:4]]
+
+
+def test_merging_sorted_runs_streams_them_into_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr("selftune.fleet._table.READ_ROWS", 3)  # runs across batches
+    rng = np.random.default_rng(7)
+    keys = [f"d{k:03d}" for k in rng.permutation(40)]
+    table = ResultsTable(tmp_path)
+    for part in (keys[:17], keys[17:18], keys[18:], []):
+        table.append([{"path": f"{key}.csv", "drive": key, "R_s_ohm": 1.0} for key in sorted(part)])
+    assert len(table.runs()) == 3
+    table.merge()
+    assert table.runs() == [0]
+    assert table.columns(["drive"])["drive"] == sorted(keys)
+    assert table.columns(["R_s_ohm"])["R_s_ohm"] == [1.0] * 40
+    csv_lines = table.csv.read_text(encoding="utf-8").splitlines()
+    assert [line.split(",")[1] for line in csv_lines[1:]] == sorted(keys)
+
+
 def test_the_engine_keeps_the_order_and_bounds_what_is_in_flight() -> None:
+    drawn: list[float] = []
+
+    def items() -> Iterator[tuple[int, float]]:
+        for index in range(40):
+            drawn.append(time.monotonic())
+            yield index, 1.0 if index == 0 else 0.0  # the first item sleeps 1 s
+
+    def job(item: tuple[int, float]) -> int:
+        time.sleep(item[1])
+        return item[0]
+
     with fleet_client(None, workers=2) as client:
         assert map_ordered(abs, range(-30, 0), client) == list(range(30, 0, -1))
+        assert list(map_in_order(job, items(), client, ahead=5)) == list(range(40))
+    # items 0-4 were submitted and item 5 read at once; item 6 waited for item 0's end
+    assert drawn[5] - drawn[0] < 1.0 <= drawn[6] - drawn[0]
     assert map_ordered(abs, [-2, 1]) == [2, 1]
+    assert list(map_in_order(abs, [-2, 1])) == [2, 1]
 
 
 def test_robust_z_is_the_median_and_the_biweight_spread() -> None:

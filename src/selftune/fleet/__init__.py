@@ -1,9 +1,9 @@
 """Fleets of drives: thousands of logs learned on a distributed engine.
 
-- the engine (:mod:`._engine`): :func:`map_unordered` and :func:`map_ordered` map one
-  function over many items, serially or on a Dask cluster (:func:`fleet_client`: a local
-  cluster sized to the machine, or a running scheduler), with a bounded number of items
-  in flight; the bench's seeded studies run through it too;
+- the engine (:mod:`._engine`): :func:`map_unordered`, :func:`map_in_order` and
+  :func:`map_ordered` map one function over many items, serially or on a Dask cluster
+  (:func:`fleet_client`: a local cluster sized to the machine, or a running scheduler),
+  with a bounded number of items in flight; the bench's seeded studies run through it too;
 - the jobs (:mod:`._jobs`): :func:`find_jobs` reads LOGS (files, directories, globs, a
   manifest CSV with per-drive overrides of the configuration); :func:`learn_row` is
   ``selftune learn`` on one log, as a row of the table, never raising;
@@ -25,6 +25,7 @@ from ._engine import (
     CONNECT_SECONDS,
     INSTALL_HINT,
     fleet_client,
+    map_in_order,
     map_ordered,
     map_unordered,
     progress_bar,
@@ -69,6 +70,7 @@ __all__ = [
     "find_jobs",
     "fleet_client",
     "learn_row",
+    "map_in_order",
     "map_ordered",
     "map_unordered",
     "outlier_threshold",

@@ -5,7 +5,8 @@ when run serially (no client), as the workers finish them on a cluster. It submi
 lazily, keeping at most ``window`` items in flight, so that the client holds a bounded
 number of items and results however many there are; every item is a seeded,
 self-contained job, so a result does not depend on where or in which order it ran.
-:func:`map_ordered` gives the results in the items' order.
+:func:`map_in_order` gives them back in the items' order holding a bounded number
+(``ahead``) of those that come early; :func:`map_ordered` gives them all as a list.
 
 :func:`fleet_client` starts a local cluster sized to the machine (a worker process per
 core, one thread each) or connects to a running scheduler, and closes what it started.
@@ -21,7 +22,6 @@ import os
 import sys
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
-from itertools import islice
 from typing import Any, TypeVar
 
 from tqdm import tqdm
@@ -29,9 +29,11 @@ from tqdm import tqdm
 from ..errors import InputError
 
 __all__ = [
+    "AHEAD_PER_WORKER",
     "CONNECT_SECONDS",
     "INSTALL_HINT",
     "fleet_client",
+    "map_in_order",
     "map_ordered",
     "map_unordered",
     "progress_bar",
@@ -54,7 +56,19 @@ CONNECT_SECONDS = 10.0
 #: learner's numpy temporaries were mapped and unmapped over and over.
 RETAINED_BYTES = 2**27
 
+#: Results :func:`map_in_order` holds at most, per worker: enough that a log taking
+#: about 30 times the others' time does not leave a worker idle.
+AHEAD_PER_WORKER = 64
+
 _TRIM = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"
+
+#: Entries the scheduler's and the client's debugging logs of task transitions keep
+#: (Dask's ``distributed.admin.low-level-log-length``; Dask keeps 1,000). The local
+#: cluster's scheduler runs in the client's process, where Dask's logs filled up to
+#: about 9 MiB over the first 2,500 logs, which looked like memory growing with them.
+LOG_LENGTH = 100
+
+_LOG_LENGTH = "distributed.admin.low-level-log-length"
 
 
 def require_extra(*modules: str) -> None:
@@ -121,6 +135,7 @@ def map_unordered(
     items: Iterable[Item],
     client: Any = None,
     window: int | None = None,
+    ahead: int | None = None,
 ) -> Iterator[tuple[int, Result]]:
     """``(index, function(item))`` for every item, as the results come.
 
@@ -134,6 +149,11 @@ def map_unordered(
         Run on its cluster; None (default): here, one after another, in order.
     window : int, optional
         Items in flight on the cluster at most (default: four per worker).
+    ahead : int, optional
+        Submit no item more than ``ahead`` places after the oldest one not yet given
+        back (default: no such bound). It bounds how many results a caller who puts
+        them back in order must hold (:func:`map_in_order`), at the price of idle
+        workers behind an item that takes ``ahead`` items' time.
 
     Yields
     ------
@@ -149,22 +169,70 @@ def map_unordered(
     limit = window or 4 * workers_count(client)
     places: dict[str, int] = {}
     running = distributed.as_completed()
+    waiting: tuple[int, Item] | None = None  # read from items, not yet submitted
 
-    def submit(index: int, item: Item) -> None:
-        future = client.submit(function, item, pure=False)
-        places[future.key] = index
-        running.add(future)
+    def fill() -> None:
+        """Submit items while fewer than ``limit`` run and ``ahead`` allows."""
+        nonlocal waiting
+        while len(places) < limit:
+            if waiting is None:
+                waiting = next(numbered, None)
+                if waiting is None:
+                    return
+            oldest = min(places.values(), default=waiting[0])
+            if ahead is not None and waiting[0] >= oldest + ahead:
+                return
+            future = client.submit(function, waiting[1], pure=False)
+            places[future.key] = waiting[0]
+            running.add(future)
+            waiting = None
 
-    for index, item in islice(numbered, limit):
-        submit(index, item)
+    fill()
     for future in running:
         index = places.pop(future.key)
         result = future.result()
         future.release()
-        following = next(numbered, None)
-        if following is not None:
-            submit(*following)
+        fill()
         yield index, result
+
+
+def map_in_order(
+    function: Callable[[Item], Result],
+    items: Iterable[Item],
+    client: Any = None,
+    ahead: int | None = None,
+) -> Iterator[Result]:
+    """``function(item)`` for every item, in the items' order, holding few results.
+
+    On a cluster the results that come before their turn wait here; no item is
+    submitted more than ``ahead`` places after the oldest one not yet given back
+    (:func:`map_unordered`), so at most ``ahead`` results wait, however many items there
+    are.
+
+    Parameters
+    ----------
+    function : callable
+        One item's job (see :func:`map_unordered`).
+    items : iterable
+        The items, read lazily.
+    client : distributed.Client, optional
+        Run on its cluster; None (default): here, one after another.
+    ahead : int, optional
+        The most results held (default: :data:`AHEAD_PER_WORKER` per worker).
+
+    Yields
+    ------
+    result
+        ``function(item)``, in the items' order.
+    """
+    ahead = ahead or AHEAD_PER_WORKER * workers_count(client)
+    held: dict[int, Result] = {}
+    following = 0
+    for index, result in map_unordered(function, items, client, ahead=ahead):
+        held[index] = result
+        while following in held:
+            yield held.pop(following)
+            following += 1
 
 
 def map_ordered(
@@ -221,9 +289,11 @@ def fleet_client(scheduler: str | None = None, workers: int | None = None) -> It
     """
     require_extra("distributed")
     distributed: Any = importlib.import_module("distributed")
+    dask: Any = importlib.import_module("dask")
     if scheduler is not None:
         try:
-            client = distributed.Client(scheduler, timeout=CONNECT_SECONDS)
+            with dask.config.set({_LOG_LENGTH: LOG_LENGTH}):
+                client = distributed.Client(scheduler, timeout=CONNECT_SECONDS)
         except (OSError, TimeoutError, ValueError, TypeError) as exc:
             reason = " ".join(str(exc).split()) or type(exc).__name__
             raise InputError(f"--scheduler {scheduler}: cannot connect ({reason})") from None
@@ -233,8 +303,7 @@ def fleet_client(scheduler: str | None = None, workers: int | None = None) -> It
             client.close()
         return
     count = workers or os.cpu_count() or 1
-    dask: Any = importlib.import_module("dask")
-    with dask.config.set({_TRIM: RETAINED_BYTES}):
+    with dask.config.set({_TRIM: RETAINED_BYTES, _LOG_LENGTH: LOG_LENGTH}):
         cluster = distributed.LocalCluster(
             n_workers=count,
             threads_per_worker=1,
@@ -243,7 +312,8 @@ def fleet_client(scheduler: str | None = None, workers: int | None = None) -> It
             silence_logs=logging.CRITICAL,
         )
     try:
-        client = distributed.Client(cluster)
+        with dask.config.set({_LOG_LENGTH: LOG_LENGTH}):
+            client = distributed.Client(cluster)
         try:
             yield client
         finally:

@@ -12,7 +12,7 @@ from typing import Any
 
 from ..core import write_text
 from ..core._atomic import check_output_directory
-from ._engine import map_unordered, progress_bar, require_extra, workers_count
+from ._engine import map_in_order, progress_bar, require_extra, workers_count
 from ._jobs import LogJob, learn_row
 from ._summary import SUMMARY_COLUMNS, FleetSummary, summarize, summary_markdown, write_figure
 from ._table import ResultsTable
@@ -62,6 +62,11 @@ def run_fleet(
 ) -> FleetRun:
     """Learn every log not yet in ``out``'s table, then summarize the table.
 
+    The logs are learned in the order of (drive id, path), and their rows written in
+    that order as they come (a bounded number held back until their turn), then merged
+    with the rows of earlier runs (:meth:`ResultsTable.merge`): the client's memory does
+    not grow with the logs' number but for the jobs and the summary's columns.
+
     ``out`` must be absent (created), empty, or a fleet's earlier output: its table is
     added to (the logs whose (path, drive id) it holds are skipped), the summary and the
     figure are rewritten.
@@ -90,12 +95,15 @@ def run_fleet(
     Path(out).mkdir(parents=True, exist_ok=True)
     table = ResultsTable(out)
     done = table.done()
-    todo = [job for job in jobs if (job.path, job.drive) not in done]
+    todo = sorted(
+        (job for job in jobs if (job.path, job.drive) not in done),
+        key=lambda job: (job.drive, job.path),
+    )
     workers = workers_count(client)
     size = batch or max(16, 4 * workers)
     pending: list[dict[str, Any]] = []
     with progress_bar(len(todo), "fleet", progress) as bar:
-        for _, row in map_unordered(learn_row, todo, client):
+        for row in map_in_order(learn_row, todo, client):
             pending.append(row)
             bar.update(1)
             if len(pending) >= size:
@@ -103,7 +111,7 @@ def run_fleet(
                 pending = []
     if pending:
         table.append(pending)
-    table.sort()
+    table.merge()
     if not table.parquet.exists():  # every log was skipped and there was no table
         table.append([])
     summary = summarize(table.columns(list(SUMMARY_COLUMNS)))

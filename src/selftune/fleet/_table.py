@@ -2,19 +2,26 @@
 
 The table grows by batches as the results come, each batch written atomically: the
 Parquet file is rewritten into a temporary file beside it (the earlier rows streamed
-over by row groups, the new batch added) and moved over it, then the CSV is derived from
-it the same way. A run stopped at any moment leaves both complete (the CSV at most one
-batch behind, and caught up by the next run); the rows already there are what a rerun
-skips. At the end the rows are sorted by drive id and path, so that the table does not
-depend on the order in which the workers finished.
+over by batches of :data:`READ_ROWS`, the new batch added) and moved over it, then the
+CSV is derived from it the same way. A run stopped at any moment leaves both complete
+(the CSV at most one batch behind, and caught up by the next run); the rows already
+there are what a rerun skips.
+
+A run writes its rows in the order of (drive id, path) (:func:`~selftune.fleet.run_fleet`):
+the table is one such sorted run of rows after a first run, and one more after each
+rerun. :meth:`ResultsTable.merge` merges the runs into one, streaming, so that the table
+depends neither on the order in which the workers finished nor on where a run was
+stopped, and the memory it takes is a few batches' however long the table is.
 """
 
 from __future__ import annotations
 
 import csv
+import heapq
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from itertools import islice
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +59,10 @@ RESULT_COLUMNS: tuple[tuple[str, str, str, str], ...] = (
 )
 
 _NAMES = tuple(name for name, *_ in RESULT_COLUMNS)
+
+#: Rows read at once when the table is rewritten or converted, so that the memory those
+#: take does not grow with the table.
+READ_ROWS = 256
 
 
 def _schema() -> Any:
@@ -138,27 +149,29 @@ class ResultsTable:
         batch = pa.Table.from_pydict(columns, schema=schema)
         self._rewrite(lambda writer: writer.write_table(batch))
 
-    def _rewrite(self, add: Any = None, table: Any = None) -> None:
-        """The Parquet file rewritten (the earlier rows then ``add(writer)``'s, or
-        ``table`` instead of all), then the CSV from it."""
+    def _rewrite(self, add: Any, copy: bool = True) -> None:
+        """The Parquet file rewritten (the earlier rows if ``copy``, then what
+        ``add(writer)`` writes), then the CSV from it."""
         import pyarrow.parquet as pq
 
         schema = _schema()
         with atomic_path(self.parquet, ".parquet") as temporary:
             with pq.ParquetWriter(temporary, schema) as writer:
-                if table is not None:
-                    writer.write_table(table)
-                else:
-                    if self.parquet.exists():
-                        for part in pq.ParquetFile(self.parquet).iter_batches():
-                            writer.write_batch(part)
-                    add(writer)
+                if copy and self.parquet.exists():
+                    for part in self._batches():
+                        writer.write_batch(part)
+                add(writer)
         self.write_csv()
+
+    def _batches(self, columns: Sequence[str] | None = None) -> Iterator[Any]:
+        """The table's record batches of :data:`READ_ROWS` rows (some columns only)."""
+        import pyarrow.parquet as pq
+
+        names = list(columns) if columns else None
+        yield from pq.ParquetFile(self.parquet).iter_batches(batch_size=READ_ROWS, columns=names)
 
     def write_csv(self) -> None:
         """``results.csv`` from ``results.parquet`` (streamed by batches), atomically."""
-        import pyarrow.parquet as pq
-
         with (
             atomic_path(self.csv, ".csv") as temporary,
             temporary.open("w", encoding="utf-8", newline="") as stream,
@@ -166,16 +179,58 @@ class ResultsTable:
             writer = csv.writer(stream)
             writer.writerow(_NAMES)
             if self.parquet.exists():
-                for part in pq.ParquetFile(self.parquet).iter_batches():
-                    for row in part.to_pylist():
-                        writer.writerow(_csv_text(row[name]) for name in _NAMES)
+                for row in self._rows():
+                    writer.writerow(_csv_text(row[name]) for name in _NAMES)
 
-    def sort(self) -> None:
-        """Rewrite both files with the rows sorted by drive id and path."""
+    def _rows(self, start: int = 0, stop: int | None = None) -> Iterator[dict[str, Any]]:
+        """The rows ``start`` to ``stop`` (exclusive; None: to the end), streamed."""
+        place = 0
+        for part in self._batches():
+            end = place + part.num_rows
+            if end > start:
+                low = max(start - place, 0)
+                high = part.num_rows if stop is None else min(stop - place, part.num_rows)
+                yield from part.slice(low, high - low).to_pylist()
+            place = end
+            if stop is not None and place >= stop:
+                return
+
+    def runs(self) -> list[int]:
+        """Where each sorted run of rows begins: 0, then every row whose (drive id, path)
+        falls below the row's before it (``[]`` if there is no table or no row)."""
         if not self.parquet.exists():
+            return []
+        starts: list[int] = []
+        before: tuple[str, str] | None = None
+        place = 0
+        for part in self._batches(["drive", "path"]):
+            for key in zip(part["drive"].to_pylist(), part["path"].to_pylist(), strict=True):
+                if before is None or key < before:
+                    starts.append(place)
+                before = key
+                place += 1
+        return starts
+
+    def merge(self) -> None:
+        """Rewrite both files with the table's sorted runs of rows merged into one, by
+        (drive id, path), streaming; nothing is rewritten when there is one run or none."""
+        import pyarrow as pa
+
+        starts = self.runs()
+        if len(starts) < 2:
             return
-        table = self._read().sort_by([("drive", "ascending"), ("path", "ascending")])
-        self._rewrite(table=table)
+        stops: list[int | None] = [*starts[1:], None]
+        merged = heapq.merge(
+            *(self._rows(start, stop) for start, stop in zip(starts, stops, strict=True)),
+            key=lambda row: (row["drive"], row["path"]),
+        )
+        schema = _schema()
+
+        def write(writer: Any) -> None:
+            while batch := list(islice(merged, READ_ROWS)):
+                writer.write_table(pa.Table.from_pylist(batch, schema=schema))
+
+        self._rewrite(write, copy=False)
 
     def columns(self, names: Sequence[str]) -> dict[str, list[Any]]:
         """Some columns of the table as lists (empty lists if there is no table).
