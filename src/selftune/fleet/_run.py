@@ -24,6 +24,13 @@ FLEET_OUTPUTS = ("results.parquet", "results.csv", "summary.md", "fleet.png", "f
 
 _WHAT = "selftune fleet output"
 
+#: The most rows held before they are written, and the longest time between two writes,
+#: s. Each write rewrites the whole table (atomically), so writing by time keeps that
+#: work in proportion to the run's length, not to the square of the logs' number; a run
+#: stopped loses at most that much of its work.
+BATCH_ROWS = 1024
+WRITE_SECONDS = 10.0
+
 
 @dataclass(frozen=True)
 class FleetRun:
@@ -80,7 +87,8 @@ def run_fleet(
     client : distributed.Client, optional
         Learn on its cluster; None: here, one log after another.
     batch : int, optional
-        Rows written at once (default: 4 per worker, at least 16).
+        Rows written at most at once (default :data:`BATCH_ROWS`); rows are also written
+        whenever :data:`WRITE_SECONDS` have passed since the last write, and at the end.
     progress : bool
         Show a progress bar on stderr (on a terminal only).
 
@@ -100,15 +108,17 @@ def run_fleet(
         key=lambda job: (job.drive, job.path),
     )
     workers = workers_count(client)
-    size = batch or max(16, 4 * workers)
+    size = batch or BATCH_ROWS
     pending: list[dict[str, Any]] = []
+    written = time.monotonic()
     with progress_bar(len(todo), "fleet", progress) as bar:
         for row in map_in_order(learn_row, todo, client):
             pending.append(row)
             bar.update(1)
-            if len(pending) >= size:
+            if len(pending) >= size or time.monotonic() - written >= WRITE_SECONDS:
                 table.append(pending)
                 pending = []
+                written = time.monotonic()
     if pending:
         table.append(pending)
     table.merge()
