@@ -12,6 +12,7 @@ import pytest
 from selftune.cli import main
 from selftune.config import load_motor_config
 from selftune.model import IPMSM, solve_digital_regulation
+from selftune.report import LEARN_REPORT_FILES
 from selftune.report._digital_evaluation import true_motor
 
 DRIVE = """
@@ -55,8 +56,13 @@ def test_interior_motor_is_commissioned_within_its_errors(  # type: ignore[no-un
     out = tmp_path / "result.json"
     # seed 2: of 4 seeds x 4 motors (25 uH-100 mH) 2 logs were refused by the consistency
     # test (the dead-time model near zero current), the rest learned as asserted here
-    assert main(["tune", "--motor", path, "--json", str(out), "--seed", "2"]) == 0
-    assert "Interior PM motor commissioned" in capsys.readouterr().out
+    report = tmp_path / "report"
+    assert main(["tune", "--motor", path, "--json", str(out), "--seed", "2",
+                 "--report", str(report)]) == 0  # fmt: skip
+    printed = capsys.readouterr().out
+    assert "Interior PM motor commissioned" in printed
+    assert sorted(p.name for p in report.iterdir()) == sorted(LEARN_REPORT_FILES)
+    assert "Interior PM motor commissioned" in (report / "report.html").read_text()
     document = json.loads(out.read_text())
     config = load_motor_config(path)
     assert isinstance(config.motor, IPMSM) and config.drive is not None

@@ -51,8 +51,6 @@ def _tune_interior(
                 f"{what}: an interior PM motor is commissioned by identify-then-design of the"
                 f" digital target; {given} is for a surface motor (leave {what} out)"
             )
-    if report_dir is not None:
-        raise InputError("--report: not yet written for an interior PM motor; use --json")
     if config.drive is None:
         raise InputError(
             f"{config.source}: an interior PM motor is commissioned on a realistic drive:"
@@ -75,7 +73,12 @@ def _tune_interior(
                 {k: v for k, v in schedule_document(run, config).items() if k != "control_law"}
             )
         _write_json(json_path, document)
+    # the step response's step: the MTPA currents from 0 at the operating point's speed
+    back_emf = motor.p * settings.speed * motor.phi_pm
+    step = (np.array([back_emf, 0.0, 0.0]), np.concatenate([[back_emf], result.references]))
+    _write_report(result.learned, f"selftune tune: {config.source}", lines, report_dir, step)
     _print_report(lines, json_path)
+    _say_report_written(report_dir, json_path)
     return 0
 
 
