@@ -23,6 +23,7 @@ parameter's direction (:class:`ChangeWatch`).
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -202,9 +203,14 @@ class ChangeWatch:
         self.window = int(window)
         self.false_alarm = false_alarm
         self._reference: _Reference | None = None
-        # per chunk: transitions, and side by side: the directions' scores, variances
-        # within it (interior measurements and the process noise), loads, first and last u
-        self._parts: list[tuple[int, Array]] = []
+        # per chunk, oldest first, side by side: the directions' scores, variances within
+        # it (interior measurements and the process noise), loads, first and last u,
+        # shifts; the window's chunks are rows _first to _end of one array (summed in one
+        # call), and their transitions
+        self._parts = np.empty((0, 0))
+        self._first = self._end = 0
+        self._counts: deque[int] = deque()
+        self._held = 0  # the window's transitions
 
     def reference(
         self,
@@ -256,7 +262,8 @@ class ChangeWatch:
     def reference_off(self) -> None:
         """Stop watching until the next reference (after a change, the old one is wrong)."""
         self._reference = None
-        self._parts.clear()
+        self._first = self._end = self._held = 0
+        self._counts.clear()
 
     def add(self, zeta: Array, z: Array, y: Array) -> ChangeTest | None:
         """Score the transitions; the test over the window, or None without a reference.
@@ -280,40 +287,56 @@ class ChangeWatch:
         shifted = n + p + directions * n  # where sum u_k u_k' starts
         # sum_k u_k' Q u_k and sum_j c_j' R c_j, each direction's, from the sums of products
         within = reference.Q * products[:, shifted:] + reference.R * (paths.T @ paths)
-        self._parts.append((T, np.concatenate([
-            np.einsum("jii->j", products[:, :n].reshape(directions, n, n)),  # scores
-            np.sum(within, axis=0) @ reference.sums,
-            products[:, n : n + p].ravel(),  # vec(sum z_k u_k'), direction by direction
-            u[0], u[-1],
-            # shifts: score j's response to parameter k, sum_k u_k' M_j... M_k z_k
-            np.einsum("ajbj->ab", products[:, n + p : shifted].reshape(
-                directions, n, directions, n)).ravel(),
-        ])))  # fmt: skip
-        while sum(count for count, _ in self._parts[1:]) >= self.window:
-            self._parts.pop(0)
-        window = np.array([part for _, part in self._parts])  # (chunks, ...)
-        total = np.sum(window, axis=0)
         loads = 2 * directions + directions * p * n  # where the loads end
-        load = total[2 * directions : loads].reshape(directions, p * n)
-        uncertain = np.sum((load @ reference.covariance) * load, axis=1)
-        # the measurements between chunks, and the window's first and last
         edges = loads + 2 * directions * n  # where the first and last u end
-        firsts, lasts = (
-            window[:, loads : loads + directions * n],
-            window[:, loads + directions * n : edges],
-        )
+        part = self._part(T, edges + directions * directions)
+        products[:, :n].reshape(directions, n, n).trace(axis1=1, axis2=2, out=part[:directions])
+        np.matmul(within.sum(axis=0), reference.sums, out=part[directions : 2 * directions])
+        part[2 * directions : loads] = products[:, n : n + p].ravel()  # vec(sum z_k u_k')
+        part[loads : loads + directions * n] = u[0]
+        part[loads + directions * n : edges] = u[-1]
+        # shifts: score j's response to parameter k, sum_k u_k' M_j... M_k z_k
+        part[edges:] = (
+            products[:, n + p : shifted].reshape(directions, n, directions, n)
+            .trace(axis1=1, axis2=3).ravel()
+        )  # fmt: skip
+        window = self._parts[self._first : self._end]  # (chunks, ...)
+        total = window.sum(axis=0)
+        load = total[2 * directions : loads].reshape(directions, p * n)
+        uncertain = ((load @ reference.covariance) * load).sum(axis=1)
+        # the measurements between chunks, and the window's first and last
+        middle = loads + directions * n
+        firsts, lasts = window[:, loads:middle], window[:, middle:edges]
         shifts = total[edges:].reshape(directions, directions)
-        drift = np.sum((shifts * reference.allowance) ** 2, axis=1)
-        drift = drift + (np.diag(shifts) * reference.least) ** 2
+        drift = np.square(shifts * reference.allowance).sum(axis=1)
+        drift += np.square(shifts.diagonal() * reference.least)
         Ad = reference.Ad
         joins = np.concatenate([firsts[:1] @ Ad, lasts[-1:], lasts[:-1] - firsts[1:] @ Ad])
-        joined = np.sum((joins @ reference.R) * joins, axis=0) @ reference.sums
-        spread = np.sqrt(
-            np.maximum(total[directions : 2 * directions] + joined + uncertain + drift, 1e-300)
-        )
-        z_scores = np.asarray(total[:directions] / spread, dtype=np.float64)
+        joined = ((joins @ reference.R) * joins).sum(axis=0) @ reference.sums
+        spread = total[directions : 2 * directions] + joined
+        spread += uncertain
+        spread += drift
+        z_scores = total[:directions] / np.sqrt(np.maximum(spread, 1e-300))
         threshold = reference.threshold
-        return ChangeTest(z_scores, threshold, bool(np.max(np.abs(z_scores)) > threshold))
+        return ChangeTest(z_scores, threshold, bool(np.abs(z_scores).max() > threshold))
+
+    def _part(self, transitions: int, size: int) -> Array:
+        """A new chunk's row at the window's end (the chunks that fall out of the window
+        dropped), to be filled."""
+        if self._end == self._parts.shape[0] or self._parts.shape[1] != size:
+            held = self._parts[self._first : self._end] if self._parts.shape[1] == size else None
+            count = 0 if held is None else held.shape[0]
+            grown = np.empty((max(2 * count, 64), size))
+            if held is not None:
+                grown[:count] = held
+            self._parts, self._first, self._end = grown, 0, count
+        self._counts.append(transitions)
+        self._held += transitions
+        while self._held - self._counts[0] >= self.window:
+            self._held -= self._counts.popleft()
+            self._first += 1
+        self._end += 1
+        return self._parts[self._end - 1]
 
 
 @dataclass(frozen=True)
