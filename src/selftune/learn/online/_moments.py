@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 from ...core import Array
 from ...errors import InputError
 
-__all__ = ["ForgettingMoments", "add_samples", "transposed_order"]
+__all__ = ["ForgettingMoments", "add_rows", "add_samples", "transposed_order"]
 
 
 @dataclass
@@ -282,11 +282,31 @@ def add_samples(memories: Sequence[ForgettingMoments], zeta: Array, z: Array, y:
         last = (np.zeros((1, zeta.shape[1])), np.zeros((1, v.shape[1])))
     left = np.concatenate([zeta, v, np.concatenate([last[1], v[:-1]])], axis=1)
     pair = np.concatenate([np.concatenate([last[0], zeta[:-1]]), zeta], axis=1)
-    weights = np.array([_chunk_weights(m.forgetting, count)[0] for m in memories])  # (M, T)
+    add_rows(memories, left, pair)
+
+
+def add_rows(memories: Sequence[ForgettingMoments], left: Array, pair: Array) -> None:
+    """:func:`add_samples` of rows laid out as the moments' products take them (a caller
+    that writes them so saves the copies): memories fed the same stream so far.
+
+    Parameters
+    ----------
+    memories : sequence of ForgettingMoments
+        The memories, of the same sizes, whose last sample is the one before the rows
+        (zeros before the very first).
+    left : ndarray, shape (T, 3 p + 2 n)
+        Rows ``[zeta_k, v_k, v_(k-1)]`` (``v_k = [z_k, y_k]``).
+    pair : ndarray, shape (T, 2 p)
+        Rows ``[zeta_(k-1), zeta_k]``.
+    """
+    count, p = left.shape[0], memories[0].regressors
+    zeta, v = left[:, :p], left[:, p : p + (left.shape[1] - p) // 2]
+    weights, by_row, by_row_squared, ages = _memory_weights(
+        tuple(m.forgetting for m in memories), count
+    )
     # every memory's weighed sums in one product each: (T, M k)' (T, k')
-    sums = _weighed(weights, left, v)
-    sums_squared = _weighed(weights**2, pair, pair)
-    ages = np.arange(count - 1, -1, -1, dtype=float)
+    sums = _weighed(by_row, left, v)
+    sums_squared = _weighed(by_row_squared, pair, pair)
     shared = (zeta[-1:].copy(), v[-1:].copy())
     for index, memory in enumerate(memories):
         memory._estimate = None
@@ -305,14 +325,26 @@ def add_samples(memories: Sequence[ForgettingMoments], zeta: Array, z: Array, y:
         memory.count += count
 
 
-def _weighed(weights: Array, left: Array, right: Array) -> Array:
-    """``sum_k weights[i, k] left_k right_k'`` for every row i of ``weights``: shape (M,
-    a, b) from weights (M, T), left (T, a), right (T, b), in one matrix product."""
-    T, b = right.shape
-    # the narrower side weighed (a contiguous (T, M) first: ten times faster at 1,000 rows)
+@lru_cache(maxsize=8)
+def _memory_weights(forgetting: tuple[float, ...], count: int) -> tuple[Array, Array, Array, Array]:
+    """Several memories' chunk weights (M, T), as the products take them ((T, M, 1)
+    contiguous, and squared), and the samples' ages (read-only)."""
+    weights = np.array([_chunk_weights(value, count)[0] for value in forgetting])
     by_row = np.ascontiguousarray(weights.T)[:, :, np.newaxis]
+    by_row_squared = np.ascontiguousarray((weights**2).T)[:, :, np.newaxis]
+    ages = np.arange(count - 1, -1, -1, dtype=float)
+    for array in (weights, by_row, by_row_squared, ages):
+        array.setflags(write=False)
+    return weights, by_row, by_row_squared, ages
+
+
+def _weighed(by_row: Array, left: Array, right: Array) -> Array:
+    """``sum_k weights[i, k] left_k right_k'`` for every memory i: shape (M, a, b) from
+    ``by_row`` (T, M, 1) (the weights, a contiguous (T, M) first: ten times faster at
+    1,000 rows), left (T, a), right (T, b), in one matrix product."""
+    T, b = right.shape
     scaled = (by_row * right[:, np.newaxis, :]).reshape(T, -1)
-    return (left.T @ scaled).reshape(left.shape[1], weights.shape[0], b).transpose(1, 0, 2)
+    return (left.T @ scaled).reshape(left.shape[1], by_row.shape[1], b).transpose(1, 0, 2)
 
 
 def _same_last(a: tuple[Array, Array] | None, b: tuple[Array, Array] | None) -> bool:

@@ -323,7 +323,7 @@ class OnlineTuner:
         """
         if self.settings.learner == "adp":
             self._keep(x, u, w, angle)
-        commands = np.vstack([self._pending, u])  # row k is applied d rows later
+        commands = np.concatenate([self._pending, u])  # row k is applied d rows later
         applied, self._pending = commands[: u.shape[0]], commands[u.shape[0] :]
         rows = self._model.add(x, applied, w, angle)
         self._sample += x.shape[0]
