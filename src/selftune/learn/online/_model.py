@@ -24,7 +24,7 @@ from ...core import Array, positive_finite
 from ...errors import InputError
 from ..evidence._dead_time import phase_signs
 from ..evidence._discrete_model import DiscreteModel
-from ._moments import ForgettingMoments, add_rows, transposed_order
+from ._moments import ForgettingMoments, add_rows, transposed_covariance
 
 __all__ = ["OnlineModel"]
 
@@ -268,5 +268,4 @@ def _twice(count: int) -> NDArray[np.intp]:
 def _row_major_covariance(covariance: Array, shape: tuple[int, int]) -> Array:
     """The covariance of ``vec(Theta)`` (Theta (p, n), column-major) as that of
     ``vec(Theta')`` = ``vec([Ad, Bd, Ed])`` (column-major), the model's order."""
-    order = transposed_order(*shape)
-    return covariance[np.ix_(order, order)]
+    return transposed_covariance(covariance, *shape)

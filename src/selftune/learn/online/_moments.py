@@ -39,7 +39,14 @@ from numpy.typing import NDArray
 from ...core import Array
 from ...errors import InputError
 
-__all__ = ["ForgettingMoments", "add_rows", "add_samples", "transposed_order"]
+__all__ = [
+    "ForgettingMoments",
+    "add_rows",
+    "add_samples",
+    "block_diagonal",
+    "transposed_covariance",
+    "transposed_order",
+]
 
 
 @dataclass
@@ -172,13 +179,18 @@ class ForgettingMoments:
             The coefficients (the first n rows are ``Ad'``).
         """
         n = self.outputs
-        selector = np.vstack([-Theta, np.eye(n)])  # e = [z, y] @ selector
-        dof = max(self.weight - self.regressors, 1.0)
-        Sigma = selector.T @ self.second @ selector / dof
+        selector, dof, Sigma = self._errors(Theta)
         lagged = selector.T @ self.second_lagged @ selector / dof  # -R Ad'
         Ad = Theta[:n].T
         R = _semidefinite(np.asarray(-np.linalg.solve(Ad, lagged.T)))  # -Ad^-1 (-Ad R)
         return Sigma, R, _semidefinite(Sigma - R - Ad @ R @ Ad.T)
+
+    def _errors(self, Theta: Array) -> tuple[Array, float, Array]:
+        """The errors' selector (``e = [z, y] @ selector``), degrees of freedom and
+        covariance ``Sigma`` at ``Theta``."""
+        selector = np.vstack([-Theta, np.eye(self.outputs)])
+        dof = max(self.weight - self.regressors, 1.0)
+        return selector, dof, selector.T @ self.second @ selector / dof
 
     def instrument_weight(self, Theta: Array) -> Array:
         """The weight on ``vec(Theta' - Theta_hat')`` (column-major ``vec`` of
@@ -198,9 +210,11 @@ class ForgettingMoments:
         p, n = self.regressors, self.outputs
         G = self.cross[:, :p]
         information = G.T @ np.linalg.solve(self.squared, G)
-        weight = np.kron(np.linalg.inv(self.noise(Theta)[0]), information)
-        order = transposed_order(p, n)
-        return np.asarray(weight[np.ix_(order, order)], dtype=np.float64)
+        inverse = np.linalg.inv(self._errors(Theta)[2])
+        # Sigma^-1 (x) information in vec(Theta)'s order is information (x) Sigma^-1 in
+        # vec(Theta')'s: the same products, in the order wanted
+        weight = information[:, np.newaxis, :, np.newaxis] * inverse[np.newaxis, :, np.newaxis, :]
+        return np.asarray(weight.reshape(p * n, p * n), dtype=np.float64)
 
     def coefficients(self) -> Array:
         """``Theta`` (p, n) alone, from the moments so far (:meth:`estimate` without the
@@ -246,8 +260,7 @@ class ForgettingMoments:
         right = np.array([self.squared, before, after, cross, cross.T])  # (5, p, p)
         V = np.sum(left[:, :, None, :, None] * right[:, None, :, None, :], axis=0)
         V = V.reshape(n * p, n * p)
-        G_inverse = np.linalg.inv(G)
-        spread = np.kron(np.eye(n), G_inverse)
+        spread = block_diagonal(np.linalg.inv(G), n)
         return Theta, Sigma, np.asarray(spread @ V @ spread.T)
 
 
@@ -374,6 +387,38 @@ def transposed_order(p: int, n: int) -> NDArray[np.intp]:
     """
     # vec(Theta) index j p + i is Theta[i, j] = Theta'[j, i], vec(Theta') index i n + j
     return np.arange(p * n).reshape(n, p).T.ravel()
+
+
+def block_diagonal(M: Array, count: int) -> Array:
+    """``I (x) M``: ``count`` copies of ``M`` on the diagonal (:func:`numpy.kron` with the
+    identity, without its products).
+
+    Parameters
+    ----------
+    M : ndarray, shape (a, b)
+        The block.
+    count : int
+        The copies.
+    """
+    (rows, columns), diagonal = M.shape, np.arange(count)
+    blocks = np.zeros((count, rows, count, columns))
+    blocks[diagonal, :, diagonal, :] = M
+    return blocks.reshape(count * rows, count * columns)
+
+
+def transposed_covariance(covariance: Array, p: int, n: int) -> Array:
+    """A covariance of ``vec(Theta)`` (``Theta`` (p, n), column-major) turned into that of
+    ``vec(Theta')`` (``covariance[np.ix_(order, order)]`` with :func:`transposed_order`,
+    without the index arrays); with p and n swapped, back.
+
+    Parameters
+    ----------
+    covariance : ndarray, shape (p n, p n)
+        The covariance of ``vec(Theta)``.
+    p, n : int
+        Theta's rows and columns.
+    """
+    return covariance.reshape(n, p, n, p).transpose(1, 0, 3, 2).reshape(p * n, p * n)
 
 
 def _semidefinite(M: Array) -> Array:

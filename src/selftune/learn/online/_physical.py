@@ -34,6 +34,7 @@ from ...core import Array
 from ...errors import InputError
 from ..evidence._discrete_model import DiscreteModel
 from ..evidence._spmsm_structure import SpmsmStructure
+from ._moments import block_diagonal
 
 __all__ = ["ChangeTest", "ChangeWatch", "PhysicalEstimate", "physical_estimate"]
 
@@ -119,14 +120,14 @@ def physical_estimate(
             axis=2,
         )
         value, *stepped = stacked.transpose(0, 2, 1).reshape(stacked.shape[0], -1)
-        J = np.column_stack(
-            [(entry - value) / step for step, entry in zip(steps, stepped, strict=True)]
-        )
-        gain = np.linalg.solve(J.T @ weight @ J, J.T @ weight)  # d theta / d entries
+        J = ((np.asarray(stepped) - value) / steps[:, np.newaxis]).T
+        weighed = J.T @ weight
+        gain = np.linalg.solve(weighed @ J, weighed)  # d theta / d entries
         step = gain @ (target - value)
         theta = theta + step
         covariance = gain @ model.covariance @ gain.T
-        if np.all(np.abs(step) <= CONVERGED * np.sqrt(np.maximum(np.diag(covariance), 0.0))):
+        bound = CONVERGED * np.sqrt(np.maximum(covariance.diagonal(), 0.0))
+        if (np.abs(step) <= bound).all():
             break
     return PhysicalEstimate(theta, covariance, J, gain)
 
@@ -248,7 +249,7 @@ class ChangeWatch:
         Sigma_inverse = np.linalg.inv(noise[0])
 
         def blocks(M: Array) -> Array:  # I (x) M: M acts on each direction's u
-            return np.asarray(np.kron(np.eye(len(directions)), M), dtype=np.float64)
+            return block_diagonal(M, len(directions))
 
         self._reference = _Reference(
             Theta, np.hstack([M.T @ Sigma_inverse for M in directions]), blocks(Theta[:n].T),
