@@ -248,16 +248,20 @@ class ChangeWatch:
         # each direction's instruments-to-score map, M_j' Sigma^-1, made once per reference
         Sigma_inverse = np.linalg.inv(noise[0])
 
-        def blocks(M: Array) -> Array:  # I (x) M: M acts on each direction's u
-            return block_diagonal(M, len(directions))
-
+        count = len(directions)
+        allowance = np.zeros(count) if allowance is None else np.asarray(allowance, float)
+        least = np.zeros(count) if least is None else np.asarray(least, float)
+        # a score's drift variance, sum_k (S_jk allowance_k)^2 + (S_jj least_j)^2, is
+        # sum_k S_jk^2 weights_jk
+        weights = np.tile(allowance**2, (count, 1))
+        weights[np.diag_indices(count)] += least**2
+        stacked = np.hstack([M.T for M in directions])
         self._reference = _Reference(
-            Theta, np.hstack([M.T @ Sigma_inverse for M in directions]), blocks(Theta[:n].T),
-            blocks(noise[1]), blocks(noise[2]), blocks(np.ones((n, 1))), covariance,
-            _threshold(self.false_alarm, len(directions)),
-            np.hstack([M.T for M in directions]),
-            np.zeros(len(directions)) if allowance is None else np.asarray(allowance, float),
-            np.zeros(len(directions)) if least is None else np.asarray(least, float),
+            Theta, np.hstack([M.T @ Sigma_inverse for M in directions]),
+            block_diagonal(Theta[:n].T, count), block_diagonal(noise[1], count),
+            block_diagonal(np.ones((n, 1)), count), covariance,
+            _threshold(self.false_alarm, count), np.hstack([Theta, stacked]),
+            _part_map(Theta.shape[0], n, count, noise[2], noise[1]), weights,
         )  # fmt: skip
 
     def reference_off(self) -> None:
@@ -278,41 +282,30 @@ class ChangeWatch:
         if reference is None or z.shape[0] == 0:
             return None
         T, (p, n), directions = z.shape[0], reference.Theta.shape, reference.sums.shape[1]
-        errors = y - z @ reference.Theta
+        fitted = z @ reference.fitted  # every row's z_k' Theta and (every M_j z_k)'
+        errors = y - fitted[:, :n]
         u = zeta @ reference.maps  # row k: every direction's u_k' = (Sigma^-1 M_j zeta_k)'
         paths = u[:-1] - u[1:] @ reference.Ad  # c_j' for the chunk's interior measurements
         # one product for the scores, the loads, the shifts and the process noise's
         # variance: sum_k u_k [e_k', z_k', (every M_j z_k)', u_k'], direction j's rows
-        # j n to j n + n - 1
-        products = u.T @ np.concatenate([errors, z, z @ reference.directions, u], axis=1)
-        shifted = n + p + directions * n  # where sum u_k u_k' starts
-        # sum_k u_k' Q u_k and sum_j c_j' R c_j, each direction's, from the sums of products
-        within = reference.Q * products[:, shifted:] + reference.R * (paths.T @ paths)
+        # j n to j n + n - 1; with sum_j c_j c_j' and the first and last u, one more
+        # gives the chunk's part (_part_map)
+        products = u.T @ np.concatenate([errors, z, fitted[:, n:], u], axis=1)
+        sums = np.concatenate([products.ravel(), (paths.T @ paths).ravel(), u[0], u[-1]])
+        self._part(T, reference.part.shape[1])[:] = sums @ reference.part
         loads = 2 * directions + directions * p * n  # where the loads end
         edges = loads + 2 * directions * n  # where the first and last u end
-        part = self._part(T, edges + directions * directions)
-        products[:, :n].reshape(directions, n, n).trace(axis1=1, axis2=2, out=part[:directions])
-        np.matmul(within.sum(axis=0), reference.sums, out=part[directions : 2 * directions])
-        part[2 * directions : loads] = products[:, n : n + p].ravel()  # vec(sum z_k u_k')
-        part[loads : loads + directions * n] = u[0]
-        part[loads + directions * n : edges] = u[-1]
-        # shifts: score j's response to parameter k, sum_k u_k' M_j... M_k z_k
-        part[edges:] = (
-            products[:, n + p : shifted].reshape(directions, n, directions, n)
-            .trace(axis1=1, axis2=3).ravel()
-        )  # fmt: skip
         window = self._parts[self._first : self._end]  # (chunks, ...)
         total = window.sum(axis=0)
         load = total[2 * directions : loads].reshape(directions, p * n)
         uncertain = ((load @ reference.covariance) * load).sum(axis=1)
         # the measurements between chunks, and the window's first and last
         middle = loads + directions * n
-        firsts, lasts = window[:, loads:middle], window[:, middle:edges]
-        shifts = total[edges:].reshape(directions, directions)
-        drift = np.square(shifts * reference.allowance).sum(axis=1)
-        drift += np.square(shifts.diagonal() * reference.least)
-        Ad = reference.Ad
-        joins = np.concatenate([firsts[:1] @ Ad, lasts[-1:], lasts[:-1] - firsts[1:] @ Ad])
+        firsts, lasts = window[:, loads:middle] @ reference.Ad, window[:, middle:edges]
+        drift = (np.square(total[edges:].reshape(directions, directions)) * reference.drift).sum(
+            axis=1
+        )
+        joins = np.concatenate([firsts[:1], lasts[-1:], lasts[:-1] - firsts[1:]])
         joined = ((joins @ reference.R) * joins).sum(axis=0) @ reference.sums
         spread = total[directions : 2 * directions] + joined
         spread += uncertain
@@ -350,13 +343,39 @@ class _Reference:
     maps: Array  # (p, j n): [M_1' Sigma^-1, M_2' Sigma^-1, ...]
     Ad: Array  # I (x) Ad: a row of u's times it is each direction's (Ad' u)'
     R: Array  # I (x) R
-    Q: Array  # I (x) Q
     sums: Array  # (j n, j): sums each direction's n columns
     covariance: Array
     threshold: float
-    directions: Array  # (p, j n): [M_1', M_2', ...]: z_k' times it is every M_j z_k
-    allowance: Array  # (j,): how far behind a drifting plant the reference may be
-    least: Array  # (j,): the least change of a parameter alone that is a change
+    fitted: Array  # (p, n + j n): [Theta, M_1', M_2', ...]: z_k' times it is z_k' Theta
+    # and every (M_j z_k)'
+    part: Array  # a chunk's sums to its part (_part_map)
+    drift: Array  # (j, j): the drift variance's weights on the squared shifts
+
+
+def _part_map(p: int, n: int, directions: int, Q: Array, R: Array) -> Array:
+    """The map from a chunk's sums, ``[vec(P), vec(sum_j c_j c_j'), u_first, u_last]``
+    (``P = sum_k u_k [e_k', z_k', (every M_j z_k)', u_k']``, row-major ``vec``), to its
+    part of the window: each direction's score, variance within the chunk (``u' Q u`` and
+    ``c' R c``), loads ``vec(sum z_k u_k')``, the first and last ``u``, and the shifts
+    (score j's response to parameter i)."""
+    J, Jn = directions, directions * n
+    width = n + p + 2 * Jn  # P's columns
+    loads = 2 * J + J * p * n
+    edges = loads + 2 * Jn
+    M = np.zeros((Jn * width + Jn * Jn + 2 * Jn, edges + J * J))
+    for j in range(J):
+        for a in range(n):
+            row = j * n + a
+            M[row * width + a, j] = 1.0  # the score: the trace of direction j's u' e
+            for b in range(n):
+                M[row * width + n + p + Jn + j * n + b, J + j] = Q[a, b]
+                M[Jn * width + row * Jn + j * n + b, J + j] = R[a, b]
+            for i in range(J):  # the shift: the trace of u_j' M_i z
+                M[row * width + n + p + i * n + a, edges + j * J + i] = 1.0
+    for row in range(Jn):
+        M[row * width + n + np.arange(p), 2 * J + row * p + np.arange(p)] = 1.0
+    M[Jn * width + Jn * Jn + np.arange(2 * Jn), loads + np.arange(2 * Jn)] = 1.0
+    return M
 
 
 @lru_cache(maxsize=8)
