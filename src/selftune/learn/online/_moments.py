@@ -260,7 +260,7 @@ class ForgettingMoments:
         right = np.array([self.squared, before, after, cross, cross.T])  # (5, p, p)
         V = np.sum(left[:, :, None, :, None] * right[:, None, :, None, :], axis=0)
         V = V.reshape(n * p, n * p)
-        spread = block_diagonal(np.linalg.inv(G), n)
+        spread = block_diagonal(np.asarray(np.linalg.inv(G), dtype=np.float64), n)
         return Theta, Sigma, np.asarray(spread @ V @ spread.T)
 
 
