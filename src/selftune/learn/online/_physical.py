@@ -29,6 +29,7 @@ from functools import lru_cache
 
 import numpy as np
 import scipy.stats
+from numpy.typing import NDArray
 
 from ...core import Array
 from ...errors import InputError
@@ -358,24 +359,57 @@ def _part_map(p: int, n: int, directions: int, Q: Array, R: Array) -> Array:
     part of the window: each direction's score, variance within the chunk (``u' Q u`` and
     ``c' R c``), loads ``vec(sum z_k u_k')``, the first and last ``u``, and the shifts
     (score j's response to parameter i)."""
+    ones, noise_rows, noise_columns, shape = _part_places(p, n, directions)
+    M = np.zeros(shape)
+    M[ones] = 1.0
+    M[noise_rows, noise_columns] = np.concatenate(
+        [np.tile(Q.ravel(), directions), np.tile(R.ravel(), directions)]
+    )
+    return M
+
+
+@lru_cache(maxsize=8)
+def _part_places(
+    p: int, n: int, directions: int
+) -> tuple[tuple[NDArray[np.intp], NDArray[np.intp]], NDArray[np.intp], NDArray[np.intp],
+           tuple[int, int]]:  # fmt: skip
+    """Where :func:`_part_map` has its ones, and its Q's and R's entries (direction by
+    direction, each row-major), and its shape."""
     J, Jn = directions, directions * n
     width = n + p + 2 * Jn  # P's columns
     loads = 2 * J + J * p * n
     edges = loads + 2 * Jn
-    M = np.zeros((Jn * width + Jn * Jn + 2 * Jn, edges + J * J))
+    rows: list[int] = []
+    columns: list[int] = []
+    noise_rows: list[int] = []
+    noise_columns: list[int] = []
     for j in range(J):
         for a in range(n):
             row = j * n + a
-            M[row * width + a, j] = 1.0  # the score: the trace of direction j's u' e
-            for b in range(n):
-                M[row * width + n + p + Jn + j * n + b, J + j] = Q[a, b]
-                M[Jn * width + row * Jn + j * n + b, J + j] = R[a, b]
+            rows.append(row * width + a)  # the score: the trace of direction j's u' e
+            columns.append(j)
             for i in range(J):  # the shift: the trace of u_j' M_i z
-                M[row * width + n + p + i * n + a, edges + j * J + i] = 1.0
-    for row in range(Jn):
-        M[row * width + n + np.arange(p), 2 * J + row * p + np.arange(p)] = 1.0
-    M[Jn * width + Jn * Jn + np.arange(2 * Jn), loads + np.arange(2 * Jn)] = 1.0
-    return M
+                rows.append(row * width + n + p + i * n + a)
+                columns.append(edges + j * J + i)
+    for j in range(J):  # u' Q u, then c' R c, of direction j
+        for a in range(n):
+            for b in range(n):
+                noise_rows.append((j * n + a) * width + n + p + Jn + j * n + b)
+                noise_columns.append(J + j)
+    for j in range(J):
+        for a in range(n):
+            for b in range(n):
+                noise_rows.append(Jn * width + (j * n + a) * Jn + j * n + b)
+                noise_columns.append(J + j)
+    for row in range(Jn):  # the loads
+        rows += [row * width + n + i for i in range(p)]
+        columns += [2 * J + row * p + i for i in range(p)]
+    rows += [Jn * width + Jn * Jn + i for i in range(2 * Jn)]  # the first and last u
+    columns += [loads + i for i in range(2 * Jn)]
+    return (
+        (np.array(rows), np.array(columns)), np.array(noise_rows), np.array(noise_columns),
+        (Jn * width + Jn * Jn + 2 * Jn, edges + J * J),
+    )  # fmt: skip
 
 
 @lru_cache(maxsize=8)
