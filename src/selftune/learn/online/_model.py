@@ -7,21 +7,24 @@ signs of ``x_(k-1)`` at row k's angle), so that neither the noise on ``x_k`` nor
 it flips near zero current bias the estimate. A chunk's rows join the previous chunk's:
 any chunking gives the same moments. The transitions wait until the moments are read
 (or :data:`PENDING_ROWS` of them are waiting), and are then added in one product: the
-work of a product is mostly its call, not its rows.
+work of a product is mostly its call, not its rows. They wait laid out as the products
+take them (:func:`~._moments.add_rows`), each written once.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ...core import Array, positive_finite
 from ...errors import InputError
 from ..evidence._dead_time import phase_signs
 from ..evidence._discrete_model import DiscreteModel
-from ._moments import ForgettingMoments, add_samples, transposed_order
+from ._moments import ForgettingMoments, add_rows, transposed_covariance
 
 __all__ = ["OnlineModel"]
 
@@ -59,7 +62,11 @@ class OnlineModel:
     dead_time: bool = False
     _memories: list[ForgettingMoments] = field(init=False, repr=False)
     _tail: tuple[Array, Array] | None = field(init=False, default=None, repr=False)
-    _pending: list[tuple[Array, Array, Array]] = field(init=False, repr=False)
+    # the waiting transitions, rows 1 to _waiting, laid out [zeta_(k-1), zeta_k, z_k, y_k,
+    # z_(k-1), y_(k-1)]; row 0 the transition added last (zeros before the first). A
+    # full buffer is replaced, not overwritten: the rows :meth:`add` returned stay valid.
+    _rows: Array = field(init=False, repr=False)
+    _waiting: int = field(init=False, default=0, repr=False)
 
     def __post_init__(self) -> None:
         self.h = positive_finite(self.h, "h")
@@ -70,7 +77,7 @@ class OnlineModel:
         self._memories = [
             ForgettingMoments(math.exp(-self.h / memory), size, self.n) for memory in self.memories
         ]
-        self._pending = []
+        self._rows = self._buffer(PENDING_ROWS, None)
 
     @property
     def moments(self) -> list[ForgettingMoments]:
@@ -81,10 +88,18 @@ class OnlineModel:
 
     def _add_pending(self) -> None:
         """Add the waiting transitions to every memory, in one product."""
-        if self._pending:
-            rows = [np.concatenate(parts) for parts in zip(*self._pending, strict=True)]
-            self._pending.clear()
-            add_samples(self._memories, *rows)
+        if self._waiting:
+            p, rows = self._memories[0].regressors, self._rows[1 : self._waiting + 1]
+            add_rows(self._memories, rows[:, p:], rows[:, : 2 * p])
+            self._rows = self._buffer(PENDING_ROWS, self._rows[self._waiting])
+            self._waiting = 0
+
+    def _buffer(self, rows: int, last: Array | None) -> Array:
+        """Room for ``rows`` waiting transitions after ``last`` (None: zeros)."""
+        size, n = self._memories[0].regressors, self.n
+        buffer = np.empty((rows + 1, 4 * size + 2 * n))
+        buffer[0] = 0.0 if last is None else last
+        return buffer
 
     @property
     def channels(self) -> int:
@@ -110,27 +125,48 @@ class OnlineModel:
         """
         if self.dead_time and angle is None:
             raise InputError("angle: the dead-time model needs the electrical angle of each row")
-        data = np.concatenate([x, a, w], axis=1)  # rows [x_k, a_k, w_k]
-        angles = np.zeros(x.shape[0]) if angle is None else angle
+        n, m, T = self.n, self.m, x.shape[0]
+        held = 0 if self._tail is None else self._tail[0].shape[0]
+        data = np.empty((held + T, n + m + w.shape[1]))  # rows [x_k, a_k, w_k]
+        data[held:, :n], data[held:, n : n + m], data[held:, n + m :] = x, a, w
+        angles = np.zeros(T) if angle is None else angle
         if self._tail is not None:
-            data = np.concatenate([self._tail[0], data])
+            data[:held] = self._tail[0]
             angles = np.concatenate([self._tail[1], angles])
         self._tail = (data[-_TAIL:], angles[-_TAIL:])
-        if data.shape[0] < _TAIL + 1:
-            size = self._memories[0].regressors
-            return np.zeros((0, size)), np.zeros((0, size)), np.zeros((0, self.n))
-        n, now = self.n, slice(1, -1)  # transitions k -> k + 1 with a row k - 1 before
-        z, zeta = data[now], np.concatenate([data[:-2, :n], data[now, n:]], axis=1)
+        count = data.shape[0] - _TAIL  # transitions k -> k + 1 with a row k - 1 before
+        p = self._memories[0].regressors
+        if count < 1:
+            return np.zeros((0, p)), np.zeros((0, p)), np.zeros((0, n))
+        if self._waiting + count >= self._rows.shape[0]:  # room for the chunk
+            self._rows = self._grown(count)
+        first, last = self._waiting + 1, self._waiting + count + 1
+        rows = self._rows[first:last]
+        # zeta_k = [x_(k-1), a_k, w_k], z_k = [x_k, a_k, w_k], y_k = x_(k+1)
+        width = data.shape[1]
+        rows[:, p : p + n] = data[:-2, :n]
+        rows[:, p + n : p + width] = data[1:-1, n:]
+        rows[:, 2 * p : 2 * p + width] = data[1:-1]
+        rows[:, 3 * p : 3 * p + n] = data[2:, :n]
         if self.dead_time:
             # the signs of x_k and of x_(k-1), both at row k's angle: one call
-            signs = phase_signs(np.vstack([data[now, :n], data[:-2, :n]]), np.tile(angles[now], 2))
-            z = np.hstack([z, signs[: z.shape[0]]])
-            zeta = np.hstack([zeta, signs[z.shape[0] :]])
-        rows = (zeta, z, data[2:, :n])
-        self._pending.append(rows)
-        if sum(part[0].shape[0] for part in self._pending) >= PENDING_ROWS:
+            twice = _twice(count)
+            signs = phase_signs(data[twice[0], :n], angles[twice[1]])
+            rows[:, 3 * p - 2 : 3 * p] = signs[:count]
+            rows[:, 2 * p - 2 : 2 * p] = signs[count:]
+        # the transition before each: [zeta_(k-1)] and [z_(k-1), y_(k-1)]
+        rows[:, :p] = self._rows[first - 1 : last - 1, p : 2 * p]
+        rows[:, 3 * p + n :] = self._rows[first - 1 : last - 1, 2 * p : 3 * p + n]
+        self._waiting += count
+        if self._waiting >= PENDING_ROWS:
             self._add_pending()
-        return rows
+        return rows[:, p : 2 * p], rows[:, 2 * p : 3 * p], rows[:, 3 * p : 3 * p + n]
+
+    def _grown(self, count: int) -> Array:
+        """A buffer with the waiting transitions and room for ``count`` more."""
+        grown = self._buffer(max(PENDING_ROWS, self._waiting + count), None)
+        grown[: self._waiting + 1] = self._rows[: self._waiting + 1]
+        return grown
 
     def model(self, index: int = 0) -> DiscreteModel:
         """The model one memory's moments give now, with the covariance of
@@ -219,8 +255,17 @@ class OnlineModel:
         return self._discrete(self.moments[older], Theta, Sigma, covariance), Theta, covariance, 0.0
 
 
+@lru_cache(maxsize=8)
+def _twice(count: int) -> NDArray[np.intp]:
+    """Rows of a chunk's data for the signs of ``count`` transitions: ``x_k`` then
+    ``x_(k-1)`` (first row), both at row k's angle (second row)."""
+    now = np.arange(1, count + 1)
+    twice = np.array([np.concatenate([now, now - 1]), np.concatenate([now, now])])
+    twice.setflags(write=False)
+    return twice
+
+
 def _row_major_covariance(covariance: Array, shape: tuple[int, int]) -> Array:
     """The covariance of ``vec(Theta)`` (Theta (p, n), column-major) as that of
     ``vec(Theta')`` = ``vec([Ad, Bd, Ed])`` (column-major), the model's order."""
-    order = transposed_order(*shape)
-    return covariance[np.ix_(order, order)]
+    return transposed_covariance(covariance, *shape)

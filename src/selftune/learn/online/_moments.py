@@ -39,7 +39,14 @@ from numpy.typing import NDArray
 from ...core import Array
 from ...errors import InputError
 
-__all__ = ["ForgettingMoments", "add_samples", "transposed_order"]
+__all__ = [
+    "ForgettingMoments",
+    "add_rows",
+    "add_samples",
+    "block_diagonal",
+    "transposed_covariance",
+    "transposed_order",
+]
 
 
 @dataclass
@@ -172,13 +179,18 @@ class ForgettingMoments:
             The coefficients (the first n rows are ``Ad'``).
         """
         n = self.outputs
-        selector = np.vstack([-Theta, np.eye(n)])  # e = [z, y] @ selector
-        dof = max(self.weight - self.regressors, 1.0)
-        Sigma = selector.T @ self.second @ selector / dof
+        selector, dof, Sigma = self._errors(Theta)
         lagged = selector.T @ self.second_lagged @ selector / dof  # -R Ad'
         Ad = Theta[:n].T
         R = _semidefinite(np.asarray(-np.linalg.solve(Ad, lagged.T)))  # -Ad^-1 (-Ad R)
         return Sigma, R, _semidefinite(Sigma - R - Ad @ R @ Ad.T)
+
+    def _errors(self, Theta: Array) -> tuple[Array, float, Array]:
+        """The errors' selector (``e = [z, y] @ selector``), degrees of freedom and
+        covariance ``Sigma`` at ``Theta``."""
+        selector = np.vstack([-Theta, np.eye(self.outputs)])
+        dof = max(self.weight - self.regressors, 1.0)
+        return selector, dof, selector.T @ self.second @ selector / dof
 
     def instrument_weight(self, Theta: Array) -> Array:
         """The weight on ``vec(Theta' - Theta_hat')`` (column-major ``vec`` of
@@ -198,9 +210,11 @@ class ForgettingMoments:
         p, n = self.regressors, self.outputs
         G = self.cross[:, :p]
         information = G.T @ np.linalg.solve(self.squared, G)
-        weight = np.kron(np.linalg.inv(self.noise(Theta)[0]), information)
-        order = transposed_order(p, n)
-        return np.asarray(weight[np.ix_(order, order)], dtype=np.float64)
+        inverse = np.linalg.inv(self._errors(Theta)[2])
+        # Sigma^-1 (x) information in vec(Theta)'s order is information (x) Sigma^-1 in
+        # vec(Theta')'s: the same products, in the order wanted
+        weight = information[:, np.newaxis, :, np.newaxis] * inverse[np.newaxis, :, np.newaxis, :]
+        return np.asarray(weight.reshape(p * n, p * n), dtype=np.float64)
 
     def coefficients(self) -> Array:
         """``Theta`` (p, n) alone, from the moments so far (:meth:`estimate` without the
@@ -246,8 +260,7 @@ class ForgettingMoments:
         right = np.array([self.squared, before, after, cross, cross.T])  # (5, p, p)
         V = np.sum(left[:, :, None, :, None] * right[:, None, :, None, :], axis=0)
         V = V.reshape(n * p, n * p)
-        G_inverse = np.linalg.inv(G)
-        spread = np.kron(np.eye(n), G_inverse)
+        spread = block_diagonal(np.asarray(np.linalg.inv(G), dtype=np.float64), n)
         return Theta, Sigma, np.asarray(spread @ V @ spread.T)
 
 
@@ -282,11 +295,31 @@ def add_samples(memories: Sequence[ForgettingMoments], zeta: Array, z: Array, y:
         last = (np.zeros((1, zeta.shape[1])), np.zeros((1, v.shape[1])))
     left = np.concatenate([zeta, v, np.concatenate([last[1], v[:-1]])], axis=1)
     pair = np.concatenate([np.concatenate([last[0], zeta[:-1]]), zeta], axis=1)
-    weights = np.array([_chunk_weights(m.forgetting, count)[0] for m in memories])  # (M, T)
+    add_rows(memories, left, pair)
+
+
+def add_rows(memories: Sequence[ForgettingMoments], left: Array, pair: Array) -> None:
+    """:func:`add_samples` of rows laid out as the moments' products take them (a caller
+    that writes them so saves the copies): memories fed the same stream so far.
+
+    Parameters
+    ----------
+    memories : sequence of ForgettingMoments
+        The memories, of the same sizes, whose last sample is the one before the rows
+        (zeros before the very first).
+    left : ndarray, shape (T, 3 p + 2 n)
+        Rows ``[zeta_k, v_k, v_(k-1)]`` (``v_k = [z_k, y_k]``).
+    pair : ndarray, shape (T, 2 p)
+        Rows ``[zeta_(k-1), zeta_k]``.
+    """
+    count, p = left.shape[0], memories[0].regressors
+    zeta, v = left[:, :p], left[:, p : p + (left.shape[1] - p) // 2]
+    weights, by_row, by_row_squared, ages = _memory_weights(
+        tuple(m.forgetting for m in memories), count
+    )
     # every memory's weighed sums in one product each: (T, M k)' (T, k')
-    sums = _weighed(weights, left, v)
-    sums_squared = _weighed(weights**2, pair, pair)
-    ages = np.arange(count - 1, -1, -1, dtype=float)
+    sums = _weighed(by_row, left, v)
+    sums_squared = _weighed(by_row_squared, pair, pair)
     shared = (zeta[-1:].copy(), v[-1:].copy())
     for index, memory in enumerate(memories):
         memory._estimate = None
@@ -305,14 +338,26 @@ def add_samples(memories: Sequence[ForgettingMoments], zeta: Array, z: Array, y:
         memory.count += count
 
 
-def _weighed(weights: Array, left: Array, right: Array) -> Array:
-    """``sum_k weights[i, k] left_k right_k'`` for every row i of ``weights``: shape (M,
-    a, b) from weights (M, T), left (T, a), right (T, b), in one matrix product."""
-    T, b = right.shape
-    # the narrower side weighed (a contiguous (T, M) first: ten times faster at 1,000 rows)
+@lru_cache(maxsize=8)
+def _memory_weights(forgetting: tuple[float, ...], count: int) -> tuple[Array, Array, Array, Array]:
+    """Several memories' chunk weights (M, T), as the products take them ((T, M, 1)
+    contiguous, and squared), and the samples' ages (read-only)."""
+    weights = np.array([_chunk_weights(value, count)[0] for value in forgetting])
     by_row = np.ascontiguousarray(weights.T)[:, :, np.newaxis]
+    by_row_squared = np.ascontiguousarray((weights**2).T)[:, :, np.newaxis]
+    ages = np.arange(count - 1, -1, -1, dtype=float)
+    for array in (weights, by_row, by_row_squared, ages):
+        array.setflags(write=False)
+    return weights, by_row, by_row_squared, ages
+
+
+def _weighed(by_row: Array, left: Array, right: Array) -> Array:
+    """``sum_k weights[i, k] left_k right_k'`` for every memory i: shape (M, a, b) from
+    ``by_row`` (T, M, 1) (the weights, a contiguous (T, M) first: ten times faster at
+    1,000 rows), left (T, a), right (T, b), in one matrix product."""
+    T, b = right.shape
     scaled = (by_row * right[:, np.newaxis, :]).reshape(T, -1)
-    return (left.T @ scaled).reshape(left.shape[1], weights.shape[0], b).transpose(1, 0, 2)
+    return (left.T @ scaled).reshape(left.shape[1], by_row.shape[1], b).transpose(1, 0, 2)
 
 
 def _same_last(a: tuple[Array, Array] | None, b: tuple[Array, Array] | None) -> bool:
@@ -342,6 +387,38 @@ def transposed_order(p: int, n: int) -> NDArray[np.intp]:
     """
     # vec(Theta) index j p + i is Theta[i, j] = Theta'[j, i], vec(Theta') index i n + j
     return np.arange(p * n).reshape(n, p).T.ravel()
+
+
+def block_diagonal(M: Array, count: int) -> Array:
+    """``I (x) M``: ``count`` copies of ``M`` on the diagonal (:func:`numpy.kron` with the
+    identity, without its products).
+
+    Parameters
+    ----------
+    M : ndarray, shape (a, b)
+        The block.
+    count : int
+        The copies.
+    """
+    (rows, columns), diagonal = M.shape, np.arange(count)
+    blocks = np.zeros((count, rows, count, columns))
+    blocks[diagonal, :, diagonal, :] = M
+    return blocks.reshape(count * rows, count * columns)
+
+
+def transposed_covariance(covariance: Array, p: int, n: int) -> Array:
+    """A covariance of ``vec(Theta)`` (``Theta`` (p, n), column-major) turned into that of
+    ``vec(Theta')`` (``covariance[np.ix_(order, order)]`` with :func:`transposed_order`,
+    without the index arrays); with p and n swapped, back.
+
+    Parameters
+    ----------
+    covariance : ndarray, shape (p n, p n)
+        The covariance of ``vec(Theta)``.
+    p, n : int
+        Theta's rows and columns.
+    """
+    return covariance.reshape(n, p, n, p).transpose(1, 0, 3, 2).reshape(p * n, p * n)
 
 
 def _semidefinite(M: Array) -> Array:

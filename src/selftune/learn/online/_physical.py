@@ -23,16 +23,19 @@ parameter's direction (:class:`ChangeWatch`).
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 import scipy.stats
+from numpy.typing import NDArray
 
 from ...core import Array
 from ...errors import InputError
 from ..evidence._discrete_model import DiscreteModel
 from ..evidence._spmsm_structure import SpmsmStructure
+from ._moments import block_diagonal
 
 __all__ = ["ChangeTest", "ChangeWatch", "PhysicalEstimate", "physical_estimate"]
 
@@ -118,14 +121,14 @@ def physical_estimate(
             axis=2,
         )
         value, *stepped = stacked.transpose(0, 2, 1).reshape(stacked.shape[0], -1)
-        J = np.column_stack(
-            [(entry - value) / step for step, entry in zip(steps, stepped, strict=True)]
-        )
-        gain = np.linalg.solve(J.T @ weight @ J, J.T @ weight)  # d theta / d entries
+        J = ((np.asarray(stepped) - value) / steps[:, np.newaxis]).T
+        weighed = J.T @ weight
+        gain = np.linalg.solve(weighed @ J, weighed)  # d theta / d entries
         step = gain @ (target - value)
         theta = theta + step
         covariance = gain @ model.covariance @ gain.T
-        if np.all(np.abs(step) <= CONVERGED * np.sqrt(np.maximum(np.diag(covariance), 0.0))):
+        bound = CONVERGED * np.sqrt(np.maximum(covariance.diagonal(), 0.0))
+        if (np.abs(step) <= bound).all():
             break
     return PhysicalEstimate(theta, covariance, J, gain)
 
@@ -202,9 +205,14 @@ class ChangeWatch:
         self.window = int(window)
         self.false_alarm = false_alarm
         self._reference: _Reference | None = None
-        # per chunk: transitions, and side by side: the directions' scores, variances
-        # within it (interior measurements and the process noise), loads, first and last u
-        self._parts: list[tuple[int, Array]] = []
+        # per chunk, oldest first, side by side: the directions' scores, variances within
+        # it (interior measurements and the process noise), loads, first and last u,
+        # shifts; the window's chunks are rows _first to _end of one array (summed in one
+        # call), and their transitions
+        self._parts = np.empty((0, 0))
+        self._first = self._end = 0
+        self._counts: deque[int] = deque()
+        self._held = 0  # the window's transitions
 
     def reference(
         self,
@@ -241,22 +249,27 @@ class ChangeWatch:
         # each direction's instruments-to-score map, M_j' Sigma^-1, made once per reference
         Sigma_inverse = np.linalg.inv(noise[0])
 
-        def blocks(M: Array) -> Array:  # I (x) M: M acts on each direction's u
-            return np.asarray(np.kron(np.eye(len(directions)), M), dtype=np.float64)
-
+        count = len(directions)
+        allowance = np.zeros(count) if allowance is None else np.asarray(allowance, float)
+        least = np.zeros(count) if least is None else np.asarray(least, float)
+        # a score's drift variance, sum_k (S_jk allowance_k)^2 + (S_jj least_j)^2, is
+        # sum_k S_jk^2 weights_jk
+        weights = np.tile(allowance**2, (count, 1))
+        weights[np.diag_indices(count)] += least**2
+        stacked = np.hstack([M.T for M in directions])
         self._reference = _Reference(
-            Theta, np.hstack([M.T @ Sigma_inverse for M in directions]), blocks(Theta[:n].T),
-            blocks(noise[1]), blocks(noise[2]), blocks(np.ones((n, 1))), covariance,
-            _threshold(self.false_alarm, len(directions)),
-            np.hstack([M.T for M in directions]),
-            np.zeros(len(directions)) if allowance is None else np.asarray(allowance, float),
-            np.zeros(len(directions)) if least is None else np.asarray(least, float),
+            Theta, np.hstack([M.T @ Sigma_inverse for M in directions]),
+            block_diagonal(Theta[:n].T, count), block_diagonal(noise[1], count),
+            block_diagonal(np.ones((n, 1)), count), covariance,
+            _threshold(self.false_alarm, count), np.hstack([Theta, stacked]),
+            _part_map(Theta.shape[0], n, count, noise[2], noise[1]), weights,
         )  # fmt: skip
 
     def reference_off(self) -> None:
         """Stop watching until the next reference (after a change, the old one is wrong)."""
         self._reference = None
-        self._parts.clear()
+        self._first = self._end = self._held = 0
+        self._counts.clear()
 
     def add(self, zeta: Array, z: Array, y: Array) -> ChangeTest | None:
         """Score the transitions; the test over the window, or None without a reference.
@@ -270,50 +283,55 @@ class ChangeWatch:
         if reference is None or z.shape[0] == 0:
             return None
         T, (p, n), directions = z.shape[0], reference.Theta.shape, reference.sums.shape[1]
-        errors = y - z @ reference.Theta
+        fitted = z @ reference.fitted  # every row's z_k' Theta and (every M_j z_k)'
+        errors = y - fitted[:, :n]
         u = zeta @ reference.maps  # row k: every direction's u_k' = (Sigma^-1 M_j zeta_k)'
         paths = u[:-1] - u[1:] @ reference.Ad  # c_j' for the chunk's interior measurements
         # one product for the scores, the loads, the shifts and the process noise's
         # variance: sum_k u_k [e_k', z_k', (every M_j z_k)', u_k'], direction j's rows
-        # j n to j n + n - 1
-        products = u.T @ np.concatenate([errors, z, z @ reference.directions, u], axis=1)
-        shifted = n + p + directions * n  # where sum u_k u_k' starts
-        # sum_k u_k' Q u_k and sum_j c_j' R c_j, each direction's, from the sums of products
-        within = reference.Q * products[:, shifted:] + reference.R * (paths.T @ paths)
-        self._parts.append((T, np.concatenate([
-            np.einsum("jii->j", products[:, :n].reshape(directions, n, n)),  # scores
-            np.sum(within, axis=0) @ reference.sums,
-            products[:, n : n + p].ravel(),  # vec(sum z_k u_k'), direction by direction
-            u[0], u[-1],
-            # shifts: score j's response to parameter k, sum_k u_k' M_j... M_k z_k
-            np.einsum("ajbj->ab", products[:, n + p : shifted].reshape(
-                directions, n, directions, n)).ravel(),
-        ])))  # fmt: skip
-        while sum(count for count, _ in self._parts[1:]) >= self.window:
-            self._parts.pop(0)
-        window = np.array([part for _, part in self._parts])  # (chunks, ...)
-        total = np.sum(window, axis=0)
+        # j n to j n + n - 1; with sum_j c_j c_j' and the first and last u, one more
+        # gives the chunk's part (_part_map)
+        products = u.T @ np.concatenate([errors, z, fitted[:, n:], u], axis=1)
+        sums = np.concatenate([products.ravel(), (paths.T @ paths).ravel(), u[0], u[-1]])
+        self._part(T, reference.part.shape[1])[:] = sums @ reference.part
         loads = 2 * directions + directions * p * n  # where the loads end
-        load = total[2 * directions : loads].reshape(directions, p * n)
-        uncertain = np.sum((load @ reference.covariance) * load, axis=1)
-        # the measurements between chunks, and the window's first and last
         edges = loads + 2 * directions * n  # where the first and last u end
-        firsts, lasts = (
-            window[:, loads : loads + directions * n],
-            window[:, loads + directions * n : edges],
+        window = self._parts[self._first : self._end]  # (chunks, ...)
+        total = window.sum(axis=0)
+        load = total[2 * directions : loads].reshape(directions, p * n)
+        uncertain = ((load @ reference.covariance) * load).sum(axis=1)
+        # the measurements between chunks, and the window's first and last
+        middle = loads + directions * n
+        firsts, lasts = window[:, loads:middle] @ reference.Ad, window[:, middle:edges]
+        drift = (np.square(total[edges:].reshape(directions, directions)) * reference.drift).sum(
+            axis=1
         )
-        shifts = total[edges:].reshape(directions, directions)
-        drift = np.sum((shifts * reference.allowance) ** 2, axis=1)
-        drift = drift + (np.diag(shifts) * reference.least) ** 2
-        Ad = reference.Ad
-        joins = np.concatenate([firsts[:1] @ Ad, lasts[-1:], lasts[:-1] - firsts[1:] @ Ad])
-        joined = np.sum((joins @ reference.R) * joins, axis=0) @ reference.sums
-        spread = np.sqrt(
-            np.maximum(total[directions : 2 * directions] + joined + uncertain + drift, 1e-300)
-        )
-        z_scores = np.asarray(total[:directions] / spread, dtype=np.float64)
+        joins = np.concatenate([firsts[:1], lasts[-1:], lasts[:-1] - firsts[1:]])
+        joined = ((joins @ reference.R) * joins).sum(axis=0) @ reference.sums
+        spread = total[directions : 2 * directions] + joined
+        spread += uncertain
+        spread += drift
+        z_scores = total[:directions] / np.sqrt(np.maximum(spread, 1e-300))
         threshold = reference.threshold
-        return ChangeTest(z_scores, threshold, bool(np.max(np.abs(z_scores)) > threshold))
+        return ChangeTest(z_scores, threshold, bool(np.abs(z_scores).max() > threshold))
+
+    def _part(self, transitions: int, size: int) -> Array:
+        """A new chunk's row at the window's end (the chunks that fall out of the window
+        dropped), to be filled."""
+        if self._end == self._parts.shape[0] or self._parts.shape[1] != size:
+            held = self._parts[self._first : self._end] if self._parts.shape[1] == size else None
+            count = 0 if held is None else held.shape[0]
+            grown = np.empty((max(2 * count, 64), size))
+            if held is not None:
+                grown[:count] = held
+            self._parts, self._first, self._end = grown, 0, count
+        self._counts.append(transitions)
+        self._held += transitions
+        while self._held - self._counts[0] >= self.window:
+            self._held -= self._counts.popleft()
+            self._first += 1
+        self._end += 1
+        return self._parts[self._end - 1]
 
 
 @dataclass(frozen=True)
@@ -326,13 +344,72 @@ class _Reference:
     maps: Array  # (p, j n): [M_1' Sigma^-1, M_2' Sigma^-1, ...]
     Ad: Array  # I (x) Ad: a row of u's times it is each direction's (Ad' u)'
     R: Array  # I (x) R
-    Q: Array  # I (x) Q
     sums: Array  # (j n, j): sums each direction's n columns
     covariance: Array
     threshold: float
-    directions: Array  # (p, j n): [M_1', M_2', ...]: z_k' times it is every M_j z_k
-    allowance: Array  # (j,): how far behind a drifting plant the reference may be
-    least: Array  # (j,): the least change of a parameter alone that is a change
+    fitted: Array  # (p, n + j n): [Theta, M_1', M_2', ...]: z_k' times it is z_k' Theta
+    # and every (M_j z_k)'
+    part: Array  # a chunk's sums to its part (_part_map)
+    drift: Array  # (j, j): the drift variance's weights on the squared shifts
+
+
+def _part_map(p: int, n: int, directions: int, Q: Array, R: Array) -> Array:
+    """The map from a chunk's sums, ``[vec(P), vec(sum_j c_j c_j'), u_first, u_last]``
+    (``P = sum_k u_k [e_k', z_k', (every M_j z_k)', u_k']``, row-major ``vec``), to its
+    part of the window: each direction's score, variance within the chunk (``u' Q u`` and
+    ``c' R c``), loads ``vec(sum z_k u_k')``, the first and last ``u``, and the shifts
+    (score j's response to parameter i)."""
+    ones, noise_rows, noise_columns, shape = _part_places(p, n, directions)
+    M = np.zeros(shape)
+    M[ones] = 1.0
+    M[noise_rows, noise_columns] = np.concatenate(
+        [np.tile(Q.ravel(), directions), np.tile(R.ravel(), directions)]
+    )
+    return M
+
+
+@lru_cache(maxsize=8)
+def _part_places(
+    p: int, n: int, directions: int
+) -> tuple[tuple[NDArray[np.intp], NDArray[np.intp]], NDArray[np.intp], NDArray[np.intp],
+           tuple[int, int]]:  # fmt: skip
+    """Where :func:`_part_map` has its ones, and its Q's and R's entries (direction by
+    direction, each row-major), and its shape."""
+    J, Jn = directions, directions * n
+    width = n + p + 2 * Jn  # P's columns
+    loads = 2 * J + J * p * n
+    edges = loads + 2 * Jn
+    rows: list[int] = []
+    columns: list[int] = []
+    noise_rows: list[int] = []
+    noise_columns: list[int] = []
+    for j in range(J):
+        for a in range(n):
+            row = j * n + a
+            rows.append(row * width + a)  # the score: the trace of direction j's u' e
+            columns.append(j)
+            for i in range(J):  # the shift: the trace of u_j' M_i z
+                rows.append(row * width + n + p + i * n + a)
+                columns.append(edges + j * J + i)
+    for j in range(J):  # u' Q u, then c' R c, of direction j
+        for a in range(n):
+            for b in range(n):
+                noise_rows.append((j * n + a) * width + n + p + Jn + j * n + b)
+                noise_columns.append(J + j)
+    for j in range(J):
+        for a in range(n):
+            for b in range(n):
+                noise_rows.append(Jn * width + (j * n + a) * Jn + j * n + b)
+                noise_columns.append(J + j)
+    for row in range(Jn):  # the loads
+        rows += [row * width + n + i for i in range(p)]
+        columns += [2 * J + row * p + i for i in range(p)]
+    rows += [Jn * width + Jn * Jn + i for i in range(2 * Jn)]  # the first and last u
+    columns += [loads + i for i in range(2 * Jn)]
+    return (
+        (np.array(rows), np.array(columns)), np.array(noise_rows), np.array(noise_columns),
+        (Jn * width + Jn * Jn + 2 * Jn, edges + J * J),
+    )  # fmt: skip
 
 
 @lru_cache(maxsize=8)

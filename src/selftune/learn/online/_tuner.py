@@ -54,7 +54,7 @@ from ..evidence._spmsm_structure import SpmsmStructure
 from ..learners._identify import design_digital
 from ._certify import Certificate, certify
 from ._model import OnlineModel
-from ._moments import transposed_order
+from ._moments import transposed_covariance
 from ._physical import ChangeTest, ChangeWatch, PhysicalEstimate, physical_estimate
 
 __all__ = [
@@ -323,7 +323,7 @@ class OnlineTuner:
         """
         if self.settings.learner == "adp":
             self._keep(x, u, w, angle)
-        commands = np.vstack([self._pending, u])  # row k is applied d rows later
+        commands = np.concatenate([self._pending, u])  # row k is applied d rows later
         applied, self._pending = commands[: u.shape[0]], commands[u.shape[0] :]
         rows = self._model.add(x, applied, w, angle)
         self._sample += x.shape[0]
@@ -441,8 +441,8 @@ class OnlineTuner:
         # the structured model: its errors are the few parameters', J C J'
         structured = np.concatenate(settings.structure(estimate.theta), axis=1).T  # (p, n)
         J = estimate.sensitivities  # d vec(Theta') / d theta
-        back = np.argsort(transposed_order(*structured.shape))  # vec(Theta') to vec(Theta)
-        entries = (J @ estimate.covariance @ J.T)[np.ix_(back, back)]
+        # vec(Theta')'s covariance as vec(Theta)'s
+        entries = transposed_covariance(J @ estimate.covariance @ J.T, *structured.shape[::-1])
         least = np.array(settings.least_change[: estimate.theta.size]) * np.abs(estimate.theta)
         self._watch.reference(structured, slow.noise(structured), J, entries, allowance, least)
         self.estimate = estimate
