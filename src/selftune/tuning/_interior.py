@@ -30,7 +30,7 @@ from ._knowledge import STEP_DWELL, STEP_LEVELS
 from ._learning import learning_options
 from ._settings import TuningSettings
 
-__all__ = ["D_SHARE", "InteriorCommissioning", "commission_interior"]
+__all__ = ["D_SHARE", "InteriorCommissioning", "commission_interior", "current_steps"]
 
 #: The d-current reference's lowest level in the experiment, a share of the q scale.
 D_SHARE = 0.5
@@ -83,6 +83,22 @@ class InteriorCommissioning:
         return abs(self.true_torque - self.torque) / abs(self.torque)
 
 
+def current_steps(t: Array, scale: float) -> tuple[Array, Array]:
+    """The experiment's current references at the times ``t`` (s): ``i_q*`` walks through
+    :data:`~._knowledge.STEP_LEVELS` times ``scale`` (A), each held
+    :data:`~._knowledge.STEP_DWELL`; ``i_d*`` through 0 and ``-D_SHARE |scale|``, each
+    held :data:`D_DWELL` times as long (see the module docstring).
+
+    Returns
+    -------
+    i_d*, i_q* : ndarray, shape like ``t``
+    """
+    levels = np.asarray(STEP_LEVELS)
+    q = levels[np.floor(t / STEP_DWELL).astype(int) % levels.size] * scale
+    d = -D_SHARE * abs(scale) * (np.floor(t / (D_DWELL * STEP_DWELL)).astype(int) % 2)
+    return d, q
+
+
 def commission_interior(
     motor: IPMSM,
     settings: TuningSettings,
@@ -118,11 +134,9 @@ def commission_interior(
     plant = RealisticDrive(motor, settings.speed, settings.h, drive)
     back_emf = motor.p * settings.speed * motor.phi_pm  # w_1 with the nameplate flux
     scale = 2.0 * settings.torque / (3.0 * motor.p * motor.phi_pm)
-    levels = np.asarray(STEP_LEVELS)
 
     def reference(t: Array) -> Array:
-        q = levels[np.floor(t / STEP_DWELL).astype(int) % levels.size] * scale
-        d = -D_SHARE * abs(scale) * (np.floor(t / (D_DWELL * STEP_DWELL)).astype(int) % 2)
+        d, q = current_steps(t, scale)
         return np.column_stack([np.full_like(t, back_emf), d, q])
 
     # K0 alone, no feedforward: the back-EMF holds the currents away from zero, where the
