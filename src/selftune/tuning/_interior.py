@@ -24,13 +24,19 @@ import numpy as np
 
 from ..core import Array, ControlLaw
 from ..learn import LearnedController, LearningProblem, learn_controller
-from ..model import IPMSM
+from ..model import IPMSM, SPMSM, Motor
 from ..sim import DriveSettings, RealisticDrive, constant, held, uniform
 from ._knowledge import STEP_DWELL, STEP_LEVELS
 from ._learning import learning_options
 from ._settings import TuningSettings
 
-__all__ = ["D_SHARE", "InteriorCommissioning", "commission_interior", "current_steps"]
+__all__ = [
+    "D_SHARE",
+    "InteriorCommissioning",
+    "commission_interior",
+    "current_steps",
+    "identified_motor",
+]
 
 #: The d-current reference's lowest level in the experiment, a share of the q scale.
 D_SHARE = 0.5
@@ -81,6 +87,38 @@ class InteriorCommissioning:
     def torque_error(self) -> float:
         """``|true torque - T*| / |T*|``."""
         return abs(self.true_torque - self.torque) / abs(self.torque)
+
+
+def identified_motor(learned: LearnedController, p: int) -> tuple[Motor, dict[str, float]]:
+    """The motor a structured fit identified, of its kind (an interior one with
+    ``structure = "ipmsm"``, else a surface one), and the parameters' standard errors
+    (``R_s``, ``L_d`` and ``L_q`` or ``L_s``, ``phi_pm``: ohm, H, Wb).
+
+    Parameters
+    ----------
+    learned : LearnedController
+        A law learned with ``structure = "spmsm"`` or ``"ipmsm"``.
+    p : int
+        Pole pairs.
+    """
+    assert learned.quality is not None  # learn_controller's verdict
+    estimate = learned.quality.motor
+    assert estimate is not None
+    if estimate.L_d is not None and estimate.L_q is not None:
+        motor: Motor = IPMSM(
+            R_s=estimate.R_s, L_d=estimate.L_d, L_q=estimate.L_q, phi_pm=estimate.phi_pm, p=p
+        )
+        errors = {
+            "R_s": estimate.R_s_se, "L_d": float(estimate.L_d_se or 0.0),
+            "L_q": float(estimate.L_q_se or 0.0), "phi_pm": estimate.phi_pm_se,
+        }  # fmt: skip
+        return motor, errors
+    assert estimate.L_s is not None
+    surface = SPMSM(R_s=estimate.R_s, L_s=estimate.L_s, phi_pm=estimate.phi_pm, p=p)
+    return surface, {
+        "R_s": estimate.R_s_se, "L_s": float(estimate.L_s_se or 0.0),
+        "phi_pm": estimate.phi_pm_se,
+    }  # fmt: skip
 
 
 def current_steps(t: Array, scale: float) -> tuple[Array, Array]:
@@ -153,16 +191,9 @@ def commission_interior(
     )  # fmt: skip
     options = replace(learning_options(plant, settings), method="identify", structure="ipmsm")
     learned = learn_controller(log, problem, settings.K0, options)
-    assert learned.quality is not None  # learn_controller's verdict
-    estimate = learned.quality.motor
-    assert estimate is not None and estimate.L_d is not None and estimate.L_q is not None
-    identified = IPMSM(
-        R_s=estimate.R_s, L_d=estimate.L_d, L_q=estimate.L_q, phi_pm=estimate.phi_pm, p=motor.p
-    )
-    errors = {
-        "R_s": estimate.R_s_se, "L_d": float(estimate.L_d_se or 0.0),
-        "L_q": float(estimate.L_q_se or 0.0), "phi_pm": estimate.phi_pm_se,
-    }  # fmt: skip
+    found, errors = identified_motor(learned, motor.p)
+    assert isinstance(found, IPMSM)  # structure = "ipmsm"
+    identified = found
     references = identified.current_reference(settings.torque)
     w = np.concatenate([[back_emf], references])
     count = round(check_seconds / settings.h)

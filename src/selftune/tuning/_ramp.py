@@ -35,9 +35,9 @@ import numpy as np
 from ..core import Array, ControlLaw
 from ..errors import InputError, SelftuneError
 from ..learn import LearnedController, LearningProblem, Trajectory, learn_controller
-from ..model import IPMSM, SPMSM, Motor
+from ..model import IPMSM, Motor
 from ..sim import DriveSettings, RealisticDrive, held, ramp_speeds, run_speed_profile, uniform
-from ._interior import current_steps
+from ._interior import current_steps, identified_motor
 from ._knowledge import STEP_DWELL, STEP_LEVELS
 from ._learning import learning_options
 from ._settings import TuningSettings
@@ -47,7 +47,6 @@ __all__ = [
     "SPEED_STEP",
     "RampCommissioning",
     "commission_ramp",
-    "identified_motor",
     "speed_segments",
 ]
 
@@ -108,31 +107,6 @@ def _segment(log: Trajectory, first: int, last: int) -> Trajectory:
         t=log.t[rows], x=log.x[rows], u=log.u[first : last - 1], w=log.w[rows],
         angle=log.angle[rows],
     )  # fmt: skip
-
-
-def identified_motor(learned: LearnedController, p: int) -> tuple[Motor, dict[str, float]]:
-    """The motor a structured fit identified, of its kind, and the parameters' standard
-    errors (``R_s``, ``L_s`` or ``L_d`` and ``L_q``, ``phi_pm``).
-
-    Parameters
-    ----------
-    learned : LearnedController
-        A law learned with ``structure = "spmsm"`` or ``"ipmsm"``.
-    p : int
-        Pole pairs.
-    """
-    assert learned.quality is not None and learned.quality.motor is not None
-    estimate = learned.quality.motor
-    errors = {"R_s": estimate.R_s_se, "phi_pm": estimate.phi_pm_se}
-    if estimate.L_d is not None and estimate.L_q is not None:
-        errors |= {"L_d": float(estimate.L_d_se or 0.0), "L_q": float(estimate.L_q_se or 0.0)}
-        motor: Motor = IPMSM(
-            R_s=estimate.R_s, L_d=estimate.L_d, L_q=estimate.L_q, phi_pm=estimate.phi_pm, p=p
-        )
-        return motor, errors
-    assert estimate.L_s is not None
-    errors["L_s"] = float(estimate.L_s_se or 0.0)
-    return SPMSM(R_s=estimate.R_s, L_s=estimate.L_s, phi_pm=estimate.phi_pm, p=p), errors
 
 
 def _combined(motors: list[tuple[Motor, dict[str, float]]]) -> tuple[Motor, dict[str, float]]:
