@@ -35,7 +35,7 @@ from ._online import (
     run_online,
 )
 from ._onpolicy import algorithm1, algorithm2, algorithm3
-from ._ramp import RampCommissioning, commission_ramp, speed_segments
+from ._ramp import RampCommissioning, commission_ramp
 from ._results import TuningIteration, TuningResult
 from ._session import ALGORITHMS, AlgorithmName, run_algorithm
 from ._settings import TUNING_KEYS, Perturbation, TuningSettings, tuning_settings
@@ -74,6 +74,5 @@ __all__ = [
     "replay",
     "run_algorithm",
     "run_online",
-    "speed_segments",
     "tuning_settings",
 ]

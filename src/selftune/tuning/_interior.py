@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..learn import LearnedController, LearningProblem, learn_controller
+from ..learn import LearnedController, LearningProblem, MotorEstimate, learn_controller
 from ..model import IPMSM, SPMSM, Motor
 from ..sim import DriveSettings, RealisticDrive, constant, held, uniform
 from ._knowledge import STEP_DWELL, STEP_LEVELS
@@ -35,7 +35,7 @@ __all__ = [
     "InteriorCommissioning",
     "commission_interior",
     "current_steps",
-    "identified_motor",
+    "motor_of",
 ]
 
 #: The d-current reference's lowest level in the experiment, a share of the q scale.
@@ -89,21 +89,18 @@ class InteriorCommissioning:
         return abs(self.true_torque - self.torque) / abs(self.torque)
 
 
-def identified_motor(learned: LearnedController, p: int) -> tuple[Motor, dict[str, float]]:
-    """The motor a structured fit identified, of its kind (an interior one with
-    ``structure = "ipmsm"``, else a surface one), and the parameters' standard errors
-    (``R_s``, ``L_d`` and ``L_q`` or ``L_s``, ``phi_pm``: ohm, H, Wb).
+def motor_of(estimate: MotorEstimate, p: int) -> tuple[Motor, dict[str, float]]:
+    """The motor a structured fit identified, of its kind (an interior one with ``L_d``
+    and ``L_q``, else a surface one), and the parameters' standard errors (``R_s``,
+    ``L_d`` and ``L_q`` or ``L_s``, ``phi_pm``: ohm, H, Wb).
 
     Parameters
     ----------
-    learned : LearnedController
-        A law learned with ``structure = "spmsm"`` or ``"ipmsm"``.
+    estimate : MotorEstimate
+        The fit's parameters (``quality.motor`` of a law learned with a structure).
     p : int
         Pole pairs.
     """
-    assert learned.quality is not None  # learn_controller's verdict
-    estimate = learned.quality.motor
-    assert estimate is not None
     if estimate.L_d is not None and estimate.L_q is not None:
         motor: Motor = IPMSM(
             R_s=estimate.R_s, L_d=estimate.L_d, L_q=estimate.L_q, phi_pm=estimate.phi_pm, p=p
@@ -191,7 +188,8 @@ def commission_interior(
     )  # fmt: skip
     options = replace(learning_options(plant, settings), method="identify", structure="ipmsm")
     learned = learn_controller(log, problem, settings.K0, options)
-    found, errors = identified_motor(learned, motor.p)
+    assert learned.quality is not None and learned.quality.motor is not None  # the verdict
+    found, errors = motor_of(learned.quality.motor, motor.p)
     assert isinstance(found, IPMSM)  # structure = "ipmsm"
     identified = found
     references = identified.current_reference(settings.torque)

@@ -1,5 +1,5 @@
-"""Commissioning over a speed range: learn the motor from a log whose speed changes, and
-the range of speeds the data cover.
+"""Commissioning over a speed range: the staircase experiment, the motor learned from it,
+and the range of speeds the data cover.
 
 At a held speed the current loop's plant is ``A(omega) = A_0 + omega A_1``: R_s, the
 inductances and the flux do not depend on the speed, so the affine-in-speed plant is the
@@ -11,115 +11,31 @@ low to a high one (:func:`~selftune.sim.ramp_speeds`, the speed held within each
 the angle integrating it: :func:`~selftune.sim.run_speed_profile`), under the gentle K0
 with the current steps of the interior commissioning (:func:`~._interior.current_steps`;
 a surface motor's torque reference through the same levels), ``w_1 = p speed
-phi_assumed`` following the speed. The log is cut where its angle column's speed changes
-(:func:`speed_segments`); each segment is a log at a held speed, fitted by the structured
-identification at its own speed (``structure = "ipmsm"`` or ``"spmsm"``, the learner's
-verdict on each); the segments' parameters, which the physics says are one motor's, are
-combined by their inverse variances. The data cover the segments' lowest to highest
-electrical speed.
-
-Not done: one fit over a log whose speed changes every sample (a linear ramp). The
-output-error fit simulates one time-invariant sampled plant over a log; a speed per
-sample needs a plant per sample, in its simulation, its sensitivities, its bootstrap and
-the structure's and the verdict's checks. A linear ramp's log is refused here, saying so.
+phi_assumed`` following the speed. The log is learned part by part, each held speed with
+the motor's structure (``"ipmsm"`` or ``"spmsm"``) at its own speed, and the parts'
+parameters combined (:func:`selftune.learn.learn_over_speeds`, which also says why one
+fit over a linear ramp is not done).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from itertools import pairwise
-from typing import Any
 
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..errors import InputError, SelftuneError
-from ..learn import LearnedController, LearningProblem, Trajectory, learn_controller
+from ..learn import LearnedController, LearningProblem, Trajectory, learn_over_speeds
 from ..model import IPMSM, Motor
 from ..sim import DriveSettings, RealisticDrive, held, ramp_speeds, run_speed_profile, uniform
-from ._interior import current_steps, identified_motor
+from ._interior import current_steps, motor_of
 from ._knowledge import STEP_DWELL, STEP_LEVELS
 from ._learning import learning_options
 from ._settings import TuningSettings
 
 __all__ = [
-    "MIN_SEGMENT",
-    "SPEED_STEP",
     "RampCommissioning",
     "commission_ramp",
-    "speed_segments",
 ]
-
-#: A change of the angle column's speed between samples larger than this share of the
-#: log's largest speed starts a new segment (the angle's rounding is about 1e-12 of it).
-SPEED_STEP = 1e-6
-
-#: The shortest segment of a held speed the learner fits, s: four current steps.
-MIN_SEGMENT = 4 * STEP_DWELL
-
-
-def speed_segments(log: Trajectory, h: float) -> list[tuple[int, int, float]]:
-    """The log cut where the speed of its angle column changes.
-
-    Parameters
-    ----------
-    log : Trajectory
-        A log with an angle column (the electrical rotor angle, rad).
-    h : float
-        Sampling period, s.
-
-    Returns
-    -------
-    list of (first, last, electrical speed)
-        Samples ``first .. last - 1`` at one speed (over ``[t_first, t_last)``) and that
-        speed, rad/s (the mean of the angle's steps over h).
-
-    Raises
-    ------
-    InputError
-        Without an angle column, or when a segment is shorter than :data:`MIN_SEGMENT`
-        (a speed that changes every sample: a linear ramp, which this learner cannot fit).
-    """
-    if log.angle is None:
-        raise InputError("angle: a log over several speeds needs its angle column theta")
-    steps = np.angle(np.exp(1j * np.diff(log.angle))) / h  # the speed over each sample
-    largest = max(float(np.max(np.abs(steps))), 1e-300)
-    cuts = np.flatnonzero(np.abs(np.diff(steps)) > SPEED_STEP * largest) + 1
-    bounds = [0, *cuts.tolist(), steps.size]
-    shortest = min(b - a for a, b in pairwise(bounds)) * h
-    if shortest < MIN_SEGMENT:
-        raise InputError(
-            f"angle: the speed holds for as little as {shortest:.3g} s (at least "
-            f"{MIN_SEGMENT:g} s a speed is needed): the identification fits one plant at a "
-            "held speed per segment and cannot fit a speed that changes every sample; log "
-            "a staircase of held speeds"
-        )
-    return [(a, b, float(np.mean(steps[a:b]))) for a, b in pairwise(bounds)]
-
-
-def _segment(log: Trajectory, first: int, last: int) -> Trajectory:
-    """Rows ``first .. last - 1`` of the log: row ``last`` starts the next speed's sample,
-    and its reference is that speed's (``w_1 = p speed phi_assumed``; kept, it moved the
-    flux read off the segment's mean ``w_1`` by 0.4% at 5% and 100% of a speed)."""
-    assert log.w is not None and log.angle is not None
-    rows = slice(first, last)
-    return Trajectory(
-        t=log.t[rows], x=log.x[rows], u=log.u[first : last - 1], w=log.w[rows],
-        angle=log.angle[rows],
-    )  # fmt: skip
-
-
-def _combined(motors: list[tuple[Motor, dict[str, float]]]) -> tuple[Motor, dict[str, float]]:
-    """The segments' motors combined by inverse variances, parameter by parameter."""
-    first, names = motors[0][0], list(motors[0][1])
-    values, errors = {}, {}
-    for name in names:
-        estimates = np.array([getattr(motor, name) for motor, _ in motors])
-        weights = np.array([1.0 / max(se[name], 1e-300) ** 2 for _, se in motors])
-        values[name] = float(np.sum(weights * estimates) / np.sum(weights))
-        errors[name] = float(1.0 / np.sqrt(np.sum(weights)))
-    changed: dict[str, Any] = values
-    return replace(first, **changed), errors
 
 
 @dataclass(frozen=True)
@@ -134,23 +50,27 @@ class RampCommissioning:
         The combined parameters' standard errors.
     covered : (float, float)
         The lowest and highest electrical speed of the data, rad/s.
-    segments : tuple of (float, SPMSM or IPMSM, LearnedController)
-        Each held speed's electrical speed (rad/s), identified motor and learned law.
+    segments : tuple of (float, LearnedController)
+        Each held speed (electrical, rad/s) and the law learned there, with its verdict
+        and identified motor (``quality.motor``).
     data_seconds : float
         Length of the log, s.
     integral_weight : ndarray or None
         The integral weight the learner used (None without integral action).
     record_speeds : ndarray, shape (N,)
         The mechanical speed held over each sample of the experiment, rad/s.
+    log : Trajectory
+        The experiment's log (with its angle column).
     """
 
     motor: Motor
     standard_errors: dict[str, float]
     covered: tuple[float, float]
-    segments: tuple[tuple[float, Motor, LearnedController], ...]
+    segments: tuple[tuple[float, LearnedController], ...]
     data_seconds: float
     integral_weight: Array | None
     record_speeds: Array
+    log: Trajectory
 
 
 def commission_ramp(
@@ -219,21 +139,12 @@ def commission_ramp(
         learning_options(plant, settings), method="identify",
         structure="ipmsm" if interior else "spmsm",
     )  # fmt: skip
-    segments = []
-    for first, last, speed in speed_segments(log, h):
-        options = replace(base, electrical_speed=speed)
-        try:
-            learned = learn_controller(_segment(log, first, last), problem, settings.K0, options)
-        except SelftuneError as error:  # said at the segment's speed
-            raise error.retold(f"at {speed:g} rad/s (electrical): {error}") from None
-        identified, _ = identified_motor(learned, motor.p)
-        segments.append((speed, identified, learned))
-    combined = _combined([identified_motor(learned, motor.p) for _, _, learned in segments])
-    electrical = [speed for speed, _, _ in segments]
+    learned = learn_over_speeds(log, problem, settings.K0, base)
+    combined = motor_of(learned.motor, motor.p)
     return RampCommissioning(
         motor=combined[0], standard_errors=combined[1],
-        covered=(min(electrical), max(electrical)), segments=tuple(segments),
+        covered=learned.covered, segments=learned.parts,
         data_seconds=count * h,
         integral_weight=problem.integral_weight if settings.integral_action else None,
-        record_speeds=profile,
+        record_speeds=profile, log=log,
     )  # fmt: skip
