@@ -56,6 +56,9 @@ are the field names.
     commissioned on the hardware-like drive: identified L_d, L_q and flux, the torque
     with MTPA, refusals.
 
+Outside ``selftune bench`` (run alone, as docs/schedule.md says): :func:`measure_ramp`
+(:mod:`._ramp`), speed schedules learned from 1 s over 5-100% of rated speed.
+
 Studies 6-8 run their seeded trials through the fleet's engine
 (:func:`selftune.fleet.map_ordered`): here by default, on a cluster when
 ``selftune bench --scheduler`` gives one, with the same numbers.
@@ -96,6 +99,7 @@ from ._online import (
     markdown_online,
     measure_online,
 )
+from ._ramp import RampStudy, markdown_ramp, measure_ramp
 from ._realistic_drive import (
     RealisticDriveComparison,
     markdown_realistic_drive,
@@ -162,6 +166,7 @@ __all__ = [
     "OnlineCase",
     "OnlineReplay",
     "OnlineStudy",
+    "RampStudy",
     "RateErrors",
     "RealisticDriveComparison",
     "Refusals",
@@ -175,6 +180,7 @@ __all__ = [
     "make_fleet",
     "markdown_interior",
     "markdown_online",
+    "markdown_ramp",
     "markdown_realistic_drive",
     "markdown_refusals",
     "measure_calibration",
@@ -186,6 +192,7 @@ __all__ = [
     "measure_learning_cost",
     "measure_noise",
     "measure_online",
+    "measure_ramp",
     "measure_realistic_drive",
     "measure_refusals",
     "measure_self_tuning_value",

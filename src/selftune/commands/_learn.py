@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..config import learn_log, learning_problem
 from ..core import cost_document, labels, matrix_block
+from ..model import Motor, ScheduleDesign
 from ._output import (
     _check_json_target,
     _check_report_target,
@@ -14,6 +15,10 @@ from ._output import (
     _write_json,
     _write_report,
 )
+from ._schedule import learned_schedule
+
+if TYPE_CHECKING:  # selftune solve loads no learner
+    from ..learn import SpeedsLearned
 
 
 def learn_command(
@@ -70,12 +75,36 @@ def learn_command(
     problem = learning_problem(config)
     pi, why = pi_equivalent_or_reason(result.law, problem, result.judged, result.target)
     lines += ["", *(pi.lines(inputs, states) if pi else [f"no PI equivalent: {why}"])]
+    schedule: dict[str, Any] = {}
+    if learned.speeds is not None:
+        motor, design, schedule = learned_schedule(learned.speeds, config, result)
+        lines += _schedule_lines(learned.speeds, motor, design)
     if json_path is not None:
-        _write_json(json_path, _learn_document(result, problem, pi))
+        _write_json(json_path, {**_learn_document(result, problem, pi), **schedule})
     _write_report(result, f"selftune learn: {data_path}", lines, report_dir)
     _print_report(lines, json_path)
     _say_report_written(report_dir, json_path)
     return 0
+
+
+def _schedule_lines(speeds: SpeedsLearned, motor: Motor, design: ScheduleDesign) -> list[str]:
+    """The held speeds learned, the motor combined and the schedule designed on it."""
+    check = design.check
+    low, high = speeds.covered
+    worst = check.worst
+    return [
+        "",
+        f"learned at {len(speeds.parts)} held speeds, {low:g} to {high:g} rad/s (electrical); "
+        "the law above is the one at the highest",
+        f"  the motor combined: {speeds.motor.text()}",
+        f"Speed schedule on it ({type(motor).__name__}): {design.schedule.electrical_speed.size}"
+        " electrical speeds, "
+        + ", ".join(f"{speed:g}" for speed in design.schedule.electrical_speed)
+        + " rad/s",
+        f"  worst excess cost {check.excess[worst]:.3g} at omega_e = "
+        f"{check.electrical_speed[worst]:.6g} rad/s (limit {check.limit:g}; "
+        f"{check.electrical_speed.size} speeds checked, {len(design.added)} added)",
+    ]
 
 
 def _learn_document(result: Any, problem: Any = None, pi: Any = None) -> dict[str, Any]:

@@ -18,16 +18,26 @@ a ``[schedule]`` table.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..config import MotorConfig
+from ..config import LearnConfig, MotorConfig
 from ..core import Array, ControlLaw, cost_document
 from ..errors import SelftuneError
 from ..model import ModelBasedSolution, Motor, ScheduleDesign, bandwidth, design_schedule
 
-__all__ = ["ScheduleRun", "schedule_document", "schedule_lines", "scheduled"]
+if TYPE_CHECKING:  # selftune solve loads no learner
+    from ..learn import LearnedController, SpeedsLearned
+
+__all__ = [
+    "ScheduleRun",
+    "check_document",
+    "learned_schedule",
+    "schedule_document",
+    "schedule_lines",
+    "scheduled",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,6 +168,89 @@ def schedule_lines(run: ScheduleRun, operating_speed: float) -> list[str]:
     return lines
 
 
+def check_document(design: ScheduleDesign, single_excess: Array) -> dict[str, Any]:
+    """The JSON of a schedule's check at the fine speeds, with a single-speed law's
+    excess at each (``schedule_design.check``).
+
+    Parameters
+    ----------
+    design : ScheduleDesign
+        The schedule and its check.
+    single_excess : ndarray
+        The single-speed law's excess cost at each fine speed.
+    """
+    check = design.check
+    return {
+        "electrical_speed": check.electrical_speed,
+        "excess": check.excess,
+        "spectral_radius": check.radius,
+        "optimal_spectral_radius": check.optimal_radius,
+        "feedforward_error": check.feedforward_error,
+        "single_speed_excess": single_excess,
+    }
+
+
+def learned_schedule(
+    speeds: SpeedsLearned, config: LearnConfig, top: LearnedController
+) -> tuple[Motor, ScheduleDesign, dict[str, Any]]:
+    """``selftune learn``'s schedule: designed on the motor learned from a log over
+    several held speeds, within the speeds it covers, for the log's loop (its period, the
+    learner's delay, the ``[learning]`` hold, the ``[cost]`` with integral action as the
+    learner's); and its JSON keys (``schedule``, ``schedule_design``; ``top``'s law, learned
+    at the highest speed, is the single-speed law judged beside it).
+
+    Parameters
+    ----------
+    speeds : SpeedsLearned
+        The log learned speed by speed.
+    config : LearnConfig
+        The learning configuration, with its ``[schedule]``.
+    top : LearnedController
+        The law learned at the highest speed.
+
+    Raises
+    ------
+    SelftuneError
+        Said against the configuration's ``[schedule]``: a speed the log does not cover
+        (naming it), or a design that fails.
+    """
+    from ..config import learning_problem
+    from ..tuning._interior import motor_of
+
+    assert config.schedule is not None and config.pole_pairs is not None
+    motor, _ = motor_of(speeds.motor, config.pole_pairs)
+    problem = learning_problem(config)
+    Q_i = problem.integral_weight if config.integral_action else None
+    hold = str(config.options["voltage_hold"])
+    assert top.h is not None  # identify-then-design reads h off the log
+    try:
+        design = design_schedule(
+            motor, config.schedule.speeds, config.Q, config.R, top.h,
+            input_delay=top.input_delay, integral_weight=Q_i, hold=hold,  # type: ignore[arg-type]
+            covered=speeds.covered,
+        )  # fmt: skip
+    except SelftuneError as exc:
+        raise exc.retold(f"{config.source}: [schedule] {exc}") from None
+    document = {
+        "schedule": design.schedule.document(),
+        "schedule_design": {
+            "h": design.loop.h,
+            "input_delay": design.loop.input_delay,
+            "hold": design.hold,
+            "cost": cost_document(config.Q, config.R, Q_i),
+            "pole_pairs": config.pole_pairs,
+            "designed_on": "the identified motor",
+            "motor": motor,
+            "covered": list(speeds.covered),
+            config.schedule.key: list(config.schedule.speeds),
+            "added": list(design.added),
+            "excess_limit": design.check.limit,
+            "check": check_document(design, design.excess_of(top.law)),
+        },
+    }
+    return motor, design, document
+
+
 def schedule_document(run: ScheduleRun, config: MotorConfig) -> dict[str, Any]:
     """The JSON keys of a schedule: ``schedule`` (the tables, :meth:`~selftune.model.
     SpeedSchedule.document`) and ``schedule_design``: everything the design needs to be
@@ -186,14 +279,7 @@ def schedule_document(run: ScheduleRun, config: MotorConfig) -> dict[str, Any]:
             run.key: list(run.speeds),
             "added": list(design.added),
             "excess_limit": check.limit,
-            "check": {
-                "electrical_speed": check.electrical_speed,
-                "excess": check.excess,
-                "spectral_radius": check.radius,
-                "optimal_spectral_radius": check.optimal_radius,
-                "feedforward_error": check.feedforward_error,
-                "single_speed_excess": run.single_excess,
-            },
+            "check": check_document(design, run.single_excess),
             "single_speed": {
                 "speed": config.speed,
                 "electrical_speed": config.motor.p * config.speed,

@@ -8,9 +8,10 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 
 from ..core import Array
-from ..core._validation import LIMITS, check_weight_ratio
+from ..core._validation import LIMITS, PLAUSIBLE_RANGES, check_weight_ratio
 from ..errors import InputError
 from ._log_table import LOG_KEYS
+from ._schedule_file import SCHEDULE_KEYS, ScheduleConfig, schedule_config
 from ._toml import ConfigFile, ConfigTable
 
 __all__ = ["LEARN_TABLES", "LearnConfig", "load_learn_config"]
@@ -39,6 +40,7 @@ LEARN_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
             "max_relative_error",
         ),
         "log": LOG_KEYS,
+        "schedule": (*SCHEDULE_KEYS, "pole_pairs"),
     }
 )
 
@@ -73,6 +75,13 @@ class LearnConfig:
     Q_i : ndarray, shape (r, r), or None
         The integral weight ``[cost] Q_i`` (symmetric positive definite); None: the
         learner's default (:class:`selftune.learn.LearningProblem`), or no integral action.
+    schedule : ScheduleConfig or None
+        ``[schedule] speeds`` or ``speed_range`` (mechanical rad/s): the log is learned
+        speed by speed (:func:`selftune.learn.learn_over_speeds`) and a speed schedule is
+        designed on the motor learned; None: one controller.
+    pole_pairs : int or None
+        ``[schedule] pole_pairs``: the electrical speed is ``pole_pairs`` times the
+        mechanical.
     """
 
     Q: Array
@@ -88,6 +97,8 @@ class LearnConfig:
     options: Mapping[str, object] = field(default_factory=dict)
     integral_action: bool = False
     Q_i: Array | None = None
+    schedule: ScheduleConfig | None = None
+    pole_pairs: int | None = None
 
     @property
     def regulation(self) -> bool:
@@ -130,12 +141,19 @@ def load_learn_config(
         dead_time = false     # true: model the inverter's dead time (n = m = 2)
         noise = "smoothed"    # or "instruments", "none"
         structure = "none"    # or "spmsm", "ipmsm" (identify only, needs electrical_speed)
-        electrical_speed = 150.0  # p speed, rad/s (structure; dead time without angle)
+        electrical_speed = 150.0  # p speed, rad/s (structure, unless [schedule]: each
+                              # held speed's own; dead time without angle)
         voltage_hold = "stationary"  # or "rotor": what the drive holds over a sample
         max_relative_error = 0.05    # refuse results with larger standard errors
         [log]                 # optional: the log's own columns, units and frame
                               # (selftune.config._log_table); then n = m = 2 and q is
                               # the number of references w1..wq it names
+        [schedule]            # optional: a log over several held speeds (its angle
+                              # column's), each learned at its own speed with the
+                              # structure; the schedule designed on the motor learned
+        pole_pairs = 4        # p: electrical speed = p times mechanical
+        speeds = [5.0, 100.0] # mechanical rad/s (or speed_range = [min, max]), within
+                              # the speeds the log covers
 
     Parameters
     ----------
@@ -196,14 +214,34 @@ def load_learn_config(
     except InputError as exc:
         key, _, reason = str(exc).partition(": ")
         raise learning.error(key, reason) from None
-    options = _options(learning, (interval, iterations, tolerance))
+    options = _options(learning, (interval, iterations, tolerance), "schedule" in config)
     integral = learning.flag("integral_action", False)
     if integral and C is None:
         raise learning.error("integral_action", "needs a [regulation] table (C, E, F)")
+    schedule, pole_pairs = _schedule(config, options)
     return LearnConfig(
         Q, R, K0, C, E, F, interval, iterations, tolerance, config.file, options, integral,
-        _integral_weight(cost, integral, None if C is None else C.shape[0]),
+        _integral_weight(cost, integral, None if C is None else C.shape[0]), schedule,
+        pole_pairs,
     )  # fmt: skip
+
+
+def _schedule(
+    config: ConfigFile, options: Mapping[str, object]
+) -> tuple[ScheduleConfig | None, int | None]:
+    """``[schedule]``: its speeds and pole pairs; it needs identify-then-design with a
+    motor's structure."""
+    if "schedule" not in config:
+        return None, None
+    table = config.table("schedule")
+    if options["method"] != "identify" or options["structure"] == "none":
+        raise table.error(
+            None,
+            'a schedule is designed on the motor learned: set [learning] method = "identify" '
+            'and structure = "spmsm" or "ipmsm"',
+        )
+    pole_pairs = table.positive_integer("pole_pairs", maximum=int(PLAUSIBLE_RANGES["p"][1]))
+    return schedule_config(table, None), pole_pairs
 
 
 def _integral_weight(cost: ConfigTable, integral: bool, r: int | None) -> Array | None:
@@ -219,8 +257,12 @@ def _integral_weight(cost: ConfigTable, integral: bool, r: int | None) -> Array 
     return cost.positive_definite("Q_i", r)
 
 
-def _options(learning: ConfigTable, iteration: tuple[int, int, float]) -> Mapping[str, object]:
-    """The [learning] keys of :class:`selftune.learn.LearningOptions`, checked by it."""
+def _options(
+    learning: ConfigTable, iteration: tuple[int, int, float], over_speeds: bool = False
+) -> Mapping[str, object]:
+    """The [learning] keys of :class:`selftune.learn.LearningOptions`, checked by it
+    (``over_speeds``: a log over several speeds, each part learned at its own, so that
+    ``electrical_speed`` is not needed)."""
     from ..learn import LearningOptions  # here: selftune solve loads no learner
 
     values: dict[str, object] = {
@@ -249,10 +291,11 @@ def _options(learning: ConfigTable, iteration: tuple[int, int, float]) -> Mappin
         values["input_delay"] = int(delay)
     if "electrical_speed" in learning:
         values["electrical_speed"] = learning.number("electrical_speed")
+    own = {"electrical_speed": 1.0} if over_speeds and "electrical_speed" not in values else {}
     try:
         LearningOptions(
             interval=iteration[0], max_iterations=iteration[1], tolerance=iteration[2],
-            **values,  # type: ignore[arg-type]
+            **values, **own,  # type: ignore[arg-type]
         )  # fmt: skip
     except InputError as exc:
         key, _, reason = str(exc).partition(": ")

@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..core._numerics import check_numerics, numerics
 from ..errors import DataFileError, InputError, Refusal
@@ -14,9 +14,15 @@ from ._learn_file import LEARN_TABLES, LearnConfig, load_learn_config
 from ._log_table import load_log_format
 
 if TYPE_CHECKING:
-    from ..learn import LearnedController, LearningProblem, Trajectory
+    from ..learn import LearnedController, LearningProblem, SpeedsLearned, Trajectory
 
-__all__ = ["LearnedLog", "learn_log", "learn_with_config", "learning_problem"]
+__all__ = [
+    "LearnedLog",
+    "learn_log",
+    "learn_over_speeds_with_config",
+    "learn_with_config",
+    "learning_problem",
+]
 
 
 @dataclass(frozen=True)
@@ -30,12 +36,16 @@ class LearnedLog:
     config : LearnConfig
         The configuration, checked against the log's dimensions.
     result : LearnedController
-        The learned controller, with its quality.
+        The learned controller, with its quality (with a ``[schedule]``: the one learned
+        at the log's highest speed).
+    speeds : SpeedsLearned or None
+        With a ``[schedule]``: the log learned speed by speed, the motor combined.
     """
 
     data: Trajectory
     config: LearnConfig
     result: LearnedController
+    speeds: SpeedsLearned | None = None
 
 
 def learn_with_config(data: Trajectory, config: LearnConfig, source: str) -> LearnedController:
@@ -57,24 +67,63 @@ def learn_with_config(data: Trajectory, config: LearnConfig, source: str) -> Lea
         configuration the learner objects to names the configuration file, its table
         and key instead.
     """
-    from ..learn import LearningOptions, learn_controller
+    from ..learn import learn_controller
+
+    return _learned(data, config, source, learn_controller)
+
+
+def learn_over_speeds_with_config(
+    data: Trajectory, config: LearnConfig, source: str
+) -> SpeedsLearned:
+    """:func:`selftune.learn.learn_over_speeds` of ``data`` for ``config`` (with a
+    ``[schedule]``); failures said as :func:`learn_with_config` says them.
+
+    Parameters
+    ----------
+    data : Trajectory
+        The log, over several held speeds.
+    config : LearnConfig
+        What the learner knows and how it learns.
+    source : str
+        The log's name, for messages.
+    """
+    from ..learn import learn_over_speeds
+
+    # each part is learned at its own speed: a stated electrical_speed is not needed
+    own = {} if "electrical_speed" in config.options else {"electrical_speed": 1.0}
+    return _learned(data, config, source, learn_over_speeds, own)
+
+
+def _learned(
+    data: Trajectory,
+    config: LearnConfig,
+    source: str,
+    learner: Any,
+    own: Mapping[str, object] | None = None,
+) -> Any:
+    """``learner(data, problem, K0, options)`` of ``config`` (``own``: options over the
+    file's), a value of the configuration it objects to said against the file, its
+    numbers checked."""
+    from ..learn import LearningOptions
 
     problem = learning_problem(config)
     options = LearningOptions(
         interval=config.interval, max_iterations=config.max_iterations,
-        tolerance=config.tolerance, **config.options,  # type: ignore[arg-type]
+        tolerance=config.tolerance, **{**config.options, **(own or {})},  # type: ignore[arg-type]
     )  # fmt: skip
     mistake: DataFileError | None = None
     with numerics(source) as caught:
         try:
-            result = learn_controller(data, problem, config.K0, options)
+            result = learner(data, problem, config.K0, options)
         except InputError as exc:
             mistake = _against_config(exc, config.source)
             if mistake is None:
                 raise
     if mistake is not None:
         raise mistake
-    check_numerics(source, caught, result.P, result.K, result.U)
+    laws = [result] if hasattr(result, "P") else [law for _, law in result.parts]
+    for law in laws:
+        check_numerics(source, caught, law.P, law.K, law.U)
     return result
 
 
@@ -145,4 +194,8 @@ def learn_log(
     n, m, q = dimensions
     config = load_learn_config(config_path, n, m, q, overrides, overridden_by)
     data = load_trajectory(name) if log is None else load_log(name, log)
-    return LearnedLog(data, config, learn_with_config(data, config, name))
+    if config.schedule is None:
+        return LearnedLog(data, config, learn_with_config(data, config, name))
+    speeds = learn_over_speeds_with_config(data, config, name)
+    top = max(speeds.parts, key=lambda part: abs(part[0]))[1]
+    return LearnedLog(data, config, top, speeds)

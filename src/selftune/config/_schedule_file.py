@@ -54,8 +54,9 @@ class ScheduleConfig:
         return self.key == "speed_range"
 
 
-def _speeds(table: ConfigTable, key: str, motor: Motor) -> tuple[float, ...]:
-    """The list of ``key``: finite speeds, each in range, strictly increasing."""
+def _speeds(table: ConfigTable, key: str, motor: Motor | None) -> tuple[float, ...]:
+    """The list of ``key``: finite speeds, each in range (and not too fast for ``motor``,
+    when known), strictly increasing."""
     value = table.data[key]
     if not isinstance(value, list) or not value:
         raise table.error(key, f"must be a list of speeds in rad/s (mechanical), got {value!r}")
@@ -65,7 +66,8 @@ def _speeds(table: ConfigTable, key: str, motor: Motor) -> tuple[float, ...]:
             raise table.error(key, f"entries must be numbers (rad/s), found {entry!r}")
         try:
             speed = check_range(finite_float(entry, "speed"), "speed")
-            check_electrical_speed(speed, motor.p, max(motor.L_d, motor.L_q))
+            if motor is not None:
+                check_electrical_speed(speed, motor.p, max(motor.L_d, motor.L_q))
         except (InputError, OverflowError) as exc:
             raise table.error(key, str(exc).removeprefix("speed: ")) from None
         speeds.append(speed)
@@ -76,15 +78,16 @@ def _speeds(table: ConfigTable, key: str, motor: Motor) -> tuple[float, ...]:
     return tuple(speeds)
 
 
-def schedule_config(table: ConfigTable, motor: Motor) -> ScheduleConfig:
+def schedule_config(table: ConfigTable, motor: Motor | None) -> ScheduleConfig:
     """The speeds of a [schedule] table, validated for ``motor``.
 
     Parameters
     ----------
     table : ConfigTable
         The [schedule] table (its keys already checked against :data:`SCHEDULE_KEYS`).
-    motor : SPMSM or IPMSM
-        The motor of the file (its pole pairs and inductance bound the speed).
+    motor : SPMSM or IPMSM or None
+        The motor of the file (its pole pairs and inductance bound the speed); None: not
+        known yet (a learning configuration's schedule, designed on the motor learned).
 
     Returns
     -------

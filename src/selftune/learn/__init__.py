@@ -20,6 +20,7 @@ The flow, one subpackage a stage::
     online/     the model of a running drive from moments with          while it runs
                 forgetting, a surface PMSM's parameters, a change test
     _pipeline   learn_controller and assess: the stages in order
+    _speeds     a log over several held speeds: each learned at its own, one motor
 
 :class:`LearningProblem` (what is known: C, E, F, Q, R, integral action) and
 :class:`LearningOptions` (what to learn and how) are the inputs of every stage;
@@ -35,6 +36,7 @@ from ._pi import PIEquivalent, pi_control_law, pi_equivalent, pi_equivalent_or_r
 from ._pipeline import aligned_trajectory, assess, learn_controller
 from ._problem import LearningOptions, LearningProblem, Method, Target
 from ._result import DiscountStage, Formulation, JudgedPlants, LearnedController
+from ._speeds import SpeedsLearned, combined_estimate, learn_over_speeds, speed_segments
 from .data._frames import LogColumn, LogFormat, load_log
 from .data._io import (
     CsvHeader,
@@ -134,6 +136,7 @@ __all__ = [
     "Quality",
     "Regression",
     "RegressionSolution",
+    "SpeedsLearned",
     "SpmsmStructure",
     "Target",
     "Trajectory",
@@ -147,6 +150,7 @@ __all__ = [
     "check_alignment",
     "check_iteration_settings",
     "closed_loop_radius",
+    "combined_estimate",
     "dead_time_voltage",
     "design_continuous",
     "design_digital",
@@ -162,6 +166,7 @@ __all__ = [
     "learn_digital_adp",
     "learn_lqr",
     "learn_output_regulation",
+    "learn_over_speeds",
     "learn_regulator",
     "learn_servo",
     "load_csv",
@@ -185,6 +190,7 @@ __all__ = [
     "simulated_trajectories",
     "solutions_of_output_equation",
     "solve_regression",
+    "speed_segments",
     "stated_shift",
     "steady_state_map",
 ]

@@ -33,6 +33,7 @@ from ._schedule_design import (
     ScheduleDesign,
     ScheduledMotor,
     bandwidth,
+    check_covered,
     design_schedule,
     worst_excess,
 )
@@ -54,6 +55,7 @@ __all__ = [
     "ScheduledMotor",
     "SpeedSchedule",
     "bandwidth",
+    "check_covered",
     "design_schedule",
     "lqr",
     "motor_from_parameters",

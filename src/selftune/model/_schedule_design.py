@@ -49,6 +49,7 @@ from ._problem import RegulationProblem
 from ._schedule import SpeedSchedule
 
 __all__ = [
+    "COVERED_ROUNDING",
     "EXCESS",
     "FEEDFORWARD_ERROR",
     "FINE_POINTS",
@@ -58,6 +59,7 @@ __all__ = [
     "ScheduleDesign",
     "ScheduledMotor",
     "bandwidth",
+    "check_covered",
     "design_schedule",
     "worst_excess",
 ]
@@ -350,6 +352,39 @@ def _grid(speeds: ArrayLike, p: int) -> Array:
     return p * values
 
 
+#: How far (relative to the larger end) a speed may stray outside the covered range and
+#: count as covered: the range is read off logged angles, to their rounding.
+COVERED_ROUNDING = 1e-6
+
+
+def check_covered(electrical_speeds: Sequence[float], covered: tuple[float, float]) -> None:
+    """Refuse speeds outside the range the identification data cover, naming them.
+
+    Parameters
+    ----------
+    electrical_speeds : sequence of float
+        The speeds asked for, rad/s (electrical).
+    covered : (float, float)
+        The lowest and highest electrical speed of the data, rad/s.
+
+    Raises
+    ------
+    InputError
+        Naming every speed outside ``covered`` (beyond :data:`COVERED_ROUNDING`) and the
+        range.
+    """
+    low, high = (float(value) for value in covered)
+    slack = COVERED_ROUNDING * max(abs(low), abs(high))
+    outside = [speed for speed in electrical_speeds if not low - slack <= speed <= high + slack]
+    if outside:
+        listed = ", ".join(f"{speed:g}" for speed in outside)
+        raise InputError(
+            f"speeds: {listed} rad/s (electrical) outside the speeds the data cover, "
+            f"{low:g} to {high:g} rad/s (electrical): the identified motor is not known "
+            "there; log those speeds or narrow the schedule"
+        )
+
+
 def design_schedule(
     motor: ScheduledMotor,
     speeds: ArrayLike,
@@ -363,6 +398,7 @@ def design_schedule(
     excess: float = EXCESS,
     fine_points: int = FINE_POINTS,
     max_points: int = MAX_POINTS,
+    covered: tuple[float, float] | None = None,
 ) -> ScheduleDesign:
     """The digital optimum designed on a speed grid, interpolated and checked (see the
     module docstring); the grid refined by bisection where the check fails.
@@ -390,6 +426,10 @@ def design_schedule(
         Speeds checked between each pair of grid speeds (default :data:`FINE_POINTS`).
     max_points : int, optional
         The most grid speeds the refinement may reach (default :data:`MAX_POINTS`).
+    covered : (float, float), optional
+        The electrical speeds (rad/s, lowest and highest) the data the motor was
+        identified from cover: a grid speed outside them is refused
+        (:func:`check_covered`); None: no such limit (a motor known otherwise).
 
     Returns
     -------
@@ -398,13 +438,16 @@ def design_schedule(
     Raises
     ------
     InputError
-        If the speeds are not strictly increasing finite numbers (at least two), or an
-        argument of :func:`solve_digital_regulation` is not as it requires.
+        If the speeds are not strictly increasing finite numbers (at least two), lie
+        outside ``covered`` (naming them), or an argument of
+        :func:`solve_digital_regulation` is not as it requires.
     UnsolvableError
         If a pointwise optimum does not exist, or the grid would need more than
         ``max_points`` speeds (naming the interval that still fails and why).
     """
     grid = [float(speed) for speed in _grid(speeds, motor.p)]
+    if covered is not None:
+        check_covered(grid, covered)
     points = positive_integer(fine_points, "fine_points")
     allowed = positive_finite(excess, "excess")
     limit = positive_integer(max_points, "max_points", minimum=2)

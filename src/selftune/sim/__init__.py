@@ -14,7 +14,8 @@
   :meth:`RealisticDrive.start` keeps it running chunk by chunk (:class:`DriveSession`,
   :class:`DriveChunk`), its motor heating or failing along a :class:`ParameterProfile`
   (:mod:`._session`, :mod:`._profile`); with magnetic saturation, :class:`SaturationModel`
-  or a :class:`FluxMap` (:mod:`._saturation`);
+  or a :class:`FluxMap` (:mod:`._saturation`); :func:`run_speed_profile` runs it while
+  the speed changes (a ramp or a staircase, :func:`ramp_speeds`; :mod:`._ramp`);
 - :class:`GemDrive`: gym-electric-motor's PMSM environment as a drive (the ``gem`` extra;
   :mod:`._gem`), so a gym-electric-motor current loop is tuned by the same sessions.
 """
@@ -36,6 +37,7 @@ from ._exploration import (
 from ._gem import GEM_ENVIRONMENT, GEM_SOLVERS, GemDrive
 from ._loop import LoopLogs, simulate_loop
 from ._profile import ParameterFactors, ParameterProfile
+from ._ramp import ramp_speeds, run_speed_profile
 from ._realistic import DriveRecord, DriveSettings, RealisticDrive, run_drive_batch
 from ._saturation import FluxMap, Saturation, SaturationModel
 from ._session import DriveChunk, DriveSession
@@ -85,7 +87,9 @@ __all__ = [
     "exosystem",
     "held",
     "prbs",
+    "ramp_speeds",
     "run_drive_batch",
+    "run_speed_profile",
     "simulate",
     "simulate_batch",
     "simulate_loop",

@@ -398,8 +398,16 @@ def _loop_inputs(
     w: Array,
     rho: Array,
     noise: Array | None,
+    angle: Array | None = None,
 ) -> LoopInputs:
-    rotor = np.exp(1j * motor.electrical_speed[:, np.newaxis] * t)
+    """The loop's inputs over the samples ``t`` (s); ``angle`` (P,): the rotor's angle at
+    ``t[0]``, rad, from which it turns at the held speed (None: ``theta = w_e t``, the
+    angle of a speed held since ``t = 0``)."""
+    w_e = motor.electrical_speed[:, np.newaxis]
+    if angle is None:
+        rotor = np.exp(1j * w_e * t)
+    else:
+        rotor = np.exp(1j * (angle[:, np.newaxis] + w_e * (t - t[0])))
     offset = _modulation_offset(settings, motor.electrical_speed, h)[:, np.newaxis]
     modulator = Modulator(
         period=h,

@@ -8,7 +8,10 @@ returns. The model-based comparison (:func:`selftune.report.evaluate`) lives els
 - :func:`algorithm1`, :func:`algorithm2`, :func:`algorithm3`: on-policy, a new episode
   each iteration (:mod:`._onpolicy`);
 - :func:`offpolicy`: one batch of data reused for every step (:mod:`._offpolicy`);
-- :func:`run_algorithm`: a session on a simulated motor, by name.
+- :func:`run_algorithm`: a session on a simulated motor, by name;
+- :func:`commission_interior`: an interior motor identified at one speed;
+  :func:`commission_ramp`: a motor identified from a log over several held speeds, and
+  the speeds it covers (:mod:`._ramp`).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from ._online import (
     run_online,
 )
 from ._onpolicy import algorithm1, algorithm2, algorithm3
+from ._ramp import RampCommissioning, commission_ramp
 from ._results import TuningIteration, TuningResult
 from ._session import ALGORITHMS, AlgorithmName, run_algorithm
 from ._settings import TUNING_KEYS, Perturbation, TuningSettings, tuning_settings
@@ -53,6 +57,7 @@ __all__ = [
     "OnlineRun",
     "OnlineSwitch",
     "Perturbation",
+    "RampCommissioning",
     "TuningIteration",
     "TuningResult",
     "TuningSettings",
@@ -60,6 +65,7 @@ __all__ = [
     "algorithm2",
     "algorithm3",
     "commission_interior",
+    "commission_ramp",
     "follow",
     "known_flux_form",
     "offpolicy",

@@ -23,14 +23,20 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..learn import LearnedController, LearningProblem, learn_controller
-from ..model import IPMSM
+from ..learn import LearnedController, LearningProblem, MotorEstimate, learn_controller
+from ..model import IPMSM, SPMSM, Motor
 from ..sim import DriveSettings, RealisticDrive, constant, held, uniform
 from ._knowledge import STEP_DWELL, STEP_LEVELS
 from ._learning import learning_options
 from ._settings import TuningSettings
 
-__all__ = ["D_SHARE", "InteriorCommissioning", "commission_interior"]
+__all__ = [
+    "D_SHARE",
+    "InteriorCommissioning",
+    "commission_interior",
+    "current_steps",
+    "motor_of",
+]
 
 #: The d-current reference's lowest level in the experiment, a share of the q scale.
 D_SHARE = 0.5
@@ -83,6 +89,51 @@ class InteriorCommissioning:
         return abs(self.true_torque - self.torque) / abs(self.torque)
 
 
+def motor_of(estimate: MotorEstimate, p: int) -> tuple[Motor, dict[str, float]]:
+    """The motor a structured fit identified, of its kind (an interior one with ``L_d``
+    and ``L_q``, else a surface one), and the parameters' standard errors (``R_s``,
+    ``L_d`` and ``L_q`` or ``L_s``, ``phi_pm``: ohm, H, Wb).
+
+    Parameters
+    ----------
+    estimate : MotorEstimate
+        The fit's parameters (``quality.motor`` of a law learned with a structure).
+    p : int
+        Pole pairs.
+    """
+    if estimate.L_d is not None and estimate.L_q is not None:
+        motor: Motor = IPMSM(
+            R_s=estimate.R_s, L_d=estimate.L_d, L_q=estimate.L_q, phi_pm=estimate.phi_pm, p=p
+        )
+        errors = {
+            "R_s": estimate.R_s_se, "L_d": float(estimate.L_d_se or 0.0),
+            "L_q": float(estimate.L_q_se or 0.0), "phi_pm": estimate.phi_pm_se,
+        }  # fmt: skip
+        return motor, errors
+    assert estimate.L_s is not None
+    surface = SPMSM(R_s=estimate.R_s, L_s=estimate.L_s, phi_pm=estimate.phi_pm, p=p)
+    return surface, {
+        "R_s": estimate.R_s_se, "L_s": float(estimate.L_s_se or 0.0),
+        "phi_pm": estimate.phi_pm_se,
+    }  # fmt: skip
+
+
+def current_steps(t: Array, scale: float) -> tuple[Array, Array]:
+    """The experiment's current references at the times ``t`` (s): ``i_q*`` walks through
+    :data:`~._knowledge.STEP_LEVELS` times ``scale`` (A), each held
+    :data:`~._knowledge.STEP_DWELL`; ``i_d*`` through 0 and ``-D_SHARE |scale|``, each
+    held :data:`D_DWELL` times as long (see the module docstring).
+
+    Returns
+    -------
+    i_d*, i_q* : ndarray, shape like ``t``
+    """
+    levels = np.asarray(STEP_LEVELS)
+    q = levels[np.floor(t / STEP_DWELL).astype(int) % levels.size] * scale
+    d = -D_SHARE * abs(scale) * (np.floor(t / (D_DWELL * STEP_DWELL)).astype(int) % 2)
+    return d, q
+
+
 def commission_interior(
     motor: IPMSM,
     settings: TuningSettings,
@@ -118,11 +169,9 @@ def commission_interior(
     plant = RealisticDrive(motor, settings.speed, settings.h, drive)
     back_emf = motor.p * settings.speed * motor.phi_pm  # w_1 with the nameplate flux
     scale = 2.0 * settings.torque / (3.0 * motor.p * motor.phi_pm)
-    levels = np.asarray(STEP_LEVELS)
 
     def reference(t: Array) -> Array:
-        q = levels[np.floor(t / STEP_DWELL).astype(int) % levels.size] * scale
-        d = -D_SHARE * abs(scale) * (np.floor(t / (D_DWELL * STEP_DWELL)).astype(int) % 2)
+        d, q = current_steps(t, scale)
         return np.column_stack([np.full_like(t, back_emf), d, q])
 
     # K0 alone, no feedforward: the back-EMF holds the currents away from zero, where the
@@ -139,16 +188,10 @@ def commission_interior(
     )  # fmt: skip
     options = replace(learning_options(plant, settings), method="identify", structure="ipmsm")
     learned = learn_controller(log, problem, settings.K0, options)
-    assert learned.quality is not None  # learn_controller's verdict
-    estimate = learned.quality.motor
-    assert estimate is not None and estimate.L_d is not None and estimate.L_q is not None
-    identified = IPMSM(
-        R_s=estimate.R_s, L_d=estimate.L_d, L_q=estimate.L_q, phi_pm=estimate.phi_pm, p=motor.p
-    )
-    errors = {
-        "R_s": estimate.R_s_se, "L_d": float(estimate.L_d_se or 0.0),
-        "L_q": float(estimate.L_q_se or 0.0), "phi_pm": estimate.phi_pm_se,
-    }  # fmt: skip
+    assert learned.quality is not None and learned.quality.motor is not None  # the verdict
+    found, errors = motor_of(learned.quality.motor, motor.p)
+    assert isinstance(found, IPMSM)  # structure = "ipmsm"
+    identified = found
     references = identified.current_reference(settings.torque)
     w = np.concatenate([[back_emf], references])
     count = round(check_seconds / settings.h)

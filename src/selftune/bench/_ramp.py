@@ -1,0 +1,242 @@
+"""Speed schedules learned from 1 s of data over a speed range (issue 18).
+
+Each run is :func:`selftune.tuning.commission_ramp`: 1 s of the drive with its speed on
+a staircase of two held speeds, 5% and 100% of the motor's rated speed (0.5 s each: the
+plant is affine in speed, so two speeds determine it; each segment as long as the
+interior commissioning's one speed), the current steps under the gentle K0, the motor 20 K
+warmer than its nameplate, on the hardware-like drive (carrier PWM, 10 mA noise, a 12-bit
+ADC, one sample of delay, 2 V of dead time; 0.5 us on a 48 V bus). Each segment is
+identified at its own speed with the motor's structure and the parameters combined; the
+schedule is designed on the identified motor over the speeds the data cover (5-100% of
+rated; :func:`selftune.model.design_schedule` with ``covered``), and judged against the
+true (heated) motor's pointwise digital optimum at the 50 speeds between each pair of its
+grid speeds (:meth:`selftune.model.ScheduleDesign.excess_of`, worst initial state). Beside
+it, the single-speed controller: the identified motor's optimum at 50% of rated, its
+excess at the top speed.
+
+The motors: the interior bench's six (:data:`~._interior.INTERIOR_MOTORS`: 25 uH to 150 mH,
+``L_q / L_d`` 1.5 to 3, 2 to 20 pole pairs) at their speeds taken as rated, and three
+surface motors (25 uH to 60 mH, 2 to 10 pole pairs).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..config import MotorConfig
+from ..errors import SelftuneError
+from ..model import SPMSM, Motor, design_schedule
+from ..report._digital_evaluation import true_motor
+from ..sim import DriveSettings
+from ..tuning import tuning_settings
+from ..tuning._ramp import RampCommissioning, commission_ramp
+from ._common import table, with_progress
+from ._interior import (
+    BOTTOM_SPEED_SHARE,
+    INTERIOR_MOTORS,
+    LOW_VOLTAGE_DEAD_TIME,
+    TEMPERATURE_RISE,
+)
+
+__all__ = ["RAMP_MOTORS", "RampCase", "RampStudy", "markdown_ramp", "measure_ramp"]
+
+#: The motors: (motor, rated mechanical speed rad/s, rated torque N m, DC bus V).
+RAMP_MOTORS: tuple[tuple[Motor, float, float, float], ...] = (
+    *INTERIOR_MOTORS,
+    (SPMSM(R_s=0.02, L_s=25e-6, phi_pm=0.005, p=10), 15.0, 0.3, 48.0),
+    (SPMSM(R_s=1.0, L_s=0.01, phi_pm=0.2, p=5), 60.0, 5.0, 540.0),
+    (SPMSM.paper(), 100.0, 4.0, 540.0),
+)
+
+#: The experiment's length, s, and its held speeds.
+RAMP_SECONDS = 1.0
+RAMP_LEVELS = 2
+
+#: Where the single-speed controller is designed, a share of the rated speed.
+SINGLE_SPEED_SHARE = 0.5
+
+
+@dataclass(frozen=True)
+class RampCase:
+    """One run (NaN where it was refused).
+
+    Attributes
+    ----------
+    motor_text : str
+    seed : int
+    refusal_text : str
+        The refusal's first words ("" when learned).
+    parameter_error_percent : float
+        The largest relative error of the identified inductances and flux, %.
+    schedule_excess_percent : float
+        The schedule's largest excess over the true pointwise optimum, %.
+    single_speed_excess_percent : float
+        The single-speed controller's excess at the top speed, %.
+    grid_points : int
+        The schedule's grid speeds.
+    top_w_e_h : float
+        ``p speed h`` at the rated speed, rad per sample.
+    wall_seconds : float
+    """
+
+    motor_text: str
+    seed: int
+    refusal_text: str
+    parameter_error_percent: float
+    schedule_excess_percent: float
+    single_speed_excess_percent: float
+    grid_points: int
+    top_w_e_h: float
+    wall_seconds: float
+
+    @property
+    def learned(self) -> bool:
+        """Whether the motor was identified."""
+        return not self.refusal_text
+
+
+@dataclass(frozen=True)
+class RampStudy:
+    """The runs.
+
+    Attributes
+    ----------
+    cases : tuple of RampCase
+    wall_seconds : float
+    """
+
+    cases: tuple[RampCase, ...]
+    wall_seconds: float
+
+
+def _label(motor: Motor) -> str:
+    if isinstance(motor, SPMSM):
+        return f"SPMSM {motor.L_s * 1e3:g} mH, p {motor.p}"
+    return f"IPMSM {motor.L_d * 1e3:g}/{motor.L_q * 1e3:g} mH, p {motor.p}"
+
+
+def _errors(result: RampCommissioning, truth: Motor) -> float:
+    names = ("L_s", "phi_pm") if isinstance(truth, SPMSM) else ("L_d", "L_q", "phi_pm")
+    return max(abs(getattr(result.motor, name) / getattr(truth, name) - 1.0) for name in names)
+
+
+def _case(index: int, seed: int) -> RampCase:
+    motor, speed, torque, bus = RAMP_MOTORS[index]
+    drive = replace(DriveSettings.hardware_like(dc_voltage=bus), temperature_rise=TEMPERATURE_RISE)
+    if bus < 100.0:
+        drive = replace(drive, dead_time=LOW_VOLTAGE_DEAD_TIME)
+    config = MotorConfig(
+        motor=motor, speed=speed, torque=torque, drive=drive, drive_h=1e-4,
+        learning={"integral_action": True}, source=f"ramp motor {index + 1}",
+    )  # fmt: skip
+    settings = tuning_settings(config, seed)
+    label = f"{index + 1}: {_label(motor)}"
+    speeds = (BOTTOM_SPEED_SHARE * speed, speed)
+    started = time.perf_counter()
+    top = motor.p * speed * settings.h
+    try:
+        result = commission_ramp(
+            motor, settings, drive, speeds, seconds=RAMP_SECONDS, levels=RAMP_LEVELS, seed=seed
+        )
+    except SelftuneError as error:
+        nan = float("nan")
+        return RampCase(
+            label, seed, str(error)[:90], nan, nan, nan, 0, top, time.perf_counter() - started
+        )
+    truth: Motor = true_motor(motor, drive)  # type: ignore[type-var]
+    designs = [
+        design_schedule(
+            model,
+            speeds,
+            settings.Q,
+            settings.R,
+            settings.h,
+            input_delay=drive.input_delay,
+            integral_weight=result.integral_weight,
+            hold=drive.voltage_hold,
+            covered=result.covered if model is result.motor else None,
+        )
+        for model in (result.motor, truth)
+    ]
+    identified, true = designs
+    single = identified.pointwise_optimum(SINGLE_SPEED_SHARE * motor.p * speed).law
+    return RampCase(
+        label, seed, "", 100.0 * _errors(result, truth),
+        100.0 * float(np.max(true.excess_of(identified.schedule))),
+        100.0 * float(true.excess_of(single)[-1]),
+        identified.schedule.electrical_speed.size, top, time.perf_counter() - started,
+    )  # fmt: skip
+
+
+def measure_ramp(quick: bool, progress: bool = True, seeds: int = 3) -> RampStudy:
+    """The study (see the module).
+
+    Parameters
+    ----------
+    quick : bool
+        Two motors (one interior, one surface), one seed; else every motor over ``seeds``
+        seeds (about 5-15 s a run).
+    progress : bool
+        Show a progress bar.
+    seeds : int
+        Seeds per motor in the full run.
+    """
+    cases = [(0, 0), (7, 0)] if quick else [
+        (index, seed) for index in range(len(RAMP_MOTORS)) for seed in range(seeds)
+    ]  # fmt: skip
+    started = time.perf_counter()
+    results = with_progress(cases, lambda case: _case(*case), "ramp", progress)
+    return RampStudy(tuple(results), time.perf_counter() - started)
+
+
+def markdown_ramp(study: RampStudy) -> list[str]:
+    """The study as a markdown section: a row per run, then the ranges.
+
+    Parameters
+    ----------
+    study : RampStudy
+        The results.
+    """
+    rows = []
+    for case in study.cases:
+        if not case.learned:
+            refusal = "refused: " + case.refusal_text
+            rows.append([case.motor_text, str(case.seed), refusal, "-", "-", "-",
+                         f"{case.top_w_e_h:.3f}", f"{case.wall_seconds:.1f}"])  # fmt: skip
+            continue
+        rows.append([case.motor_text, str(case.seed), f"{case.parameter_error_percent:.3f}",
+                     f"{case.schedule_excess_percent:.2e}",
+                     f"{case.single_speed_excess_percent:.3f}", str(case.grid_points),
+                     f"{case.top_w_e_h:.3f}", f"{case.wall_seconds:.1f}"])  # fmt: skip
+    learned = [case for case in study.cases if case.learned]
+    schedule = [case.schedule_excess_percent for case in learned]
+    single = [case.single_speed_excess_percent for case in learned]
+    summary = (
+        f"{len(learned)} of {len(study.cases)} learned; the schedule's largest excess "
+        f"{min(schedule):.2e}-{max(schedule):.2e}%, the single-speed controller's at the "
+        f"top {min(single):.3f}-{max(single):.3f}%"
+        if learned
+        else f"0 of {len(study.cases)} learned"
+    )
+    return [
+        "## Speed schedules from 1 s over 5-100% of rated speed (hardware-like drive, 20 K warm)",
+        "",
+        f"{summary}. {study.wall_seconds:.0f} s.",
+        "",
+        *table(
+            [
+                "motor",
+                "seed",
+                "largest L/flux error %",
+                "schedule excess %",
+                "single-speed excess at top %",
+                "grid",
+                "w_e h at rated",
+                "s",
+            ],
+            rows,
+        ),
+    ]

@@ -1,0 +1,189 @@
+"""A log over several held speeds: cut where its speed changes, each part learned at its
+own speed with the motor's structure, the motor's parameters combined.
+
+At a held speed the current loop's plant is ``A(omega) = A_0 + omega A_1``; R_s, the
+inductances and the flux do not depend on the speed, so the parts of one log are one
+motor seen at several speeds. The speed of each sample is the log's angle column's step
+over it (the electrical speed, rad/s); a new part starts where it changes
+(:func:`speed_segments`). Each part is learned by :func:`~selftune.learn.learn_controller`
+with the options' structure at that part's speed (its verdict on each); the parts'
+parameters are combined by their inverse variances (:func:`combined_estimate`). The data
+cover the parts' lowest to highest speed.
+
+Not done: one fit over a log whose speed changes every sample (a linear ramp). The
+output-error fit simulates one time-invariant sampled plant over a log; a speed per
+sample needs a plant per sample, in its simulation, its sensitivities, its bootstrap and
+the structure's and the verdict's checks. Such a log is refused, saying so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+from itertools import pairwise
+
+import numpy as np
+
+from ..core import Array
+from ..errors import InputError, SelftuneError
+from ._pipeline import learn_controller
+from ._problem import LearningOptions, LearningProblem
+from ._result import LearnedController
+from .data._trajectory import Trajectory
+from .verdict._quality import MotorEstimate
+
+__all__ = [
+    "MIN_SEGMENT",
+    "SPEED_STEP",
+    "SpeedsLearned",
+    "combined_estimate",
+    "learn_over_speeds",
+    "speed_segments",
+]
+
+#: A change of the angle column's speed between samples larger than this share of the
+#: log's largest speed starts a new part (the angle's rounding is about 1e-12 of it).
+SPEED_STEP = 1e-6
+
+#: The shortest part at a held speed that is learned, s (four of the commissioning's
+#: 10 ms current steps).
+MIN_SEGMENT = 0.04
+
+
+def speed_segments(log: Trajectory) -> list[tuple[int, int, float]]:
+    """The log cut where the speed of its angle column changes.
+
+    Parameters
+    ----------
+    log : Trajectory
+        A log with an angle column (the electrical rotor angle, rad).
+
+    Returns
+    -------
+    list of (first, last, electrical speed)
+        Samples ``first .. last - 1`` at one speed (over ``[t_first, t_last)``) and that
+        speed, rad/s (the mean of the angle's steps over their sampling periods).
+
+    Raises
+    ------
+    InputError
+        Without an angle column, or when a part is shorter than :data:`MIN_SEGMENT` (a
+        speed that changes every sample: a linear ramp, which the fit cannot take).
+    """
+    if log.angle is None:
+        raise InputError("angle: a log over several speeds needs its angle column theta")
+    periods = np.diff(log.t)
+    steps = np.angle(np.exp(1j * np.diff(log.angle))) / periods  # the speed over each sample
+    largest = max(float(np.max(np.abs(steps))), 1e-300)
+    cuts = np.flatnonzero(np.abs(np.diff(steps)) > SPEED_STEP * largest) + 1
+    bounds = [0, *cuts.tolist(), steps.size]
+    shortest = min(float(np.sum(periods[a:b])) for a, b in pairwise(bounds))
+    if shortest < MIN_SEGMENT:
+        raise InputError(
+            f"angle: the speed holds for as little as {shortest:.3g} s (at least "
+            f"{MIN_SEGMENT:g} s a speed is needed): the identification fits one plant at a "
+            "held speed per part and cannot fit a speed that changes every sample; log "
+            "a staircase of held speeds"
+        )
+    return [(a, b, float(np.mean(steps[a:b]))) for a, b in pairwise(bounds)]
+
+
+def _part(log: Trajectory, first: int, last: int) -> Trajectory:
+    """Samples ``first .. last - 1`` of the log: row ``last`` starts the next speed's
+    sample, and its reference is that speed's (``w_1 = p speed phi_assumed``; kept, it
+    moved the flux read off the part's mean ``w_1`` by 0.4% at 5% and 100% of a speed)."""
+    rows = slice(first, last)
+    return Trajectory(
+        t=log.t[rows], x=log.x[rows], u=log.u[first : last - 1],
+        w=None if log.w is None else log.w[rows],
+        angle=None if log.angle is None else log.angle[rows],
+    )  # fmt: skip
+
+
+def combined_estimate(estimates: list[MotorEstimate]) -> MotorEstimate:
+    """One motor's estimates combined by their inverse variances, parameter by parameter
+    (each standard error ``1 / sqrt(sum 1 / se^2)``).
+
+    Parameters
+    ----------
+    estimates : list of MotorEstimate
+        Of one kind (all surface or all interior; with or without the dead-time voltage).
+    """
+    values: dict[str, float | None] = {}
+    for item in fields(MotorEstimate):
+        name = item.name
+        if name.endswith("_se") or getattr(estimates[0], name) is None:
+            continue
+        estimate = np.array([getattr(e, name) for e in estimates], dtype=float)
+        errors = np.array([getattr(e, f"{name}_se") for e in estimates], dtype=float)
+        weights = 1.0 / np.maximum(errors, 1e-300) ** 2
+        values[name] = float(np.sum(weights * estimate) / np.sum(weights))
+        values[f"{name}_se"] = float(1.0 / np.sqrt(np.sum(weights)))
+    return replace(estimates[0], **values)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class SpeedsLearned:
+    """A log over several held speeds, learned part by part.
+
+    Attributes
+    ----------
+    parts : tuple of (float, LearnedController)
+        Each held speed (electrical, rad/s) and the law learned there, with its verdict
+        and its identified motor (``quality.motor``).
+    motor : MotorEstimate
+        The parts' motors combined (:func:`combined_estimate`).
+    covered : (float, float)
+        The lowest and highest electrical speed of the data, rad/s.
+    """
+
+    parts: tuple[tuple[float, LearnedController], ...]
+    motor: MotorEstimate
+    covered: tuple[float, float]
+
+
+def learn_over_speeds(
+    log: Trajectory, problem: LearningProblem, K0: Array, options: LearningOptions
+) -> SpeedsLearned:
+    """Learn each held speed's part of ``log`` at its own speed, and combine the motors
+    (see the module docstring).
+
+    Parameters
+    ----------
+    log : Trajectory
+        The log, with its angle column.
+    problem : LearningProblem
+        What the learner knows.
+    K0 : ndarray
+        The feedback the log ran under.
+    options : LearningOptions
+        How to learn: identify-then-design with a motor's structure (its
+        ``electrical_speed`` is each part's).
+
+    Raises
+    ------
+    InputError
+        If the options have no motor structure, or :func:`speed_segments` refuses the log.
+    SelftuneError
+        The learner's refusal of a part, naming its speed.
+    """
+    if options.structure == "none" or options.method != "identify":
+        raise InputError(
+            'structure: a log over several speeds is learned by method = "identify" with a '
+            'motor\'s structure ("spmsm" or "ipmsm"), whose parameters do not depend on '
+            "the speed"
+        )
+    parts = []
+    for first, last, speed in speed_segments(log):
+        try:
+            learned = learn_controller(
+                _part(log, first, last), problem, K0, replace(options, electrical_speed=speed)
+            )
+        except SelftuneError as error:  # said at the part's speed
+            raise error.retold(f"at {speed:g} rad/s (electrical): {error}") from None
+        parts.append((speed, learned))
+    estimates = []
+    for _, learned in parts:
+        assert learned.quality is not None and learned.quality.motor is not None
+        estimates.append(learned.quality.motor)
+    speeds = [speed for speed, _ in parts]
+    return SpeedsLearned(tuple(parts), combined_estimate(estimates), (min(speeds), max(speeds)))
