@@ -96,6 +96,9 @@ def drawn_motors(draw: st.DrawFn) -> tuple[Motor, float, float]:
 DRIVE = DriveSettings(current_noise=0.01, dc_voltage=540.0)
 
 
+# a warning would make a command refuse the log as numerically meaningless (core._numerics):
+# an unstable trial step of the fit overflowed here and warned
+@pytest.mark.filterwarnings("error::RuntimeWarning")
 @settings(max_examples=4, deadline=None, phases=[Phase.explicit, Phase.reuse, Phase.generate])
 @given(drawn_motors(), st.integers(0, 1000))
 def test_a_two_speed_log_gives_the_motor_and_its_schedule(

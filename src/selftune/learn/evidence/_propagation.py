@@ -185,10 +185,17 @@ def _answers(requests: Sequence[_Request]) -> list[list[Array]]:
     for (sensitivities, lengths), members in groups.items():
         for which in range(len(lengths)):  # the logs, one at a time
             group = [requests[index] for index in members]
-            if sensitivities:
-                results = _sensitivities([(r.mats, r.logs[which], r.given[which]) for r in group])
-            else:
-                results = _simulations([(r.mats, r.given[which], r.logs[which]) for r in group])
+            # a trial step of a search may give an unstable model whose simulation
+            # overflows: its cost is then infinite and the step refused
+            # (_output_error._weighted), an expected event, not a numerical warning for the
+            # caller (a command takes any warning as a failure: core._numerics)
+            with np.errstate(over="ignore", invalid="ignore"):
+                if sensitivities:
+                    results = _sensitivities(
+                        [(r.mats, r.logs[which], r.given[which]) for r in group]
+                    )
+                else:
+                    results = _simulations([(r.mats, r.given[which], r.logs[which]) for r in group])
             for index, result in zip(members, results, strict=True):
                 answers[index].append(result)
     return answers
