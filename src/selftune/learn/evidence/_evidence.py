@@ -20,6 +20,17 @@ Every learner starts here (:func:`gather_evidence`):
    which refuses the data unless the dead time is modelled (then it is the dead-time
    model's own approximation near zero current, and the verdict notes it).
 
+With the dead time modelled, the channels hold the measured currents' signs, which the
+noise decides where a phase current is within it of zero; each wrong sign is a voltage
+error of ``2 v`` on that phase for a sample, which the model's simulation carries for a
+time constant of the plant. Output errors correlated so, and with the inputs the
+controller computed from the currents they moved, are not an effect the model misses:
+before refusing, the tests judge the model refitted on the signs of its own noise-free
+currents (:func:`_on_model_signs`), where those explain the data better, and refuse
+only if it fails them too. The parameters reported stay the measured signs' fit's, with
+their bias removed (:mod:`._sign_bias`); the refit's own standard errors would be too
+small (its signs follow its parameters).
+
 A structured fit (``structure = "spmsm"``: three or four physical parameters instead of
 every entry of ``[Ad, Bd, Ed]``) is also compared with the unstructured fit of the same
 logs (:func:`structure_statistic`, a likelihood ratio): far in the chi-square tail the
