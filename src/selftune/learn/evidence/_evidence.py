@@ -445,8 +445,9 @@ def _on_model_signs(
     for _ in range(MODEL_SIGN_ROUNDS):
         current = (channels, fit) if best is None else best
         trial = with_signs_of(channels, model_currents(current[1], current[0], shift))
+        pairs = zip(trial.episodes, current[0].episodes, strict=True)
         if best is not None and all(
-            np.array_equal(a.w, b.w) for a, b in zip(trial.episodes, best[0].episodes, strict=True)
+            np.array_equal(np.asarray(a.w), np.asarray(b.w)) for a, b in pairs
         ):
             break  # the refit's currents have the signs it was fitted on
         refit = fit_output_error(
