@@ -20,6 +20,17 @@ Every learner starts here (:func:`gather_evidence`):
    which refuses the data unless the dead time is modelled (then it is the dead-time
    model's own approximation near zero current, and the verdict notes it).
 
+With the dead time modelled, the channels hold the measured currents' signs, which the
+noise decides where a phase current is within it of zero; each wrong sign is a voltage
+error of ``2 v`` on that phase for a sample, which the model's simulation carries for a
+time constant of the plant. Output errors correlated so, and with the inputs the
+controller computed from the currents they moved, are not an effect the model misses:
+before refusing, the tests judge the model refitted on the signs of its own noise-free
+currents (:func:`_on_model_signs`), where those explain the data better, and refuse
+only if it fails them too. The parameters reported stay the measured signs' fit's, with
+their bias removed (:mod:`._sign_bias`); the refit's own standard errors would be too
+small (its signs follow its parameters).
+
 A structured fit (``structure = "spmsm"``: three or four physical parameters instead of
 every entry of ``[Ad, Bd, Ed]``) is also compared with the unstructured fit of the same
 logs (:func:`structure_statistic`, a likelihood ratio): far in the chi-square tail the
@@ -51,7 +62,13 @@ from ...errors import (
 from .._problem import LearningOptions, LearningProblem
 from ..data._trajectory import Trajectory
 from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
-from ._dead_time import DeadTimeChannels, DeadTimeModel, Switching, with_dead_time
+from ._dead_time import (
+    DeadTimeChannels,
+    DeadTimeModel,
+    Switching,
+    with_dead_time,
+    with_signs_of,
+)
 from ._discrete_model import DiscreteModel, lack_of_rank, regressor_names
 from ._output_error import (
     IpmsmStructure,
@@ -60,7 +77,7 @@ from ._output_error import (
     fit_output_error,
     resolution_floor,
 )
-from ._sign_bias import without_sign_bias
+from ._sign_bias import model_currents, without_sign_bias
 
 __all__ = [
     "INFLATION_LIMIT",
@@ -326,9 +343,53 @@ def gather_evidence(
         if fit is None
         else _consistency(fitted, alignment.shift, fit)
     )
+    try:
+        _check_fit(fitted, alignment, (fit, test), structure, relative, options.dead_time)
+    except (ModelMissesEffect, ConfigurationMismatch) as error:
+        refit = None
+        if isinstance(channels, DeadTimeChannels) and channels.angles is not None:
+            assert fit is not None
+            refit = _on_model_signs(channels, alignment.shift, fit, relative)
+        if refit is None:
+            raise
+        judged, judged_fit = refit
+        test = _consistency(judged.episodes, alignment.shift, judged_fit)
+        try:
+            _check_fit(
+                judged.episodes, alignment, (judged_fit, test), structure, relative,
+                options.dead_time,
+            )  # fmt: skip
+        except ConsistencyError:
+            raise error from None
+    correction = None
+    adc: tuple[float | None, float | None] = (None, None)  # the ADC's step, noise (A)
+    if channels.angles is not None and fit is not None and not test.exact:
+        floor = resolution_floor(np.concatenate([e.x for e in episodes]), relative)
+        corrected = without_sign_bias(fit, channels, alignment.shift, floor)
+        if corrected is not None:
+            fit, correction, adc = corrected
+    extra = problem.n if options.dead_time else 0
+    return Evidence(
+        fitted, alignment, fit, test, extra, precision, channels.model, correction,
+        channels.switching, *adc,
+    )  # fmt: skip
+
+
+def _check_fit(
+    episodes: list[Trajectory],
+    alignment: Alignment,
+    tested: tuple[OutputErrorFit | None, ConsistencyTest],
+    structure: SpmsmStructure | IpmsmStructure | None,
+    resolution: float,
+    dead_time: bool,
+) -> None:
+    """Raise unless the fit explains the logs: the consistency test, the structure's
+    comparison with the unstructured model, and (without the dead-time model) the output
+    errors' correlation in time (see the module)."""
+    fit, test = tested
     if not test.passed:
         causes: tuple[str, ...] = (
-            _DEAD_TIME_CAUSE[options.dead_time],
+            _DEAD_TIME_CAUSE[dead_time],
             "a misaligned or late voltage log",
             "a nonlinearity (saturation, the voltage limit)",
             "a measurement resolution too coarse for the signal",
@@ -343,9 +404,9 @@ def gather_evidence(
             causes=causes,
         )
     if structure is not None and (fit is None or not test.exact):  # exact: nothing to miss
-        _check_structure(fitted, alignment, fit, relative, options.dead_time)
+        _check_structure(episodes, alignment, fit, resolution, dead_time)
     inflated = fit is not None and fit.correlation_inflation > INFLATION_LIMIT
-    if inflated and not test.exact and not options.dead_time:  # exact: rounding only
+    if inflated and not test.exact and not dead_time:  # exact: rounding only
         assert fit is not None
         causes = (
             "an input error the log does not show (inverter dead time: set dead_time = true)",
@@ -362,18 +423,45 @@ def gather_evidence(
             threshold=INFLATION_LIMIT,
             causes=causes,
         )
-    correction = None
-    adc: tuple[float | None, float | None] = (None, None)  # the ADC's step, noise (A)
-    if channels.angles is not None and fit is not None and not test.exact:
-        floor = resolution_floor(np.concatenate([e.x for e in episodes]), relative)
-        corrected = without_sign_bias(fit, channels, alignment.shift, floor)
-        if corrected is not None:
-            fit, correction, adc = corrected
-    extra = problem.n if options.dead_time else 0
-    return Evidence(
-        fitted, alignment, fit, test, extra, precision, channels.model, correction,
-        channels.switching, *adc,
-    )  # fmt: skip
+
+
+#: The most refits on the signs of the model's own currents (:func:`_on_model_signs`):
+#: each moves the signs of the few samples whose simulated phase current changed its
+#: sign; on 0.2 s logs of the hardware-like drive the second changed none.
+MODEL_SIGN_ROUNDS = 3
+
+
+def _on_model_signs(
+    channels: DeadTimeChannels, shift: int, fit: OutputErrorFit, resolution: float
+) -> tuple[DeadTimeChannels, OutputErrorFit] | None:
+    """The logs with the dead-time channels on the signs of the fitted model's own
+    noise-free currents (:func:`~._dead_time.with_signs_of`,
+    :func:`~._sign_bias.model_currents`) and the fit on them, refitted from ``fit``
+    on the signs of each refit's currents while that explains the data better (a
+    smaller determinant of the output errors' covariance: a larger likelihood, with as
+    many parameters), at most :data:`MODEL_SIGN_ROUNDS` times; None when the first
+    does not."""
+    best: tuple[DeadTimeChannels, OutputErrorFit] | None = None
+    for _ in range(MODEL_SIGN_ROUNDS):
+        current = (channels, fit) if best is None else best
+        trial = with_signs_of(channels, model_currents(current[1], current[0], shift))
+        pairs = zip(trial.episodes, current[0].episodes, strict=True)
+        if best is not None and all(
+            np.array_equal(np.asarray(a.w), np.asarray(b.w)) for a, b in pairs
+        ):
+            break  # the refit's currents have the signs it was fitted on
+        refit = fit_output_error(
+            trial.episodes, shift, current[1].model, fit.structure, resolution=resolution
+        )
+        if refit is None or _log_det(refit) >= _log_det(current[1]):
+            break
+        best = (trial, refit)
+    return best
+
+
+def _log_det(fit: OutputErrorFit) -> float:
+    """``log det`` of the fit's output errors' covariance."""
+    return float(np.linalg.slogdet(fit.noise_covariance)[1])
 
 
 #: The dead time among a refusal's likely causes: without the model, the remedy; with it,

@@ -55,7 +55,7 @@ from ._bootstrap import refits, with_spread
 from ._dead_time import SWITCHING_SIGNS, DeadTimeChannels, Switching, path_vector, sign_vector
 from ._output_error import OutputErrorFit, _finish, _Log, _logs
 
-__all__ = ["BIAS_DRAWS", "measurement_noise", "without_sign_bias"]
+__all__ = ["BIAS_DRAWS", "measurement_noise", "model_currents", "without_sign_bias"]
 
 #: Refits that measure the bias, per round.
 BIAS_DRAWS = 6
@@ -138,6 +138,42 @@ def _simulated(
         d, q_ = next_d, next_q
         x[k + 1] = d, q_
     return x
+
+
+def model_currents(fit: OutputErrorFit, channels: DeadTimeChannels, shift: int) -> list[Array]:
+    """The fitted model's noise-free currents at each log's rows, the dead time switching
+    on their own signs (as the data preferred), from the fit's initial states and the
+    logged inputs; the rows before the first the fit used are the measured ones.
+
+    Parameters
+    ----------
+    fit : OutputErrorFit
+        The output-error fit on the channels.
+    channels : DeadTimeChannels
+        The logs as fitted, with their angles and way of switching.
+    shift : int
+        The alignment of the logged inputs.
+
+    Returns
+    -------
+    list of ndarray, shape (T, 2)
+        ``[i_d, i_q]`` of each log, A.
+    """
+    assert channels.angles is not None and channels.switching is not None
+    matrices = fit.matrices(fit.parameters)
+    currents = []
+    for episode, log, angle, simulated in zip(
+        channels.episodes, _logs(channels.episodes, shift), channels.angles, fit.simulated,
+        strict=True,
+    ):  # fmt: skip
+        _, first = applied_inputs(episode, shift)
+        rows = angle[first : first + log.x.shape[0]]
+        x = episode.x.copy()
+        x[first : first + log.x.shape[0]] = _simulated(
+            matrices, log, (simulated[0], rows), channels.switching
+        )
+        currents.append(x)
+    return currents
 
 
 def _first_samples(
