@@ -55,7 +55,7 @@ def test_interior_motor_is_commissioned_within_its_errors(  # type: ignore[no-un
     path = _file(tmp_path, motor, speed, torque, dc)
     out = tmp_path / "result.json"
     # seed 2: of 4 seeds x 4 motors (25 uH-100 mH) 2 logs were refused by the consistency
-    # test (the dead-time model near zero current), the rest learned as asserted here
+    # test before its refit on the model's own dead-time signs, the rest learned as here
     report = tmp_path / "report"
     assert main(["tune", "--motor", path, "--json", str(out), "--seed", "2",
                  "--report", str(report)]) == 0  # fmt: skip
