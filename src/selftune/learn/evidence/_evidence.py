@@ -26,7 +26,7 @@ error of ``2 v`` on that phase for a sample, which the model's simulation carrie
 time constant of the plant. Output errors correlated so, and with the inputs the
 controller computed from the currents they moved, are not an effect the model misses:
 before refusing, the tests judge the model refitted on the signs of its own noise-free
-currents (:func:`_on_model_signs`), where those explain the data better, and refuse
+currents (:func:`~._model_signs.on_model_signs`), where those explain the data better, and refuse
 only if it fails them too. The parameters reported stay the measured signs' fit's, with
 their bias removed (:mod:`._sign_bias`); the refit's own standard errors would be too
 small (its signs follow its parameters).
@@ -62,14 +62,9 @@ from ...errors import (
 from .._problem import LearningOptions, LearningProblem
 from ..data._trajectory import Trajectory
 from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
-from ._dead_time import (
-    DeadTimeChannels,
-    DeadTimeModel,
-    Switching,
-    with_dead_time,
-    with_signs_of,
-)
+from ._dead_time import DeadTimeChannels, DeadTimeModel, Switching, with_dead_time
 from ._discrete_model import DiscreteModel, lack_of_rank, regressor_names
+from ._model_signs import on_model_signs
 from ._output_error import (
     IpmsmStructure,
     OutputErrorFit,
@@ -77,7 +72,7 @@ from ._output_error import (
     fit_output_error,
     resolution_floor,
 )
-from ._sign_bias import model_currents, without_sign_bias
+from ._sign_bias import without_sign_bias
 
 __all__ = [
     "INFLATION_LIMIT",
@@ -349,7 +344,7 @@ def gather_evidence(
         refit = None
         if isinstance(channels, DeadTimeChannels) and channels.angles is not None:
             assert fit is not None
-            refit = _on_model_signs(channels, alignment.shift, fit, relative)
+            refit = on_model_signs(channels, alignment.shift, fit, relative)
         if refit is None:
             raise
         judged, judged_fit = refit
@@ -423,45 +418,6 @@ def _check_fit(
             threshold=INFLATION_LIMIT,
             causes=causes,
         )
-
-
-#: The most refits on the signs of the model's own currents (:func:`_on_model_signs`):
-#: each moves the signs of the few samples whose simulated phase current changed its
-#: sign; on 0.2 s logs of the hardware-like drive the second changed none.
-MODEL_SIGN_ROUNDS = 3
-
-
-def _on_model_signs(
-    channels: DeadTimeChannels, shift: int, fit: OutputErrorFit, resolution: float
-) -> tuple[DeadTimeChannels, OutputErrorFit] | None:
-    """The logs with the dead-time channels on the signs of the fitted model's own
-    noise-free currents (:func:`~._dead_time.with_signs_of`,
-    :func:`~._sign_bias.model_currents`) and the fit on them, refitted from ``fit``
-    on the signs of each refit's currents while that explains the data better (a
-    smaller determinant of the output errors' covariance: a larger likelihood, with as
-    many parameters), at most :data:`MODEL_SIGN_ROUNDS` times; None when the first
-    does not."""
-    best: tuple[DeadTimeChannels, OutputErrorFit] | None = None
-    for _ in range(MODEL_SIGN_ROUNDS):
-        current = (channels, fit) if best is None else best
-        trial = with_signs_of(channels, model_currents(current[1], current[0], shift))
-        pairs = zip(trial.episodes, current[0].episodes, strict=True)
-        if best is not None and all(
-            np.array_equal(np.asarray(a.w), np.asarray(b.w)) for a, b in pairs
-        ):
-            break  # the refit's currents have the signs it was fitted on
-        refit = fit_output_error(
-            trial.episodes, shift, current[1].model, fit.structure, resolution=resolution
-        )
-        if refit is None or _log_det(refit) >= _log_det(current[1]):
-            break
-        best = (trial, refit)
-    return best
-
-
-def _log_det(fit: OutputErrorFit) -> float:
-    """``log det`` of the fit's output errors' covariance."""
-    return float(np.linalg.slogdet(fit.noise_covariance)[1])
 
 
 #: The dead time among a refusal's likely causes: without the model, the remedy; with it,
