@@ -268,7 +268,8 @@ def interior_targets(study: InteriorStudy, quick: bool = False) -> list[TargetOu
                       f"{single:.2f}%"),
         TargetOutcome("interior refusals", "none of good data", f"{refused} refused",
                       None if quick else refused == 0,
-                      "the consistency test near zero current: see docs/interior.md"),
+                      "; ".join(sorted({c.refusal_text for c in study.cases if not c.learned}))
+                      or "every log of good data learned"),
     ]  # fmt: skip
 
 
