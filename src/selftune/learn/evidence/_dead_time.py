@@ -167,8 +167,9 @@ def _check_angle_explains(episodes: Sequence[Trajectory], signs: list[Array], sh
 def phase_signs(x: Array, angle: Array) -> Array:
     """The dq vector ``(2/3) sum_x sign(i_x) exp(j 2 pi x / 3)`` of the phase currents' signs.
 
-    :func:`sign_vector` of arrays, with the complex numbers laid out in the arrays' memory
-    (a chunk of a running drive's rows: per row, the calls cost more than the arithmetic).
+    :func:`sign_vector` of arrays, on complex views of ``x`` and of a ``[cos, sin]``
+    buffer rather than complex arrays built from their halves (for a running drive's
+    chunk of a few hundred rows, numpy's calls cost more than their arithmetic).
 
     Parameters
     ----------
@@ -242,7 +243,8 @@ def sign_vector(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Num
 
 def _signs(current: Any, turn: Any) -> Any:
     """The signs' vector ``d + j q`` of the dq currents ``current`` (complex) at the
-    rotor's direction ``turn`` (``cos + j sin``; complex, broadcasting against it)."""
+    rotor frame's direction in the stationary one, ``turn = cos + j sin`` (complex,
+    broadcasting against ``current``)."""
     stationary = current * turn
     phases = to_phases(stationary)
     kept = _kept(phases, np.abs(stationary)[..., np.newaxis])
