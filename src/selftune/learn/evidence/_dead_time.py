@@ -168,19 +168,28 @@ def _check_angle_explains(episodes: Sequence[Trajectory], signs: list[Array], sh
 def phase_signs(x: Array, angle: Array) -> Array:
     """The dq vector ``(2/3) sum_x sign(i_x) exp(j 2 pi x / 3)`` of the phase currents' signs.
 
+    :func:`sign_vector` of arrays, on complex views of ``x`` and of a ``[cos, sin]``
+    buffer rather than complex arrays built from their halves (for a running drive's
+    chunk of a few hundred rows, numpy's calls cost more than their arithmetic).
+
     Parameters
     ----------
-    x : ndarray, shape (T, 2)
-        ``[i_d, i_q]``, A.
+    x : ndarray, shape (..., T, 2)
+        ``[i_d, i_q]``, A (leading axes: other currents at the same angles).
     angle : ndarray, shape (T,)
         Electrical rotor angle ``theta_e`` at each sample, rad.
 
     Returns
     -------
-    ndarray, shape (T, 2)
+    ndarray, shape (..., T, 2)
         Length 4/3 (or 0 where every phase current is 0), dimensionless.
     """
-    return np.column_stack(sign_vector(x[:, 0], x[:, 1], np.cos(angle), np.sin(angle)))
+    turn = np.empty((*np.shape(angle), 2))  # [cos, sin]: the rotor's direction as complex
+    np.cos(angle, out=turn[..., 0])
+    np.sin(angle, out=turn[..., 1])
+    current = np.ascontiguousarray(x, dtype=np.float64).view(np.complex128)[..., 0]
+    vector = _signs(current, turn.view(np.complex128)[..., 0])
+    return vector.view(np.float64).reshape(*vector.shape, 2)
 
 
 def path_signs(x: Array, angle: Array) -> Array:
@@ -229,11 +238,19 @@ def sign_vector(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Num
     (d, q)
         The dq components of the signs' vector.
     """
-    turn = np.asarray(cos + 1j * sin)  # the rotor frame's direction in the stationary one
-    current = (i_d + 1j * i_q) * turn
-    phases = _settled(to_phases(current), np.abs(current)[..., np.newaxis])
-    vector = from_phases(np.sign(phases)) * np.conj(turn)
+    vector = _signs(i_d + 1j * i_q, np.asarray(cos + 1j * sin))
     return cast("tuple[Number, Number]", (vector.real, vector.imag))
+
+
+def _signs(current: Any, turn: Any) -> Any:
+    """The signs' vector ``d + j q`` of the dq currents ``current`` (complex) at the
+    rotor frame's direction in the stationary one, ``turn = cos + j sin`` (complex,
+    broadcasting against ``current``)."""
+    stationary = current * turn
+    phases = to_phases(stationary)
+    kept = _kept(phases, np.abs(stationary)[..., np.newaxis])
+    signs = np.sign(phases, out=np.zeros(np.shape(phases)), where=kept)
+    return from_phases(signs) * np.conj(turn)
 
 
 #: A phase current rebuilt from dq within this share of the current's size is taken as
@@ -253,7 +270,12 @@ def _phases(i_d: Number, i_q: Number, cos: Number, sin: Number) -> tuple[Number,
 
 def _settled(phases: Any, size: Any) -> Any:
     """``phases`` with those within :data:`ROUNDING` of ``size`` (the current's) set to 0."""
-    return np.where(np.abs(phases) > ROUNDING * size, phases, 0.0)
+    return np.where(_kept(phases, size), phases, 0.0)
+
+
+def _kept(phases: Any, size: Any) -> Any:
+    """Where ``phases`` are beyond :data:`ROUNDING` of ``size`` (the current's): not 0."""
+    return np.abs(phases) > ROUNDING * size
 
 
 def path_vector(

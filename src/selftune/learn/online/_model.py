@@ -150,10 +150,9 @@ class OnlineModel:
         rows[:, 3 * p : 3 * p + n] = data[2:, :n]
         if self.dead_time:
             # the signs of x_k and of x_(k-1), both at row k's angle: one call
-            twice = _twice(count)
-            signs = phase_signs(data[twice[0], :n], angles[twice[1]])
-            rows[:, 3 * p - 2 : 3 * p] = signs[:count]
-            rows[:, 2 * p - 2 : 2 * p] = signs[count:]
+            signs = phase_signs(data[_twice(count), :n], angles[1 : count + 1])
+            rows[:, 3 * p - 2 : 3 * p] = signs[0]
+            rows[:, 2 * p - 2 : 2 * p] = signs[1]
         # the transition before each: [zeta_(k-1)] and [z_(k-1), y_(k-1)]
         rows[:, :p] = self._rows[first - 1 : last - 1, p : 2 * p]
         rows[:, 3 * p + n :] = self._rows[first - 1 : last - 1, 2 * p : 3 * p + n]
@@ -257,10 +256,10 @@ class OnlineModel:
 
 @lru_cache(maxsize=8)
 def _twice(count: int) -> NDArray[np.intp]:
-    """Rows of a chunk's data for the signs of ``count`` transitions: ``x_k`` then
-    ``x_(k-1)`` (first row), both at row k's angle (second row)."""
+    """Rows of a chunk's data for the signs of ``count`` transitions: ``x_k`` (first row)
+    and ``x_(k-1)`` (second), both at row k's angle (the rotor's, computed once)."""
     now = np.arange(1, count + 1)
-    twice = np.array([np.concatenate([now, now - 1]), np.concatenate([now, now])])
+    twice = np.array([now, now - 1])
     twice.setflags(write=False)
     return twice
 
