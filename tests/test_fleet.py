@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
 import subprocess
 import sys
 import time
@@ -327,3 +328,22 @@ def test_the_serial_command_prints_and_writes_the_set(
         ["results.parquet", "results.csv", "summary.md", "fleet.png", "fleet.svg"]
     )
     assert json.loads(ResultsTable(out).columns(["K"])["K"][-1] or "[]") is not None
+
+
+def test_the_fleet_s_arrow_memory_comes_from_the_c_library() -> None:
+    """Arrow's default pool kept memory that grew with the table; a fleet asks for the C
+    library's allocator before pyarrow is imported (an environment's choice stays)."""
+    code = (
+        "from selftune.fleet._table import use_system_allocator\n"
+        "use_system_allocator()\n"
+        "import pyarrow\n"
+        "print(pyarrow.default_memory_pool().backend_name)\n"
+    )
+    environment = {k: v for k, v in os.environ.items() if k != "ARROW_DEFAULT_MEMORY_POOL"}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=environment, check=True)  # fmt: skip
+    assert done.stdout.strip() == "system"
+    chosen = {**environment, "ARROW_DEFAULT_MEMORY_POOL": "jemalloc"}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=chosen, check=True)  # fmt: skip
+    assert done.stdout.strip() == "jemalloc"

@@ -47,6 +47,9 @@ def fleet_command(
     from ..config import read_toml
     from ..core._atomic import check_output_directory
     from ..fleet import FLEET_OUTPUTS, find_jobs, fleet_client, require_extra, run_fleet
+    from ..fleet._table import use_system_allocator
+
+    use_system_allocator()  # before pyarrow is imported
 
     if serial:
         require_extra("pyarrow")

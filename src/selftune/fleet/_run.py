@@ -15,7 +15,7 @@ from ..core._atomic import check_output_directory
 from ._engine import map_in_order, progress_bar, require_extra, workers_count
 from ._jobs import LogJob, learn_row
 from ._summary import SUMMARY_COLUMNS, FleetSummary, summarize, summary_markdown, write_figure
-from ._table import ResultsTable
+from ._table import ResultsTable, use_system_allocator
 
 __all__ = ["FLEET_OUTPUTS", "FleetRun", "run_fleet"]
 
@@ -97,6 +97,7 @@ def run_fleet(
     InputError
         If ``out`` cannot take a fleet's output, or the extra ``fleet`` is not installed.
     """
+    use_system_allocator()
     require_extra("pyarrow")
     started = time.perf_counter()
     check_output_directory(out, FLEET_OUTPUTS, _WHAT)

@@ -20,6 +20,7 @@ import csv
 import heapq
 import math
 import os
+import sys
 from collections.abc import Iterator, Sequence
 from itertools import islice
 from pathlib import Path
@@ -28,7 +29,7 @@ from typing import Any
 from ..core._atomic import atomic_path
 from ..errors import DataFileError
 
-__all__ = ["RESULT_COLUMNS", "ResultsTable"]
+__all__ = ["RESULT_COLUMNS", "ResultsTable", "use_system_allocator"]
 
 #: The columns of the table, in order: name, type, unit and meaning.
 RESULT_COLUMNS: tuple[tuple[str, str, str, str], ...] = (
@@ -63,6 +64,25 @@ _NAMES = tuple(name for name, *_ in RESULT_COLUMNS)
 #: Rows read at once when the table is rewritten or converted, so that the memory those
 #: take does not grow with the table.
 READ_ROWS = 256
+
+
+#: The environment variable that chooses Arrow's allocator, read when pyarrow is first
+#: imported, and the allocator a fleet's client asks for.
+ARROW_POOL = ("ARROW_DEFAULT_MEMORY_POOL", "system")
+
+
+def use_system_allocator() -> None:
+    """Have Arrow take its memory from the C library's allocator, unless pyarrow is
+    already imported (then nothing changes) or the environment chooses one already.
+
+    Arrow's default pool (mimalloc) kept memory that grew with the table: with a 10 ms
+    stand-in for the learning that returns the rows of a real fleet, the client's peak
+    was 231, 243 and 252 MiB at 250, 1,000 and 3,000 logs; with the C library's
+    allocator, 222 and 226 MiB at 1,000 and 3,000 logs. Arrow's Parquet reader and writer
+    take its process-wide default pool, which only this variable chooses.
+    """
+    if "pyarrow" not in sys.modules:
+        os.environ.setdefault(*ARROW_POOL)
 
 
 def _schema() -> Any:
