@@ -62,6 +62,7 @@ from .evidence._alignment import (
 from .evidence._dead_time import direction_signs, phase_signs
 from .evidence._discrete_model import DiscreteModel, Transitions, fit_discrete_model
 from .evidence._evidence import ConsistencyTest, Evidence, gather_evidence
+from .evidence._incremental_structure import IncrementalStructure
 from .evidence._output_error import (
     IpmsmStructure,
     OutputErrorFit,
@@ -118,6 +119,7 @@ __all__ = [
     "DiscreteModel",
     "Evidence",
     "Formulation",
+    "IncrementalStructure",
     "IntervalMoments",
     "IpmsmStructure",
     "IterationRecord",

@@ -296,12 +296,14 @@ class LearningOptions:
         Upper bound on policy-iteration steps.
     tolerance : float
         Relative change of P at which policy iteration stops (at most 1e-3).
-    structure : {"none", "spmsm", "ipmsm"}
+    structure : {"none", "spmsm", "ipmsm", "incremental"}
         Identify-then-design only: fit every entry of the discrete model (``"none"``), or
         only a surface PMSM's R_s, L_s and flux at ``electrical_speed`` (the known-flux form,
         n = m = q = 2), which needs far less data for the same accuracy, or an interior
         PMSM's R_s, L_d, L_q and flux (the current-reference form ``w = [w_1, i_d*,
-        i_q*]``, q = 3; :class:`~selftune.learn.IpmsmStructure`).
+        i_q*]``, q = 3; :class:`~selftune.learn.IpmsmStructure`), or a saturating PMSM's
+        R_s, incremental inductance matrix and flux offset at the operating current (the
+        same form; :class:`~selftune.learn.IncrementalStructure`).
     voltage_hold : {"stationary", "rotor"}
         What the drive holds over a sample, for ``structure = "spmsm"``: the
         stationary-frame voltage vector (a PWM inverter, with the usual angle
@@ -338,7 +340,7 @@ class LearningOptions:
     interval: int = 10
     max_iterations: int = 50
     tolerance: float = 1e-9
-    structure: Literal["none", "spmsm", "ipmsm"] = "none"
+    structure: Literal["none", "spmsm", "ipmsm", "incremental"] = "none"
     voltage_hold: Literal["stationary", "rotor"] = "stationary"
     electrical_speed: float | None = None
     dead_time: bool = False
@@ -356,9 +358,10 @@ class LearningOptions:
         stated_shift(self.logged_input, delay)
         positive_integer(self.interval, "interval")
         check_iteration_settings(self.max_iterations, self.tolerance)
-        if self.structure not in ("none", "spmsm", "ipmsm"):
+        if self.structure not in ("none", "spmsm", "ipmsm", "incremental"):
             raise InputError(
-                f"structure: must be 'none', 'spmsm' or 'ipmsm', got {self.structure!r}"
+                "structure: must be 'none', 'spmsm', 'ipmsm' or 'incremental', got "
+                f"{self.structure!r}"
             )
         if self.voltage_hold not in ("stationary", "rotor"):
             raise InputError(

@@ -64,9 +64,11 @@ from ..data._trajectory import Trajectory
 from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
 from ._dead_time import DeadTimeChannels, DeadTimeModel, Switching, with_dead_time
 from ._discrete_model import DiscreteModel, lack_of_rank, regressor_names
+from ._incremental_structure import IncrementalStructure
 from ._model_signs import on_model_signs
 from ._output_error import (
     IpmsmStructure,
+    MotorStructure,
     OutputErrorFit,
     SpmsmStructure,
     fit_output_error,
@@ -327,8 +329,10 @@ def gather_evidence(
     structure = None
     if options.structure != "none":
         assert options.electrical_speed is not None
-        kind = SpmsmStructure if options.structure == "spmsm" else IpmsmStructure
-        structure = kind(
+        kinds: dict[str, type[MotorStructure]] = {
+            "spmsm": SpmsmStructure, "ipmsm": IpmsmStructure, "incremental": IncrementalStructure,
+        }  # fmt: skip
+        structure = kinds[options.structure](
             options.electrical_speed, alignment.model.h, options.dead_time, options.voltage_hold
         )
     precision, relative = log_precision(episodes)
@@ -374,7 +378,7 @@ def _check_fit(
     episodes: list[Trajectory],
     alignment: Alignment,
     tested: tuple[OutputErrorFit | None, ConsistencyTest],
-    structure: SpmsmStructure | IpmsmStructure | None,
+    structure: MotorStructure | None,
     resolution: float,
     dead_time: bool,
 ) -> None:

@@ -36,6 +36,7 @@ from ..data._trajectory import Trajectory
 from . import _propagation
 from ._alignment import applied_inputs
 from ._discrete_model import DiscreteModel
+from ._incremental_structure import IncrementalStructure
 from ._ipmsm_structure import IpmsmStructure
 from ._propagation import (
     _chained,
@@ -62,8 +63,8 @@ __all__ = [
 #: A structure maps physical parameters to ``(Ad, Bd, Ed)``.
 Structure = Callable[[Array], tuple[Array, Array, Array]]
 
-#: A PMSM's structure: the surface motor's or the interior one's.
-MotorStructure = SpmsmStructure | IpmsmStructure
+#: A PMSM's structure: the surface motor's, the interior one's, or the incremental one.
+MotorStructure = SpmsmStructure | IpmsmStructure | IncrementalStructure
 
 
 def _logs(episodes: Sequence[Trajectory], shift: int) -> list[_Log]:

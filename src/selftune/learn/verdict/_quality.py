@@ -134,7 +134,15 @@ class MotorEstimate:
         unless the dead time is modelled.
     L_d, L_d_se, L_q, L_q_se : float or None
         An interior motor's inductances and their standard errors, H (``structure =
-        "ipmsm"``; None for a surface one).
+        "ipmsm"``; None for a surface one); with ``structure = "incremental"`` the
+        incremental ``L_dd`` and ``L_qq`` at the operating current.
+    L_dq, L_dq_se : float or None
+        The incremental cross-saturation inductance ``d psi_d / d i_q = d psi_q / d i_d``
+        at the operating current and its standard error, H (``structure =
+        "incremental"``; else None). ``phi_pm`` is then the offset's d component.
+    phi_q, phi_q_se : float or None
+        The flux offset's q component ``psi_q(i0) - L_qd i_d0 - L_qq i_q0`` and its
+        standard error, Wb (``structure = "incremental"``; else None).
     """
 
     R_s: float
@@ -149,15 +157,21 @@ class MotorEstimate:
     L_d_se: float | None = None
     L_q: float | None = None
     L_q_se: float | None = None
+    L_dq: float | None = None
+    L_dq_se: float | None = None
+    phi_q: float | None = None
+    phi_q_se: float | None = None
 
     def text(self) -> str:
         """The parameters with their standard errors in one line."""
         parts = [f"R_s = {self.R_s:.6g} +- {self.R_s_se:.2g} ohm"]
-        for name in ("L_s", "L_d", "L_q"):
+        for name in ("L_s", "L_d", "L_q", "L_dq"):
             value, se = getattr(self, name), getattr(self, f"{name}_se")
             if value is not None:
                 parts.append(f"{name} = {value:.6g} +- {se:.2g} H")
         parts.append(f"phi_pm = {self.phi_pm:.6g} +- {self.phi_pm_se:.2g} Wb")
+        if self.phi_q is not None:
+            parts.append(f"phi_q = {self.phi_q:.6g} +- {self.phi_q_se:.2g} Wb")
         return ", ".join(parts)
 
 

@@ -282,7 +282,9 @@ def motor_estimate(evidence: Evidence) -> MotorEstimate | None:
         phi_pm=values["kappa"] * flux, phi_pm_se=errors["kappa"] * abs(flux),
         v=values.get("v"), v_se=errors.get("v"),
         L_d=values.get("L_d"), L_d_se=errors.get("L_d"), L_q=values.get("L_q"),
-        L_q_se=errors.get("L_q"),
+        L_q_se=errors.get("L_q"), L_dq=values.get("L_dq"), L_dq_se=errors.get("L_dq"),
+        phi_q=None if "kappa_q" not in values else values["kappa_q"] * flux,
+        phi_q_se=None if "kappa_q" not in errors else errors["kappa_q"] * abs(flux),
     )  # fmt: skip
 
 
