@@ -14,18 +14,22 @@ import it (an import contract checks that); the learners see only sampled data.
 - :func:`solve_digital_regulation`: the optimal digital controller of the sampled loop
   with a computation delay (:mod:`._digital`), with integral action if asked;
 - :func:`design_schedule`: that optimum on a grid of speeds, as a :class:`SpeedSchedule`
-  a drive interpolates linearly, checked between the grid speeds (:mod:`._schedule_design`).
+  a drive interpolates linearly, checked between the grid speeds (:mod:`._schedule_design`);
+- :func:`design_current_schedule`: a saturating motor's optimum on a grid of q-axis
+  current references, as a :class:`CurrentSchedule`, by the same refinement.
 """
 
 from __future__ import annotations
 
 from ..core import lqr, policy_value
+from ._current_schedule import CurrentScheduleDesign, design_current_schedule
 from ._digital import DigitalCost, solve_digital_regulation
 from ._ipmsm import IPMSM, motor_from_parameters
 from ._motor import SPMSM
 from ._optimum import ModelBasedSolution, solve_optimal_regulation
 from ._problem import RegulationProblem
-from ._schedule import SpeedSchedule
+from ._refine import excess_over
+from ._schedule import CurrentSchedule, GainSchedule, SpeedSchedule
 from ._schedule_design import (
     EXCESS,
     FINE_POINTS,
@@ -46,7 +50,10 @@ __all__ = [
     "FINE_POINTS",
     "IPMSM",
     "SPMSM",
+    "CurrentSchedule",
+    "CurrentScheduleDesign",
     "DigitalCost",
+    "GainSchedule",
     "ModelBasedSolution",
     "Motor",
     "RegulationProblem",
@@ -56,7 +63,9 @@ __all__ = [
     "SpeedSchedule",
     "bandwidth",
     "check_covered",
+    "design_current_schedule",
     "design_schedule",
+    "excess_over",
     "lqr",
     "motor_from_parameters",
     "policy_value",

@@ -5,12 +5,18 @@ interpolates ``K``, ``K_i``, ``U`` and ``X`` entrywise, linearly between the two
 neighbours of the speed it runs at (:meth:`SpeedSchedule.law_at`); it refuses a speed
 outside the grid (a firmware clamps there instead: :mod:`selftune.report._firmware`).
 The design of such a schedule is :func:`~selftune.model.design_schedule`.
+
+A saturating motor's law changes with its load instead (its incremental inductances move
+with the current): :class:`CurrentSchedule` is the same table over the q-axis current
+reference ``i_q*`` (A), designed by :func:`~selftune.model.design_current_schedule`. The
+interpolation and its checks are :class:`GainSchedule`'s, one for both.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -18,7 +24,7 @@ from numpy.typing import ArrayLike
 from ..core import Array, ControlLaw, finite_float
 from ..errors import InputError
 
-__all__ = ["SpeedSchedule"]
+__all__ = ["CurrentSchedule", "GainSchedule", "SpeedSchedule"]
 
 
 def _same(laws: Sequence[ControlLaw]) -> None:
@@ -40,52 +46,63 @@ def _same(laws: Sequence[ControlLaw]) -> None:
 
 
 @dataclass(frozen=True, init=False, eq=False)
-class SpeedSchedule:
-    """Control laws at a grid of electrical speeds, interpolated linearly between them.
+class GainSchedule:
+    """Control laws at a grid of a scheduling variable, interpolated linearly between
+    them: what :class:`SpeedSchedule` and :class:`CurrentSchedule` share (each names its
+    variable and unit in its messages).
 
     Parameters
     ----------
-    electrical_speed : array_like, shape (g,)
-        The grid, rad/s (electrical), strictly increasing, at least two speeds.
+    grid : array_like, shape (g,)
+        The grid, strictly increasing, at least two points.
     laws : sequence of ControlLaw
-        The law at each grid speed: the same structure, ``C``, ``F`` and ``h``.
+        The law at each grid point: the same structure, ``C``, ``F`` and ``h``.
 
     Raises
     ------
     InputError
-        If the grid is not strictly increasing finite numbers, has fewer than two speeds,
+        If the grid is not strictly increasing finite numbers, has fewer than two points,
         or the laws do not fit it or each other.
     """
 
-    electrical_speed: Array
+    grid: Array
     laws: tuple[ControlLaw, ...]
     _tables: dict[str, Array] = field(repr=False, compare=False)
 
-    def __init__(self, electrical_speed: ArrayLike, laws: Sequence[ControlLaw]) -> None:
-        grid = np.asarray(electrical_speed, dtype=float)
-        if grid.ndim != 1 or grid.size < 2 or not np.all(np.isfinite(grid)):
+    #: The variable's name (the argument the messages name).
+    variable: ClassVar[str] = "grid"
+    #: What one point of the grid is, and many.
+    point: ClassVar[str] = "point"
+    points: ClassVar[str] = "points"
+    #: The unit, and what follows the covered range in the refusal.
+    unit: ClassVar[str] = ""
+    frame: ClassVar[str] = ""
+
+    def __init__(self, grid: ArrayLike, laws: Sequence[ControlLaw]) -> None:
+        values = np.asarray(grid, dtype=float)
+        if values.ndim != 1 or values.size < 2 or not np.all(np.isfinite(values)):
             raise InputError(
-                f"electrical_speed: needs at least two finite speeds, got {electrical_speed!r}"
+                f"{self.variable}: needs at least two finite {self.points}, got {grid!r}"
             )
-        if not np.all(np.diff(grid) > 0.0):
-            raise InputError(f"electrical_speed: must increase strictly, got {grid.tolist()}")
-        if len(laws) != grid.size:
-            raise InputError(f"laws: {len(laws)} laws for {grid.size} speeds")
+        if not np.all(np.diff(values) > 0.0):
+            raise InputError(f"{self.variable}: must increase strictly, got {values.tolist()}")
+        if len(laws) != values.size:
+            raise InputError(f"laws: {len(laws)} laws for {values.size} {self.points}")
         _same(laws)
-        grid.setflags(write=False)
+        values.setflags(write=False)
         tables = {
             name: np.array([getattr(law, name) for law in laws])
             for name in ("K", "X", "U", "K_i")
             if getattr(laws[0], name) is not None
         }
-        object.__setattr__(self, "electrical_speed", grid)
+        object.__setattr__(self, "grid", values)
         object.__setattr__(self, "laws", tuple(laws))
         object.__setattr__(self, "_tables", tables)
 
     @property
     def covered(self) -> tuple[float, float]:
-        """The speeds the schedule covers, rad/s (electrical): its first and last."""
-        return float(self.electrical_speed[0]), float(self.electrical_speed[-1])
+        """The range the schedule covers: its first and last grid point."""
+        return float(self.grid[0]), float(self.grid[-1])
 
     def table(self, name: str) -> Array:
         """One matrix over the grid, shape ``(g, rows, columns)``.
@@ -104,31 +121,31 @@ class SpeedSchedule:
             raise InputError(f"name: the schedule has no table {name!r}")
         return self._tables[name]
 
-    def law_at(self, electrical_speed: float) -> ControlLaw:
-        """The law the firmware runs at ``electrical_speed``: each matrix interpolated
-        linearly between the two neighbouring grid speeds (the grid's own law on a grid
-        speed).
+    def law_at(self, value: float) -> ControlLaw:
+        """The law the firmware runs at ``value``: each matrix interpolated linearly
+        between the two neighbouring grid points (the grid's own law on a grid point).
 
         Parameters
         ----------
-        electrical_speed : float
-            rad/s (electrical), within :attr:`covered`.
+        value : float
+            The scheduling variable, within :attr:`covered`.
 
         Raises
         ------
         InputError
-            If the speed is outside the grid (naming it and the covered range).
+            If the value is outside the grid (naming it and the covered range).
         """
-        speed = finite_float(electrical_speed, "electrical_speed")
+        at = finite_float(value, self.variable)
         low, high = self.covered
-        if not low <= speed <= high:
+        if not low <= at <= high:
             raise InputError(
-                f"electrical_speed: {speed:g} rad/s is outside the schedule, which covers "
-                f"{low:g} to {high:g} rad/s (electrical); the data do not cover that speed"
+                f"{self.variable}: {at:g} {self.unit} is outside the schedule, which covers "
+                f"{low:g} to {high:g} {self.unit}{self.frame}; the data do not cover that "
+                f"{self.point}"
             )
-        grid = self.electrical_speed
-        index = min(int(np.searchsorted(grid, speed, side="right")) - 1, grid.size - 2)
-        share = (speed - grid[index]) / (grid[index + 1] - grid[index])
+        grid = self.grid
+        index = min(int(np.searchsorted(grid, at, side="right")) - 1, grid.size - 2)
+        share = (at - grid[index]) / (grid[index + 1] - grid[index])
         if share == 0.0:
             return self.laws[index]
         if share == 1.0:
@@ -143,6 +160,54 @@ class SpeedSchedule:
             first.C, first.F, first.h,
         )  # fmt: skip
 
+
+@dataclass(frozen=True, init=False, eq=False)
+class SpeedSchedule(GainSchedule):
+    """Control laws at a grid of electrical speeds, interpolated linearly between them.
+
+    Parameters
+    ----------
+    electrical_speed : array_like, shape (g,)
+        The grid, rad/s (electrical), strictly increasing, at least two speeds.
+    laws : sequence of ControlLaw
+        The law at each grid speed: the same structure, ``C``, ``F`` and ``h``.
+
+    Raises
+    ------
+    InputError
+        If the grid is not strictly increasing finite numbers, has fewer than two speeds,
+        or the laws do not fit it or each other.
+    """
+
+    variable: ClassVar[str] = "electrical_speed"
+    point: ClassVar[str] = "speed"
+    points: ClassVar[str] = "speeds"
+    unit: ClassVar[str] = "rad/s"
+    frame: ClassVar[str] = " (electrical)"
+
+    def __init__(self, electrical_speed: ArrayLike, laws: Sequence[ControlLaw]) -> None:
+        super().__init__(electrical_speed, laws)
+
+    @property
+    def electrical_speed(self) -> Array:
+        """The grid, rad/s (electrical)."""
+        return self.grid
+
+    def law_at(self, electrical_speed: float) -> ControlLaw:
+        """The law the firmware runs at ``electrical_speed`` (:meth:`GainSchedule.law_at`).
+
+        Parameters
+        ----------
+        electrical_speed : float
+            rad/s (electrical), within :attr:`covered`.
+
+        Raises
+        ------
+        InputError
+            If the speed is outside the grid (naming it and the covered range).
+        """
+        return super().law_at(electrical_speed)
+
     def document(self) -> dict[str, object]:
         """The schedule for a JSON result: ``electrical_speed`` (rad/s) and, per speed,
         ``K``, ``K_i`` (null without integral action), ``U``, ``X`` in the convention of
@@ -150,7 +215,7 @@ class SpeedSchedule:
         ``history``, ``C``, ``F``, ``h``, ``state``, ``equations``."""
         first = self.laws[0]
         return {
-            "electrical_speed": self.electrical_speed,
+            "electrical_speed": self.grid,
             "K": self._tables["K"],
             "K_i": self._tables.get("K_i"),
             "U": self._tables["U"],
@@ -163,3 +228,38 @@ class SpeedSchedule:
             "equations": first.equations() + "; each matrix linear in omega_e between "
             "neighbouring speeds of electrical_speed",
         }
+
+
+@dataclass(frozen=True, init=False, eq=False)
+class CurrentSchedule(GainSchedule):
+    """Control laws at a grid of q-axis current references ``i_q*`` (A), interpolated
+    linearly between them: a saturating motor's law over its load
+    (:func:`~selftune.model.design_current_schedule`).
+
+    Parameters
+    ----------
+    current : array_like, shape (g,)
+        The grid of ``i_q*``, A, strictly increasing, at least two currents.
+    laws : sequence of ControlLaw
+        The law at each grid current: the same structure, ``C``, ``F`` and ``h``.
+
+    Raises
+    ------
+    InputError
+        If the grid is not strictly increasing finite numbers, has fewer than two
+        currents, or the laws do not fit it or each other.
+    """
+
+    variable: ClassVar[str] = "current"
+    point: ClassVar[str] = "current"
+    points: ClassVar[str] = "currents"
+    unit: ClassVar[str] = "A"
+    frame: ClassVar[str] = " (i_q*)"
+
+    def __init__(self, current: ArrayLike, laws: Sequence[ControlLaw]) -> None:
+        super().__init__(current, laws)
+
+    @property
+    def current(self) -> Array:
+        """The grid of ``i_q*``, A."""
+        return self.grid

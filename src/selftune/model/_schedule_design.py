@@ -28,24 +28,39 @@ names the interval). Speeds are rad/s: the motor's methods take the mechanical s
 schedule is over the electrical speed. The motor is any object with ``p``,
 ``regulation_problem(speed)`` and ``sampled_plant(speed, h, hold)``
 (:class:`ScheduledMotor`), whatever its number q of reference channels.
+
+The refinement is :func:`refine_grid`, over any scheduling variable: the speed here,
+and a saturating motor's q-axis current reference in :func:`design_current_schedule`
+(the plant at a current given by the caller, e.g. identified incremental models
+interpolated between the currents they were learned at).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from itertools import pairwise
 from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from ..core import Array, ControlLaw, positive_finite, positive_integer
-from ..errors import InputError, UnsolvableError
+from ..errors import InputError
 from ..loop import Hold, SampledLoop
 from ._digital import solve_digital_regulation
 from ._optimum import ModelBasedSolution
 from ._problem import RegulationProblem
+from ._refine import (
+    EXCESS,
+    FEEDFORWARD_ERROR,
+    FINE_POINTS,
+    MARGIN_FRACTION,
+    MAX_POINTS,
+    ScheduleCheck,
+    excess_over,
+    refine_grid,
+    worst_excess,
+)
 from ._schedule import SpeedSchedule
 
 __all__ = [
@@ -63,23 +78,6 @@ __all__ = [
     "design_schedule",
     "worst_excess",
 ]
-
-#: The largest excess cost of the interpolated schedule over the pointwise digital
-#: optimum at any speed of the fine grid (0.01: 1%).
-EXCESS = 0.01
-
-#: Speeds checked strictly between each pair of neighbouring grid speeds.
-FINE_POINTS = 50
-
-#: The stability margin: the interpolated loop's ``1 - rho`` (rho its spectral radius)
-#: at least this share of the pointwise optimum's.
-MARGIN_FRACTION = 0.9
-
-#: The largest relative error (Frobenius norm) of the interpolated ``U`` and ``X``.
-FEEDFORWARD_ERROR = 0.01
-
-#: The most grid speeds a schedule may need before the design gives up.
-MAX_POINTS = 65
 
 
 class ScheduledMotor(Protocol):
@@ -113,78 +111,6 @@ class ScheduledMotor(Protocol):
             What the drive holds over a sample.
         """
         ...
-
-
-def worst_excess(P: Array, P_optimal: Array) -> Array:
-    """The excess cost of a loop's value ``P`` over the optimum's ``P*`` for the worst
-    initial state: ``max_zeta zeta' P zeta / zeta' P* zeta - 1``, the largest eigenvalue
-    of ``P*^-1 P`` minus 1 (``inf`` where ``P`` is).
-
-    Parameters
-    ----------
-    P : ndarray, shape (..., nz, nz)
-        The values of a law (from :meth:`~selftune.loop.SampledLoop.values`).
-    P_optimal : ndarray, shape (..., nz, nz)
-        The optimal values, positive definite.
-
-    Returns
-    -------
-    ndarray, shape (...)
-    """
-    P_, optimal = np.asarray(P, dtype=float), np.asarray(P_optimal, dtype=float)
-    finite = np.all(np.isfinite(P_), axis=(-2, -1))
-    lower = np.linalg.cholesky(0.5 * (optimal + np.swapaxes(optimal, -1, -2)))
-    safe = np.where(finite[..., None, None], P_, optimal)
-    half = np.linalg.solve(lower, safe)
-    whitened = np.linalg.solve(lower, np.swapaxes(half, -1, -2))
-    largest = np.linalg.eigvalsh(0.5 * (whitened + np.swapaxes(whitened, -1, -2)))[..., -1]
-    return np.asarray(np.where(finite, largest - 1.0, np.inf), dtype=float)
-
-
-@dataclass(frozen=True, eq=False)
-class ScheduleCheck:
-    """The interpolated schedule against the pointwise optimum on the fine grid.
-
-    Attributes
-    ----------
-    electrical_speed : ndarray, shape (k,)
-        The fine speeds, rad/s (electrical), between the grid speeds.
-    excess : ndarray, shape (k,)
-        The interpolated law's excess cost over the optimum (:func:`worst_excess`).
-    radius : ndarray, shape (k,)
-        The interpolated loop's spectral radius rho.
-    optimal_radius : ndarray, shape (k,)
-        The optimum's.
-    feedforward_error : ndarray, shape (k,)
-        The larger relative error of the interpolated ``U`` and ``X``.
-    optima : tuple of ModelBasedSolution
-        The pointwise optimum at each fine speed.
-    limit : float
-        The largest excess cost allowed (:data:`EXCESS` by default).
-    """
-
-    electrical_speed: Array
-    excess: Array
-    radius: Array
-    optimal_radius: Array
-    feedforward_error: Array
-    optima: tuple[ModelBasedSolution, ...] = field(repr=False)
-    limit: float = EXCESS
-
-    @property
-    def passed(self) -> Array:
-        """Whether each fine speed meets :attr:`limit`, :data:`MARGIN_FRACTION` and
-        :data:`FEEDFORWARD_ERROR`."""
-        return np.asarray(
-            (self.excess <= self.limit)
-            & (1.0 - self.radius >= MARGIN_FRACTION * (1.0 - self.optimal_radius))
-            & (self.feedforward_error <= FEEDFORWARD_ERROR)
-        )
-
-    @property
-    def worst(self) -> int:
-        """The index of the fine speed with the largest excess cost."""
-        return int(np.argmax(self.excess))
 
 
 @dataclass(frozen=True, eq=False)
@@ -259,20 +185,10 @@ class ScheduleDesign:
         law : ControlLaw or SpeedSchedule
             The law or the schedule (the loop's delay and integrator).
         """
-        optima = self.check.optima
-        plants = [optimum.sampled_plant[:2] for optimum in optima]
-        weights = self.loop.weights(optima[0].Q, optima[0].R, "digital")
         laws: ControlLaw | list[ControlLaw] = law if isinstance(law, ControlLaw) else [
             law.law_at(float(speed)) for speed in self.check.electrical_speed
         ]  # fmt: skip
-        values, _ = self.loop.values(plants, laws, weights)
-        return worst_excess(values, np.array([optimum.P for optimum in optima]))
-
-
-def _relative(error: Array, reference: Array) -> Array:
-    """Frobenius norms of ``error`` over those of ``reference`` (stacks)."""
-    scale = np.linalg.norm(reference, axis=(-2, -1))
-    return np.asarray(np.linalg.norm(error, axis=(-2, -1)) / np.maximum(scale, 1e-300))
+        return excess_over(self.check.optima, laws)
 
 
 def bandwidth(radius: ArrayLike, h: float) -> Array:
@@ -290,56 +206,6 @@ def bandwidth(radius: ArrayLike, h: float) -> Array:
     with np.errstate(divide="ignore"):
         rates = -np.log(np.clip(radii, 1e-300, 1.0)) / h
     return np.asarray(np.where(radii < 1.0, rates, 0.0))
-
-
-def _check_interval(
-    design: _Design, schedule: SpeedSchedule, low: float, high: float, points: int, limit: float
-) -> ScheduleCheck:
-    """The check at ``points`` speeds strictly between ``low`` and ``high``."""
-    speeds = np.linspace(low, high, points + 2)[1:-1]
-    optima = tuple(design.optimum(float(speed)) for speed in speeds)
-    laws = [schedule.law_at(float(speed)) for speed in speeds]
-    loop = optima[0].loop
-    plants = [optimum.sampled_plant[:2] for optimum in optima]
-    weights = loop.weights(design.Q, design.R, "digital")
-    values, radii = loop.values(plants, laws, weights)
-    excess = worst_excess(values, np.array([optimum.P for optimum in optima]))
-    pairs = zip(plants, optima, strict=True)
-    optimal_radii = np.array([loop.spectral_radius(plant, optimum.law) for plant, optimum in pairs])
-    feedforward = np.maximum(
-        _relative(
-            np.array([law.U for law in laws]) - np.array([o.U for o in optima]),
-            np.array([o.U for o in optima]),
-        ),
-        _relative(
-            np.array([law.X for law in laws]) - np.array([o.X for o in optima]),
-            np.array([o.X for o in optima]),
-        ),
-    )
-    return ScheduleCheck(
-        electrical_speed=speeds,
-        excess=excess,
-        radius=np.asarray(radii, dtype=float),
-        optimal_radius=optimal_radii,
-        feedforward_error=feedforward,
-        optima=optima,
-        limit=limit,
-    )
-
-
-def _joined(checks: Sequence[ScheduleCheck]) -> ScheduleCheck:
-    """The checks of consecutive intervals as one."""
-    arrays = {
-        name: np.concatenate([getattr(check, name) for check in checks])
-        for name in (
-            "electrical_speed", "excess", "radius", "optimal_radius", "feedforward_error",
-        )
-    }  # fmt: skip
-    return ScheduleCheck(
-        **arrays,
-        optima=tuple(optimum for check in checks for optimum in check.optima),
-        limit=checks[0].limit,
-    )
 
 
 def _grid(speeds: ArrayLike, p: int) -> Array:
@@ -457,42 +323,17 @@ def design_schedule(
         motor, np.asarray(Q, float), np.asarray(R, float), h, input_delay,
         None if integral_weight is None else np.asarray(integral_weight, float), hold,
     )  # fmt: skip
-    optima = {speed: design.optimum(speed) for speed in grid}
-    checks: dict[tuple[float, float], ScheduleCheck] = {}
-    added: list[float] = []
-    while True:
-        schedule = SpeedSchedule(grid, [optima[speed].law for speed in grid])
-        failing = None
-        for low, high in pairwise(grid):
-            if (low, high) not in checks:
-                checks[(low, high)] = _check_interval(design, schedule, low, high, points, allowed)
-            if failing is None and not np.all(checks[(low, high)].passed):
-                failing = (low, high)
-        if failing is None:
-            break
-        low, high = failing
-        check = checks.pop(failing)
-        if len(grid) >= limit:
-            margin = (1.0 - check.radius) / (1.0 - check.optimal_radius)
-            raise UnsolvableError(
-                f"speeds: the schedule needs more than max_points = {limit} speeds: between "
-                f"{low:g} and {high:g} rad/s (electrical) the interpolated law still has an "
-                f"excess cost up to {np.max(check.excess):.3g} (limit {allowed:g}), 1 - rho "
-                f"down to {np.min(margin):.3g} of the optimum's (limit {MARGIN_FRACTION:g}) "
-                f"and a feedforward error up to {np.max(check.feedforward_error):.3g} "
-                f"(limit {FEEDFORWARD_ERROR:g})"
-            )
-        middle = 0.5 * (low + high)
-        optima[middle] = design.optimum(middle)
-        grid = sorted([*grid, middle])
-        added.append(middle)
-    intervals = pairwise(grid)
+    refined = refine_grid(
+        design.optimum, grid, SpeedSchedule, name="speeds", points=points, excess=allowed,
+        max_points=limit,
+    )  # fmt: skip
+    assert isinstance(refined.schedule, SpeedSchedule)
     return ScheduleDesign(
-        schedule=schedule,
-        optima=tuple(optima[speed] for speed in grid),
-        check=_joined([checks[interval] for interval in intervals]),
-        added=tuple(added),
-        loop=optima[grid[0]].loop,
+        schedule=refined.schedule,
+        optima=refined.optima,
+        check=refined.check,
+        added=refined.added,
+        loop=refined.optima[0].loop,
         hold=hold,
         _design=design,
     )
