@@ -11,7 +11,9 @@ returns. The model-based comparison (:func:`selftune.report.evaluate`) lives els
 - :func:`run_algorithm`: a session on a simulated motor, by name;
 - :func:`commission_interior`: an interior motor identified at one speed;
   :func:`commission_ramp`: a motor identified from a log over several held speeds, and
-  the speeds it covers (:mod:`._ramp`).
+  the speeds it covers (:mod:`._ramp`);
+- :func:`commission_over_current`: a saturating motor's incremental model learned at
+  several current levels and its law scheduled over the current (:mod:`._saturation`).
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from ._online import (
 from ._onpolicy import algorithm1, algorithm2, algorithm3
 from ._ramp import RampCommissioning, commission_ramp
 from ._results import TuningIteration, TuningResult
+from ._saturation import CurrentCommissioning, CurrentLevel, commission_over_current
 from ._session import ALGORITHMS, AlgorithmName, run_algorithm
 from ._settings import TUNING_KEYS, Perturbation, TuningSettings, tuning_settings
 
@@ -52,6 +55,8 @@ __all__ = [
     "TORQUE_LEVELS",
     "TUNING_KEYS",
     "AlgorithmName",
+    "CurrentCommissioning",
+    "CurrentLevel",
     "Drive",
     "InteriorCommissioning",
     "OnlineRun",
@@ -65,6 +70,7 @@ __all__ = [
     "algorithm2",
     "algorithm3",
     "commission_interior",
+    "commission_over_current",
     "commission_ramp",
     "follow",
     "known_flux_form",

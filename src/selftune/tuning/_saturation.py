@@ -1,0 +1,340 @@
+"""A saturating PM motor commissioned over its load: its incremental model learned at
+several current levels, the digital optimum designed at each and scheduled over the
+q-axis current reference.
+
+A saturating motor's incremental inductances move with its current (its q-axis one
+falls by 20-40 % from no load to rated on many machines), so a law designed at one
+current is not the optimum at another. At each level (a share of rated torque, its
+current reference ``i* = [i_d*, i_q*]`` the nameplate motor's MTPA, which the engineer
+knows) one log holds the references at ``i*`` plus small steps
+(:data:`STEP_SHARE` of the rated q current, each axis with its own dwell, as
+:func:`~._interior.current_steps` does) under the nameplate motor's digital optimum
+(it tracks ``i*``, so the currents stay about the operating point), with the settings'
+exploration. The first :data:`SETTLE` s (the climb from rest through the saturation) are
+cut off, and the rest is learned by identify-then-design with the incremental structure
+(``structure = "incremental"``, :class:`~selftune.learn.IncrementalStructure`): ``R_s``,
+the incremental ``L_dd``, ``L_qq``, ``L_dq`` and the flux offset at the operating
+current, with their standard errors and the verdict.
+
+The schedule is over ``i_q*`` (A): where the identified ``L_dd``, ``L_qq`` or ``L_dq`` of
+two neighbouring levels differ by more than :data:`INDUCTANCE_MOVE` of the larger
+diagonal inductance, a level is learned between them (up to :data:`MAX_LEVELS`). Then
+:func:`~selftune.model.design_current_schedule` designs the optimum at each level's
+identified model and checks the interpolated law on a fine grid between the levels
+against the pointwise optimum of the identified models interpolated linearly in ``i_q*``
+(refining the grid by bisection there).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from itertools import pairwise
+
+import numpy as np
+
+from ..core import Array
+from ..errors import SelftuneError
+from ..learn import IncrementalStructure, LearnedController, LearningProblem, learn_controller
+from ..learn._speeds import _part
+from ..model import (
+    IPMSM,
+    CurrentScheduleDesign,
+    RegulationProblem,
+    design_current_schedule,
+    solve_digital_regulation,
+)
+from ..sim import DriveSettings, RealisticDrive, Saturation, held, uniform
+from ._interior import CURRENT_REFERENCE_F, D_DWELL
+from ._knowledge import STEP_DWELL, STEP_LEVELS
+from ._learning import learning_options
+from ._settings import TuningSettings
+
+__all__ = [
+    "INDUCTANCE_MOVE",
+    "LEVEL_ATTEMPTS",
+    "MAX_LEVELS",
+    "SETTLE",
+    "STEP_SHARE",
+    "CurrentCommissioning",
+    "CurrentLevel",
+    "commission_over_current",
+    "incremental_theta",
+    "learn_level",
+]
+
+#: The steps about each level's current reference, a share of the rated q current: small
+#: enough that the incremental model holds over them, large enough that the dead-time
+#: model's signs hold at the lowest level. On the 2/6 mH study motor (docs/saturation.md)
+#: 3 % steps were refused at 10 % of rated current by the structure's likelihood-ratio
+#: test or the consistency test on 2 of 3 seeds, with or without saturation (the dead
+#: time's 2 V dominate the small steps' voltages); 8 % steps learned every level of 10 %
+#: to 100 %, the inductances within 1.8 standard errors of the truth at the mean current.
+STEP_SHARE = 0.08
+
+#: The start of each level's log that is not learned, s: the climb from rest to the
+#: operating current crosses the saturation's knee, which no one linear model explains.
+SETTLE = 0.05
+
+#: A level is learned between two neighbours whose identified incremental inductances
+#: (``L_dd``, ``L_qq``, ``L_dq``) differ by more than this share of the larger diagonal
+#: inductance. 5 %: the digital optimum's gains move about in proportion to the
+#: inductances, and a law whose plant's inductance is off by 5 % costs about 0.1-0.3 %
+#: more than the optimum (the excess is quadratic in the error), so the linear
+#: interpolation between levels stays well inside the 2 % target; the design's own check
+#: then refines the grid between the levels if the interpolation of the gains needs it.
+INDUCTANCE_MOVE = 0.05
+
+#: The most levels learned (the initial ones and those added).
+MAX_LEVELS = 9
+
+#: The logs a level may take: a level whose log the learner refuses is logged again
+#: with the next seed (as an engineer reruns a refused experiment), the refusals kept
+#: in :attr:`CurrentCommissioning.refusals`. At 10 % of rated current the hardware-like
+#: drive's dead time makes the structure's likelihood-ratio test refuse some logs with or
+#: without saturation (docs/saturation.md).
+LEVEL_ATTEMPTS = 3
+
+
+@dataclass(frozen=True)
+class CurrentLevel:
+    """A level learned: its reference, the identified incremental model, the law.
+
+    Attributes
+    ----------
+    share : float
+        The share of rated torque.
+    reference : ndarray, shape (2,)
+        ``[i_d*, i_q*]``, A (the nameplate motor's MTPA at that torque).
+    theta : ndarray, shape (6,)
+        ``[R_s, L_dd, L_qq, L_dq, kappa, kappa_q]`` identified (ohm, H, H, H, -, -).
+    standard_errors : ndarray, shape (6,)
+        Their standard errors.
+    mean_current : ndarray, shape (2,)
+        The log's mean ``[i_d, i_q]`` over the learned part, A (the operating current).
+    learned : LearnedController
+        The law designed on the level's identified model, with its verdict.
+    """
+
+    share: float
+    reference: Array
+    theta: Array
+    standard_errors: Array
+    mean_current: Array
+    learned: LearnedController
+
+    @property
+    def inductances(self) -> Array:
+        """``[L_dd, L_qq, L_dq]``, H."""
+        return self.theta[1:4]
+
+
+@dataclass(frozen=True)
+class CurrentCommissioning:
+    """A saturating motor commissioned over its load.
+
+    Attributes
+    ----------
+    levels : tuple of CurrentLevel
+        The levels learned, by rising ``i_q*``.
+    design : CurrentScheduleDesign
+        The schedule over ``i_q*`` (A) and its check.
+    integral_weight : ndarray, shape (2, 2), or None
+        The integral weight the learner and the design used (None without integral
+        action).
+    refusals : tuple of (float, str)
+        The logs refused and logged again: the level (share of rated torque) and the
+        learner's message.
+    """
+
+    levels: tuple[CurrentLevel, ...]
+    design: CurrentScheduleDesign
+    integral_weight: Array | None
+    refusals: tuple[tuple[float, str], ...] = ()
+
+
+def incremental_theta(saturation: Saturation, R_s: float, current: Array, flux: float) -> Array:
+    """The incremental structure's parameters of a saturation model at a current:
+    ``L = d psi / d i`` there and the offset ``c = psi(i0) - L i0`` over ``flux``
+    (the flux the reference channel assumes), the truth a level's fit estimates.
+
+    Parameters
+    ----------
+    saturation : SaturationModel or FluxMap
+        The flux linkages.
+    R_s : float
+        ohm.
+    current : ndarray, shape (2,)
+        ``[i_d, i_q]``, A.
+    flux : float
+        ``phi_assumed``, Wb.
+    """
+    L = saturation.incremental(current[0], current[1])
+    psi = np.array(saturation.flux(current[0], current[1]), dtype=float)
+    offset = psi - L @ np.asarray(current, dtype=float)
+    return np.array([R_s, L[0, 0], L[1, 1], L[0, 1], offset[0] / flux, offset[1] / flux])
+
+
+def learn_level(
+    motor: IPMSM,
+    saturation: Saturation,
+    settings: TuningSettings,
+    drive: DriveSettings,
+    share: float,
+    *,
+    seconds: float = 0.4,
+    seed: int = 0,
+) -> CurrentLevel:
+    """One level learned (see the module docstring).
+
+    Parameters
+    ----------
+    motor : IPMSM
+        The nameplate motor (its R_s and p are the drive's; its L_d, L_q, flux what the
+        engineer knows; a surface motor is the interior one with ``L_d = L_q``).
+    saturation : SaturationModel or FluxMap
+        The true flux linkages.
+    settings : TuningSettings
+        Operating point (speed, rad/s; rated torque ``T*``, N m), cost, exploration.
+    drive : DriveSettings
+        The drive.
+    share : float
+        The level, a share of rated torque.
+    seconds : float
+        The log's length after :data:`SETTLE`, s.
+    seed : int
+        Seed of the exploration and noise.
+
+    Raises
+    ------
+    SelftuneError
+        The learner's refusal.
+    """
+    plant = RealisticDrive(motor, settings.speed, settings.h, drive, saturation=saturation)
+    back_emf = motor.p * settings.speed * motor.phi_pm
+    reference = motor.current_reference(share * settings.torque)
+    step = STEP_SHARE * float(motor.current_reference(settings.torque)[1])
+    levels = np.asarray(STEP_LEVELS)
+
+    def references(t: Array) -> Array:
+        q = reference[1] + step * levels[np.floor(t / STEP_DWELL).astype(int) % levels.size]
+        d = reference[0] - step * (np.floor(t / (D_DWELL * STEP_DWELL)).astype(int) % 2)
+        return np.column_stack([np.full_like(t, back_emf), d, q])
+
+    problem = _learning_problem(settings)
+    nameplate = solve_digital_regulation(
+        motor.regulation_problem(settings.speed), settings.Q, settings.R, settings.h,
+        input_delay=plant.loop.input_delay, integral_weight=problem.integral_weight,
+        plant=motor.sampled_plant(settings.speed, settings.h, plant.loop.hold),
+    )  # fmt: skip
+    settle = round(SETTLE / settings.h)
+    log = plant.run(
+        nameplate.law, held(references), num_samples=settle + round(seconds / settings.h),
+        exploration=uniform(settings.exploration), seed=seed,
+    )  # fmt: skip
+    log = _part(log, settle, log.num_samples + 1)
+    options = replace(learning_options(plant, settings), method="identify", structure="incremental")
+    learned = learn_controller(log, problem, settings.K0, options)
+    assert learned.quality is not None and learned.quality.motor is not None  # the verdict
+    found = learned.quality.motor
+    names = ("R_s", "L_d", "L_q", "L_dq", "phi_pm", "phi_q")
+    values = np.array([float(getattr(found, name)) for name in names])
+    errors = np.array([float(getattr(found, f"{name}_se")) for name in names])
+    # the offsets over the flux the reference channel assumes (w_1 / w_e): kappa, kappa_q
+    values[4:] /= motor.phi_pm
+    errors[4:] /= motor.phi_pm
+    return CurrentLevel(share, reference, values, errors, np.mean(log.x, axis=0), learned)
+
+
+def _learning_problem(settings: TuningSettings) -> LearningProblem:
+    """The current-reference form's learning problem of the settings' cost."""
+    return LearningProblem(
+        settings.Q, settings.R, C=np.eye(2), F=CURRENT_REFERENCE_F,
+        integral_action=settings.integral_action, integral_weight=settings.Q_i,
+    )  # fmt: skip
+
+
+def _moves(low: CurrentLevel, high: CurrentLevel) -> bool:
+    """Whether the identified inductances of neighbouring levels differ by more than
+    :data:`INDUCTANCE_MOVE` of the larger diagonal inductance."""
+    scale = float(max(np.max(low.theta[1:3]), np.max(high.theta[1:3])))
+    return bool(np.max(np.abs(high.inductances - low.inductances)) > INDUCTANCE_MOVE * scale)
+
+
+def commission_over_current(
+    motor: IPMSM,
+    saturation: Saturation,
+    settings: TuningSettings,
+    drive: DriveSettings,
+    *,
+    shares: Sequence[float] = (0.1, 0.4, 0.7, 1.0),
+    seconds: float = 0.4,
+    seed: int = 0,
+) -> CurrentCommissioning:
+    """The levels learned, refined where the inductance moves, and the schedule over
+    ``i_q*`` designed on them (see the module docstring).
+
+    Parameters
+    ----------
+    motor : IPMSM
+        The nameplate motor (a surface motor: ``L_d = L_q``).
+    saturation : SaturationModel or FluxMap
+        The true flux linkages.
+    settings : TuningSettings
+        Operating point (speed; rated torque), cost, exploration, integral action.
+    drive : DriveSettings
+        The drive.
+    shares : sequence of float
+        The initial levels, shares of rated torque, rising.
+    seconds : float
+        Each level's learned log, s.
+    seed : int
+        Seed of the first level's log (the others' follow it).
+
+    Raises
+    ------
+    SelftuneError
+        A level's refusal, or the design's.
+    """
+    w_e = motor.p * settings.speed
+    refusals: list[tuple[float, str]] = []
+    logs = iter(range(seed, seed + MAX_LEVELS * LEVEL_ATTEMPTS))
+
+    def learned(share: float) -> CurrentLevel:
+        for _ in range(LEVEL_ATTEMPTS - 1):
+            try:
+                return learn_level(
+                    motor, saturation, settings, drive, share, seconds=seconds, seed=next(logs)
+                )
+            except SelftuneError as error:
+                refusals.append((share, str(error)))
+        return learn_level(
+            motor, saturation, settings, drive, share, seconds=seconds, seed=next(logs)
+        )
+
+    levels = {share: learned(share) for share in shares}
+    while len(levels) < MAX_LEVELS:
+        moving = [(a, b) for a, b in pairwise(sorted(levels)) if _moves(levels[a], levels[b])]
+        if not moving:
+            break
+        a, b = moving[0]
+        levels[0.5 * (a + b)] = learned(0.5 * (a + b))
+    found = tuple(levels[share] for share in sorted(levels))
+    currents = np.array([level.reference[1] for level in found])
+    thetas = np.array([level.theta for level in found])
+    structure = IncrementalStructure(w_e, settings.h, False, drive.voltage_hold)
+
+    def plant(current: float) -> tuple[RegulationProblem, tuple[Array, Array, Array]]:
+        theta = np.array([np.interp(current, currents, column) for column in thetas.T])
+        A, B, D = structure.continuous(theta)
+        problem = RegulationProblem(
+            A=A, B=B, C=np.eye(2), D=D, E=np.zeros((3, 3)), F=CURRENT_REFERENCE_F
+        )
+        return problem, structure(theta)
+
+    integral_weight = _learning_problem(settings).integral_weight
+    design = design_current_schedule(
+        plant, currents, settings.Q, settings.R, settings.h,
+        input_delay=found[-1].learned.law.history, integral_weight=integral_weight,
+    )  # fmt: skip
+    return CurrentCommissioning(found, design, integral_weight, tuple(refusals))
