@@ -57,7 +57,10 @@ are the field names.
     with MTPA, refusals.
 
 Outside ``selftune bench`` (run alone, as docs/schedule.md says): :func:`measure_ramp`
-(:mod:`._ramp`), speed schedules learned from 1 s over 5-100% of rated speed.
+(:mod:`._ramp`), speed schedules learned from 1 s over 5-100% of rated speed; and (as
+docs/saturation.md says) :func:`measure_saturation` (:mod:`._saturation`), saturating
+motors learned at several currents, the current schedule against the true pointwise
+optimum from 10% to 100% of rated current (about 1.5 min of CPU a motor).
 
 Studies 6-8 run their seeded trials through the fleet's engine
 (:func:`selftune.fleet.map_ordered`): here by default, on a cluster when
@@ -114,6 +117,7 @@ from ._refusals import (
     measure_refusals,
 )
 from ._report import BenchReport, DriveStudiesConfig, Environment, bench_command, run_bench
+from ._saturation import SaturationCase, SaturationStudy, markdown_saturation, measure_saturation
 from ._simulation import BatchMeasurement, Simulation, measure_simulation
 from ._targets import TargetOutcome
 from ._value import ControllerOutcome, MismatchCase, SelfTuningValue, measure_self_tuning_value
@@ -171,6 +175,8 @@ __all__ = [
     "RealisticDriveComparison",
     "Refusals",
     "RefusalsConfig",
+    "SaturationCase",
+    "SaturationStudy",
     "SelfTuningValue",
     "Simulation",
     "SimulatorMeasurement",
@@ -183,6 +189,7 @@ __all__ = [
     "markdown_ramp",
     "markdown_realistic_drive",
     "markdown_refusals",
+    "markdown_saturation",
     "measure_calibration",
     "measure_data_efficiency",
     "measure_drive_rates",
@@ -195,6 +202,7 @@ __all__ = [
     "measure_ramp",
     "measure_realistic_drive",
     "measure_refusals",
+    "measure_saturation",
     "measure_self_tuning_value",
     "measure_simulation",
     "run_bench",
