@@ -6,15 +6,16 @@ A saturating motor's incremental inductances move with its current (its q-axis o
 falls by 20-40 % from no load to rated on many machines), so a law designed at one
 current is not the optimum at another. At each level (a share of rated torque, its
 current reference ``i* = [i_d*, i_q*]`` the nameplate motor's MTPA, which the engineer
-knows) one log holds the references at ``i*`` plus small steps
-(:data:`STEP_SHARE` of the rated q current, each axis with its own dwell, as
-:func:`~._interior.current_steps` does) under the nameplate motor's digital optimum
-(it tracks ``i*``, so the currents stay about the operating point), with the settings'
-exploration. The first :data:`SETTLE` s (the climb from rest through the saturation) are
-cut off, and the rest is learned by identify-then-design with the incremental structure
-(``structure = "incremental"``, :class:`~selftune.learn.IncrementalStructure`): ``R_s``,
-the incremental ``L_dd``, ``L_qq``, ``L_dq`` and the flux offset at the operating
-current, with their standard errors and the verdict.
+knows) one log holds the references at ``i*`` plus the interior commissioning's steps
+(:func:`~._interior.current_steps` of :data:`STEP_SHARE` of the rated q current: q
+through +-1 and +-1/3 of it, d through 0 and -1 of it, each with its own dwell)
+under the nameplate motor's digital optimum (it tracks ``i*``, so the currents stay about
+the operating point), with the settings' exploration. The first :data:`SETTLE` s (the
+climb from rest through the saturation) are cut off, and the rest is learned by
+identify-then-design with the incremental structure (``structure = "incremental"``,
+:class:`~selftune.learn.IncrementalStructure`): ``R_s``, the incremental ``L_dd``,
+``L_qq``, ``L_dq`` and the flux offset at the operating current, with their standard
+errors and the verdict.
 
 The schedule is over ``i_q*`` (A): where the identified ``L_dd``, ``L_qq`` or ``L_dq`` of
 two neighbouring levels differ by more than :data:`INDUCTANCE_MOVE` of the larger
@@ -45,8 +46,7 @@ from ..model import (
     solve_digital_regulation,
 )
 from ..sim import DriveSettings, RealisticDrive, Saturation, held, uniform
-from ._interior import CURRENT_REFERENCE_F, D_DWELL
-from ._knowledge import STEP_DWELL, STEP_LEVELS
+from ._interior import CURRENT_REFERENCE_F, D_SHARE, current_steps
 from ._learning import learning_options
 from ._settings import TuningSettings
 
@@ -64,12 +64,12 @@ __all__ = [
 ]
 
 #: The steps about each level's current reference, a share of the rated q current: small
-#: enough that the incremental model holds over them, large enough that the dead-time
-#: model's signs hold at the lowest level. On the 2/6 mH study motor (docs/saturation.md)
-#: 3 % steps were refused at 10 % of rated current on one of two seeds by the structure's
-#: likelihood-ratio test, with saturation and without it (the dead time's 2 V against the
-#: small steps' voltages); 8 % steps learned both seeds at 10, 40, 70 and 100 %, the
-#: inductances within 1.8 standard errors of the truth at the mean current.
+#: enough that the incremental model holds over them, large enough to be learned at the
+#: lowest level, where the drive's dead time (2 V) is large against the steps' voltages.
+#: On the 2/6 mH study motor (docs/saturation.md), at 10 % of rated current, 3 % steps
+#: were refused on one of two seeds (by the consistency or the structure's likelihood-ratio
+#: test, with saturation and without it); 8 % steps learned both seeds at 10, 40, 70 and
+#: 100 %, the inductances within 1.8 standard errors of the truth at the mean current.
 STEP_SHARE = 0.08
 
 #: The start of each level's log that is not learned, s: the climb from rest to the
@@ -212,12 +212,11 @@ def learn_level(
     back_emf = motor.p * settings.speed * motor.phi_pm
     reference = motor.current_reference(share * settings.torque)
     step = STEP_SHARE * float(motor.current_reference(settings.torque)[1])
-    levels = np.asarray(STEP_LEVELS)
 
     def references(t: Array) -> Array:
-        q = reference[1] + step * levels[np.floor(t / STEP_DWELL).astype(int) % levels.size]
-        d = reference[0] - step * (np.floor(t / (D_DWELL * STEP_DWELL)).astype(int) % 2)
-        return np.column_stack([np.full_like(t, back_emf), d, q])
+        d, q = current_steps(t, step)
+        d = d / D_SHARE  # d steps as large as q's (half as large: 85% within one se, not 68%)
+        return np.column_stack([np.full_like(t, back_emf), reference[0] + d, reference[1] + q])
 
     problem = _learning_problem(settings)
     nameplate = solve_digital_regulation(
