@@ -20,9 +20,11 @@ from selftune.learn.online import ChangeWatch, ForgettingMoments, OnlineModel, p
 from selftune.model import RegulationProblem, solve_digital_regulation
 from selftune.report import (
     ONLINE_REPORT_FILES,
+    error_bars,
     evaluate_online,
     online_document,
     online_lines,
+    online_summary,
     steps_detected,
 )
 from selftune.sim import DriveSettings, RealisticDrive
@@ -113,6 +115,24 @@ def test_the_run_follows_the_motor_and_every_switch_is_safe(run: OnlineRun) -> N
     assert errors.size == 30 and np.max(np.abs(errors)) <= 1e-3, errors
     assert evaluation.excess_cost >= 0.0 and evaluation.cold_excess_cost >= 0.0
     assert run.real_time_factor > 1.0
+
+
+def test_the_error_bars_are_judged_against_the_truth_of_each_look(run: OnlineRun) -> None:
+    """The share within one standard error and the rms of the looks' errors in standard
+    errors, each parameter against the truth at its look (the profile's values read off
+    by interpolation here, not by the chunk the report finds), in the summary too."""
+    found = error_bars(run)
+    nameplate = run.motor.phi_pm
+    for column, (name, truth) in enumerate(
+        [("R_s", run.R_s), ("L_s", run.L_s), ("phi_pm", run.phi_pm / nameplate)]
+    ):
+        at_looks = np.interp(run.look_time, run.chunk_time, truth)
+        z = (run.estimates[:, column] - at_looks) / run.standard_errors[:, column]
+        assert run.look_time.size > 5
+        assert found[name]["within_one"] == pytest.approx(np.mean(np.abs(z) <= 1.0))
+        assert found[name]["rms"] == pytest.approx(np.sqrt(np.mean(z**2)), rel=1e-9)
+    summary = online_summary(run, evaluate_online(run, points=20))
+    assert summary["error_bars"] == found
 
 
 def test_the_json_states_the_problem_and_the_interface(run: OnlineRun) -> None:

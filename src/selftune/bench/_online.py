@@ -129,6 +129,10 @@ class OnlineCase:
         Drive time over the tuner's CPU time.
     tuner_seconds, drive_seconds : float
         The tuner's and the simulated drive's CPU time, s.
+    error_bars : dict
+        Per parameter (``R_s``, ``L_s``, ``phi_pm``), the share of the looks' true errors
+        within one standard error and their rms in standard errors
+        (:func:`~selftune.report.error_bars`).
     """
 
     motor_text: str
@@ -149,6 +153,7 @@ class OnlineCase:
     real_time_factor: float
     tuner_seconds: float
     drive_seconds: float
+    error_bars: dict[str, dict[str, float]]
 
 
 @dataclass(frozen=True)
@@ -240,7 +245,7 @@ def _case(index: int, profile: tuple[str, ParameterProfile], seed: int, quick: b
         false_changes_count=len(summary["changes_unexplained"]),
         probing_share_percent=100 * summary["probing_share_after_first_certified"],
         real_time_factor=run.real_time_factor, tuner_seconds=run.tuner_seconds,
-        drive_seconds=run.drive_seconds,
+        drive_seconds=run.drive_seconds, error_bars=summary["error_bars"],
     )  # fmt: skip
 
 
@@ -312,6 +317,10 @@ def measure_online(quick: bool, progress: bool = True, seeds: int = 2) -> Online
     return OnlineStudy(tuple(results), _replay(quick), time.perf_counter() - started)
 
 
+#: The parameters whose error bars are judged (:func:`~selftune.report.error_bars`).
+_BARS = ("R_s", "L_s", "phi_pm")
+
+
 def _range(values: list[float], form: str) -> str:
     finite = [v for v in values if np.isfinite(v)]
     if not finite:
@@ -342,6 +351,8 @@ def online_targets(study: OnlineStudy, quick: bool = False) -> list[TargetOutcom
     bad = sum(case.bad_switches_count for case in cases)
     false = sum(case.false_changes_count for case in cases)
     worst_delay = max((d if d is not None else float("inf")) for d in delays) if delays else None
+    shares = {name: [c.error_bars[name]["within_one"] for c in cases] for name in _BARS}
+    rms = {name: [c.error_bars[name]["rms"] for c in cases] for name in _BARS}
     return [
         TargetOutcome("online excess cost", "<= 0.5% over the optimum of each instant",
                       f"{_range(excess, '.3f')}%", max(excess) <= 0.5,
@@ -368,6 +379,13 @@ def online_targets(study: OnlineStudy, quick: bool = False) -> list[TargetOutcom
                       f"{1e3 * study.replay.chunk_latency_max_seconds:.1f} ms (99%: "
                       f"{1e3 * study.replay.chunk_latency_p99_seconds:.1f} ms); in the loop "
                       f"beside the simulated drive {_range(speed, '.1f')}x"),
+        TargetOutcome("online error bars", "about 68% of true errors within one standard "
+                      "error (rms 0.5-2 standard errors in every run)",
+                      "; ".join(f"{name} {_range(shares[name], '.0%')}" for name in shares),
+                      bool(all(0.5 <= value <= 2.0 for values in rms.values() for value in values)),
+                      "the looks' estimates against the truth of their instant, per run; rms "
+                      "in standard errors " + "; ".join(
+                          f"{name} {_range(rms[name], '.2f')}" for name in rms)),
         TargetOutcome("online replay", "a recorded log replayed gives the same events",
                       f"{study.replay.events_count} events, "
                       + (f"{study.replay.differing_events_count} differ"),
@@ -397,7 +415,8 @@ def markdown_online(study: OnlineStudy) -> list[str]:
     ]
     lines += table(
         ["motor", "profile", "seed", "excess cost (cold kept)", "torque", "switches / "
-         "rescales / reverts", "bad", "step found", "other changes", "probing", "speed"],
+         "rescales / reverts", "bad", "step found", "other changes", "probing",
+         "within 1 se: R_s / L_s / flux", "speed"],
         [
             [case.motor_text, case.profile_text, str(case.seed),
              f"{case.excess_cost_percent:.3f}% ({case.cold_excess_cost_percent:.3f}%)",
@@ -406,6 +425,7 @@ def markdown_online(study: OnlineStudy) -> list[str]:
              str(case.bad_switches_count),
              "-" if case.step_delay_seconds is None else f"{1e3 * case.step_delay_seconds:.0f} ms",
              str(case.false_changes_count), f"{case.probing_share_percent:.1f}%",
+             " / ".join(f"{case.error_bars[name]['within_one']:.0%}" for name in _BARS),
              f"{case.real_time_factor:.1f}x"]
             for case in study.cases
         ],

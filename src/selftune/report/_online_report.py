@@ -38,6 +38,7 @@ __all__ = [
     "ONLINE_REPORT_FILES",
     "TIMELINE_POINTS",
     "OnlineEvaluation",
+    "error_bars",
     "evaluate_online",
     "online_document",
     "online_lines",
@@ -213,6 +214,39 @@ def unexplained_changes(run: OnlineRun) -> Array:
     return np.delete(run.detections, explained)
 
 
+def error_bars(run: OnlineRun) -> dict[str, dict[str, float]]:
+    """Whether the estimates' standard errors mean what they say: at every look the
+    tuner acted on, the true ``R_s``, ``L_s`` and magnet flux of that instant against the
+    estimate; per parameter, the share of the errors within one standard error (about
+    68% for errors that are normal with that deviation) and their root mean square in
+    standard errors (about 1).
+
+    Parameters
+    ----------
+    run : OnlineRun
+        The run.
+
+    Returns
+    -------
+    dict
+        ``{"R_s" | "L_s" | "phi_pm": {"within_one": share, "rms": rms}}`` (nan without a
+        look).
+    """
+    chunk = np.clip(np.searchsorted(run.chunk_time, run.look_time), 0, run.chunk_time.size - 1)
+    nameplate = run.motor.phi_pm  # the estimate's flux ratio is over the nameplate's
+    truths = (run.R_s[chunk], run.L_s[chunk], run.phi_pm[chunk] / nameplate)
+    found = {}
+    for column, (name, truth) in enumerate(zip(("R_s", "L_s", "phi_pm"), truths, strict=True)):
+        with np.errstate(divide="ignore", invalid="ignore"):  # a zero error bar: z infinite
+            z = (run.estimates[:, column] - truth) / run.standard_errors[:, column]
+        empty = z.size == 0
+        found[name] = {
+            "within_one": float("nan") if empty else float(np.mean(np.abs(z) <= 1.0)),
+            "rms": float("nan") if empty else float(np.sqrt(np.mean(z**2))),
+        }
+    return found
+
+
 def _steady_errors(run: OnlineRun) -> Array:
     errors = run.torque_error
     return errors[np.isfinite(errors)]
@@ -249,6 +283,7 @@ def online_summary(run: OnlineRun, evaluation: OnlineEvaluation) -> dict[str, An
         "steps_detected": [{"time": step, "delay": delay} for step, delay in steps_detected(run)],
         "first_certified": run.first_certified,
         "probing_share_after_first_certified": _probing_share(run),
+        "error_bars": error_bars(run),
         "tuner_seconds": run.tuner_seconds,
         "drive_seconds": run.drive_seconds,
     }
