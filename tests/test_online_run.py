@@ -129,8 +129,8 @@ def test_the_error_bars_are_judged_against_the_truth_of_each_look(run: OnlineRun
         at_looks = np.interp(run.look_time, run.chunk_time, truth)
         z = (run.estimates[:, column] - at_looks) / run.standard_errors[:, column]
         assert run.look_time.size > 5
-        assert found[name]["within_one"] == pytest.approx(np.mean(np.abs(z) <= 1.0))
-        assert found[name]["rms"] == pytest.approx(np.sqrt(np.mean(z**2)), rel=1e-9)
+        assert found[name]["within_one_ratio"] == pytest.approx(np.mean(np.abs(z) <= 1.0))
+        assert found[name]["rms_ratio"] == pytest.approx(np.sqrt(np.mean(z**2)), rel=1e-9)
     summary = online_summary(run, evaluate_online(run, points=20))
     assert summary["error_bars"] == found
 

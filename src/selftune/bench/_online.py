@@ -351,8 +351,8 @@ def online_targets(study: OnlineStudy, quick: bool = False) -> list[TargetOutcom
     bad = sum(case.bad_switches_count for case in cases)
     false = sum(case.false_changes_count for case in cases)
     worst_delay = max((d if d is not None else float("inf")) for d in delays) if delays else None
-    shares = {name: [c.error_bars[name]["within_one"] for c in cases] for name in _BARS}
-    rms = {name: [c.error_bars[name]["rms"] for c in cases] for name in _BARS}
+    shares = {name: [c.error_bars[name]["within_one_ratio"] for c in cases] for name in _BARS}
+    rms = {name: [c.error_bars[name]["rms_ratio"] for c in cases] for name in _BARS}
     return [
         TargetOutcome("online excess cost", "<= 0.5% over the optimum of each instant",
                       f"{_range(excess, '.3f')}%", max(excess) <= 0.5,
@@ -425,7 +425,7 @@ def markdown_online(study: OnlineStudy) -> list[str]:
              str(case.bad_switches_count),
              "-" if case.step_delay_seconds is None else f"{1e3 * case.step_delay_seconds:.0f} ms",
              str(case.false_changes_count), f"{case.probing_share_percent:.1f}%",
-             " / ".join(f"{case.error_bars[name]['within_one']:.0%}" for name in _BARS),
+             " / ".join(f"{case.error_bars[name]['within_one_ratio']:.0%}" for name in _BARS),
              f"{case.real_time_factor:.1f}x"]
             for case in study.cases
         ],

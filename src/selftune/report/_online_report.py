@@ -229,8 +229,8 @@ def error_bars(run: OnlineRun) -> dict[str, dict[str, float]]:
     Returns
     -------
     dict
-        ``{"R_s" | "L_s" | "phi_pm": {"within_one": share, "rms": rms}}`` (nan without a
-        look).
+        ``{"R_s" | "L_s" | "phi_pm": {"within_one_ratio": share, "rms_ratio": rms}}``
+        (nan without a look).
     """
     chunk = np.clip(np.searchsorted(run.chunk_time, run.look_time), 0, run.chunk_time.size - 1)
     nameplate = run.motor.phi_pm  # the estimate's flux ratio is over the nameplate's
@@ -241,8 +241,8 @@ def error_bars(run: OnlineRun) -> dict[str, dict[str, float]]:
             z = (run.estimates[:, column] - truth) / run.standard_errors[:, column]
         empty = z.size == 0
         found[name] = {
-            "within_one": float("nan") if empty else float(np.mean(np.abs(z) <= 1.0)),
-            "rms": float("nan") if empty else float(np.sqrt(np.mean(z**2))),
+            "within_one_ratio": float("nan") if empty else float(np.mean(np.abs(z) <= 1.0)),
+            "rms_ratio": float("nan") if empty else float(np.sqrt(np.mean(z**2))),
         }
     return found
 
