@@ -21,10 +21,10 @@ from typing import Literal
 
 import numpy as np
 
-from ...core import Array, discretize, rotating_hold
+from ...core import Array
 from ...errors import InputError
 from ._discrete_model import DiscreteModel
-from ._ipmsm_structure import IpmsmStructure
+from ._ipmsm_structure import IpmsmStructure, sampled_blocks, stacked_rows
 
 __all__ = ["IncrementalStructure"]
 
@@ -112,15 +112,8 @@ class IncrementalStructure:
             overflows.
         """
         A, B, D = self.continuous(theta)
-        w_e, h = self.electrical_speed, self.h
-        exact = discretize(A, B, h, D=D)
-        Bd = exact.Bd
-        if self.hold == "stationary":  # the angle compensation centres the command
-            Bd = rotating_hold(A, B, h, w_e, advance=0.5 * w_e * h)
-        if not self.dead_time:
-            return exact.Ad, Bd, exact.Ed
-        held = rotating_hold(A, B, h, w_e)  # set in the stationary frame at the start
-        return exact.Ad, Bd, np.concatenate([exact.Ed, -float(theta[6]) * held], axis=1)
+        v = float(theta[6]) if self.dead_time else None
+        return sampled_blocks(A, B, D, self.h, self.electrical_speed, self.hold, v)
 
     def stack(self, thetas: Array) -> tuple[Array, Array, Array]:
         """:meth:`__call__` of each row of ``thetas``, stacked.
@@ -134,8 +127,7 @@ class IncrementalStructure:
         -------
         Ad, Bd, Ed : ndarray, shape (P, 2, 2), (P, 2, 2), (P, 2, 3) or (P, 2, 5)
         """
-        blocks = [self(theta) for theta in np.asarray(thetas, dtype=float)]
-        return tuple(np.stack(items) for items in zip(*blocks, strict=True))  # type: ignore[return-value]
+        return stacked_rows(self, thetas)
 
     def initial(self, model: DiscreteModel) -> Array:
         """The parameters read off an unstructured model (a start): the interior

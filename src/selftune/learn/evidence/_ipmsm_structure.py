@@ -4,6 +4,7 @@ speed, for the current-reference form ``w = [w_1, i_d*, i_q*]``."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -71,19 +72,13 @@ class IpmsmStructure:
         for name, value in (("L_d", L_d), ("L_q", L_q)):
             if not value > 0.0:
                 raise InputError(f"{name}: must be positive, got {value:.4g} H")
-        w_e, h = self.electrical_speed, self.h
+        w_e = self.electrical_speed
         A = np.array([[-R_s / L_d, w_e * L_q / L_d], [-w_e * L_d / L_q, -R_s / L_q]])
         B = np.diag([1.0 / L_d, 1.0 / L_q])
         D = np.zeros((2, self.references))
         D[1, 0] = -kappa / L_q
-        exact = discretize(A, B, h, D=D)
-        Bd = exact.Bd
-        if self.hold == "stationary":  # the angle compensation centres the command
-            Bd = rotating_hold(A, B, h, w_e, advance=0.5 * w_e * h)
-        if not self.dead_time:
-            return exact.Ad, Bd, exact.Ed
-        held = rotating_hold(A, B, h, w_e)  # set in the stationary frame at the start
-        return exact.Ad, Bd, np.concatenate([exact.Ed, -float(theta[4]) * held], axis=1)
+        v = float(theta[4]) if self.dead_time else None
+        return sampled_blocks(A, B, D, self.h, w_e, self.hold, v)
 
     def stack(self, thetas: Array) -> tuple[Array, Array, Array]:
         """:meth:`__call__` of each row of ``thetas``, stacked.
@@ -97,8 +92,7 @@ class IpmsmStructure:
         -------
         Ad, Bd, Ed : ndarray, shape (P, 2, 2), (P, 2, 2), (P, 2, 3) or (P, 2, 5)
         """
-        blocks = [self(theta) for theta in np.asarray(thetas, dtype=float)]
-        return tuple(np.stack(items) for items in zip(*blocks, strict=True))  # type: ignore[return-value]
+        return stacked_rows(self, thetas)
 
     def initial(self, model: DiscreteModel) -> Array:
         """``[R_s, L_d, L_q, kappa]`` (and ``v``) read off an unstructured model (a start).
@@ -130,3 +124,50 @@ class IpmsmStructure:
         """
         names = ("R_s", "L_d", "L_q", "kappa")
         return (*names, "v") if dead_time else names
+
+
+def sampled_blocks(
+    A: Array, B: Array, D: Array, h: float, electrical_speed: float,
+    hold: Literal["stationary", "rotor"], v: float | None,
+) -> tuple[Array, Array, Array]:  # fmt: skip
+    """``(Ad, Bd, Ed)`` of a motor's continuous ``(A, B, D)`` in the current-reference
+    form, sampled as the drive holds its voltage, with the dead time's two channels.
+
+    Parameters
+    ----------
+    A, B, D : ndarray
+        The continuous current dynamics (2 x 2, 2 x 2, 2 x q).
+    h : float
+        Sampling period, s.
+    electrical_speed : float
+        ``w_e``, rad/s.
+    hold : {"stationary", "rotor"}
+        What the drive holds over a sample (as :class:`~selftune.learn.SpmsmStructure`).
+    v : float or None
+        The dead-time voltage, V (None: no dead-time channels).
+    """
+    w_e = electrical_speed
+    exact = discretize(A, B, h, D=D)
+    Bd = exact.Bd
+    if hold == "stationary":  # the angle compensation centres the command
+        Bd = rotating_hold(A, B, h, w_e, advance=0.5 * w_e * h)
+    if v is None:
+        return exact.Ad, Bd, exact.Ed
+    held = rotating_hold(A, B, h, w_e)  # set in the stationary frame at the start
+    return exact.Ad, Bd, np.concatenate([exact.Ed, -v * held], axis=1)
+
+
+def stacked_rows(
+    structure: Callable[[Array], tuple[Array, Array, Array]], thetas: Array
+) -> tuple[Array, Array, Array]:
+    """A structure's ``(Ad, Bd, Ed)`` of each row of ``thetas``, stacked (P, ...).
+
+    Parameters
+    ----------
+    structure : callable
+        ``theta -> (Ad, Bd, Ed)``.
+    thetas : ndarray, shape (P, parameters)
+        Rows of parameters.
+    """
+    blocks = [structure(theta) for theta in np.asarray(thetas, dtype=float)]
+    return tuple(np.stack(items) for items in zip(*blocks, strict=True))  # type: ignore[return-value]
