@@ -17,6 +17,7 @@ words. Each cause also derives from the error class that names its kind
   data_seconds, needed_seconds;
 - :class:`NotExciting` (an ExcitationError): rank, rank_needed, block;
 - :class:`TooShort` (an ExcitationError): samples, samples_needed;
+- :class:`CurrentOverrange` (an InputError): peak, full_scale;
 - :class:`CoarseTimeResolution` (an InputError): resolution, step;
 - :class:`SamplingJitter` (an InputError): episode, spread, max_spread;
 - :class:`NumericalFailure` (an InputError): what;
@@ -38,6 +39,7 @@ __all__ = [
     "ConfigurationMismatch",
     "ConsistencyError",
     "ConvergenceError",
+    "CurrentOverrange",
     "DataFileError",
     "ExcitationError",
     "InputError",
@@ -290,6 +292,24 @@ class TooShort(Refusal, ExcitationError):
         super().__init__(message)
         self.samples = samples
         self.samples_needed = samples_needed
+
+
+class CurrentOverrange(Refusal, InputError):
+    """A simulated experiment drove the current beyond the current sensor's full scale:
+    the log's readings are clipped (the ADC's extreme codes), which no model explains.
+
+    Attributes
+    ----------
+    peak : float
+        The largest true current magnitude of the experiment, A.
+    full_scale : float
+        The ADC's full scale ``adc_range``, A.
+    """
+
+    def __init__(self, message: str, *, peak: float, full_scale: float) -> None:
+        super().__init__(message)
+        self.peak = peak
+        self.full_scale = full_scale
 
 
 class CoarseTimeResolution(Refusal, InputError):

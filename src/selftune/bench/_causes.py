@@ -12,6 +12,7 @@ from __future__ import annotations
 from ..errors import (
     CoarseTimeResolution,
     ConfigurationMismatch,
+    CurrentOverrange,
     MisalignedLog,
     ModelMissesEffect,
     NotExciting,
@@ -39,6 +40,7 @@ _KEYS: dict[type[SelftuneError], str] = {
     TooLittleData: "too little data",
     NotExciting: "excitation",
     TooShort: "too short",
+    CurrentOverrange: "current over range",
     NotStabilizing: "instability",
     PolicyIterationFailure: "policy iteration",
     CoarseTimeResolution: "time resolution",
@@ -59,6 +61,8 @@ CAUSE_TITLES = {
     "time resolution": "the time column cannot resolve the sampling period",
     "sampling jitter": "the sampling steps are not uniform",
     "unsolvable": "the regulation problem has no solution",
+    "current over range": "the experiment drove the current beyond the ADC's full scale "
+    "(names the peak and the scale)",
     UNNAMED: "the message names no recognizable cause",
 }
 

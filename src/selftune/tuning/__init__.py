@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from ._drive import Drive
 from ._episodes import DIVERGED_CURRENT, NOISE_FLOOR_FACTOR
-from ._interior import InteriorCommissioning, commission_interior
+from ._interior import InteriorCommissioning, check_current_range, commission_interior
 from ._knowledge import PAPER_PERTURBATION, known_flux_form, reference_perturbation
 from ._offpolicy import offpolicy
 from ._online import (
@@ -69,6 +69,7 @@ __all__ = [
     "algorithm1",
     "algorithm2",
     "algorithm3",
+    "check_current_range",
     "commission_interior",
     "commission_over_current",
     "commission_ramp",

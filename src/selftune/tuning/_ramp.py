@@ -27,7 +27,7 @@ from ..core import Array, ControlLaw
 from ..learn import LearnedController, LearningProblem, Trajectory, learn_over_speeds
 from ..model import IPMSM, Motor
 from ..sim import DriveSettings, RealisticDrive, held, ramp_speeds, run_speed_profile, uniform
-from ._interior import current_steps, motor_of
+from ._interior import check_current_range, current_steps, motor_of
 from ._knowledge import STEP_DWELL, STEP_LEVELS
 from ._learning import learning_options
 from ._settings import TuningSettings
@@ -128,6 +128,10 @@ def commission_ramp(
     record = run_speed_profile(
         motor, profile, h, drive, law, held(reference), exploration=uniform(settings.exploration),
         seed=seed,
+    )  # fmt: skip
+    check_current_range(
+        record, drive, abs(scale),
+        f"the ramp from {speeds[0]:g} to {speeds[1]:g} rad/s",
     )  # fmt: skip
     log = record.trajectory
     problem = LearningProblem(

@@ -503,13 +503,14 @@ def _check_structure(
     hardware-like logs of 0.5 s: 38-87 for 12 degrees of freedom, inflation 4-7, where the
     results were within 1 standard error)."""
     free = None
+    title = "structured" if fit is None or fit.structure is None else fit.structure.title
     if fit is not None:
         free = fit_output_error(
             episodes, alignment.shift, alignment.model, None, resolution=resolution, stable=False
         )
     if fit is None or free is None:
         raise ConsistencyError(
-            "structure: the SPMSM fit cannot be checked against an unstructured model of "
+            f"structure: the {title} fit cannot be checked against an unstructured model of "
             "these data (an output-error fit that is not finite, or an unstable structured "
             "one: too few or too noisy samples); structure = 'none' does not need the check"
         )
@@ -519,7 +520,7 @@ def _check_structure(
     threshold = float(scipy.special.chdtri(freedom, TEST_LEVEL))
     if statistic > threshold:
         raise ConfigurationMismatch(
-            f"structure: the SPMSM model explains the data worse than an unstructured one "
+            f"structure: the {title} model explains the data worse than an unstructured one "
             f"(likelihood-ratio statistic {statistic:.4g}, threshold {threshold:.4g} for "
             f"{freedom} degrees of freedom); likely causes: its fit stopped in a wrong "
             "minimum (too few or too noisy samples), or the drive is not what the structure "

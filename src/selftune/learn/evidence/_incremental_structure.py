@@ -17,7 +17,7 @@ magnet's ``[phi_pm, 0]``, has no parameter for.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 
@@ -62,6 +62,9 @@ class IncrementalStructure:
     hold : {"stationary", "rotor"}
         What the drive holds over a sample (as :class:`~selftune.learn.SpmsmStructure`).
     """
+
+    #: The structure's name in messages.
+    title: ClassVar[str] = "incremental (saturating)"
 
     electrical_speed: float
     h: float

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 
@@ -46,6 +46,9 @@ class IpmsmStructure:
     hold : {"stationary", "rotor"}
         What the drive holds over a sample (as :class:`~selftune.learn.SpmsmStructure`).
     """
+
+    #: The structure's name in messages.
+    title: ClassVar[str] = "IPMSM"
 
     electrical_speed: float
     h: float

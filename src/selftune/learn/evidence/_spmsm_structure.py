@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -46,6 +46,9 @@ class SpmsmStructure:
         turns from ``+w_e h / 2`` to ``-w_e h / 2`` in dq), or the dq voltage (an ideal
         zero-order hold, e.g. :class:`selftune.sim.SimulatedDrive`).
     """
+
+    #: The structure's name in messages.
+    title: ClassVar[str] = "SPMSM"
 
     electrical_speed: float
     h: float
