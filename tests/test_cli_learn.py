@@ -152,39 +152,18 @@ def test_learn_file_identifies_a_saturating_motor_about_its_operating_current(
 ) -> None:
     """A saturating motor's log at 70 % of rated torque (0.2 s on the realistic drive, as
     the incremental structure's own test) learned by ``selftune learn`` with ``structure =
-    "incremental"``: the law the learner gives in memory with the options the file states, the
-    JSON's R_s, incremental L_d, L_q, L_dq and flux offset phi_pm, phi_q within 3.5 of
-    their standard errors of the truth at the log's mean current (``d psi / d i`` and
-    ``psi - L i`` there), and the printout showing L_dq and phi_q."""
+    "incremental"`` (docs/saturation.md's file): the law the learner gives in memory with
+    the log's options, the JSON's R_s, incremental L_d, L_q, L_dq and flux offset phi_pm,
+    phi_q within 3.5 of their standard errors of the truth at the log's mean current
+    (``d psi / d i`` and ``psi - L i`` there), and the printout showing L_dq and phi_q."""
     settings, drive = saturating_settings()
     log, options = level_log(SATURATING, SATURATION, settings, drive, 0.7, seconds=0.2, seed=0)
     save_trajectory(log, tmp_path / "level.npz")
-    weight = "" if settings.Q_i is None else f"Q_i = {toml_matrix(settings.Q_i)}\n"
+    # docs/saturation.md's learn file: it must state the options the drive's log needs
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "saturation.md").read_text()
+    section = docs.split("## In a learn file", 1)[1].split("\n## ", 1)[0]
     config = tmp_path / "incremental.toml"
-    config.write_text(
-        f"""[cost]
-Q = {toml_matrix(settings.Q)}
-R = {toml_matrix(settings.R)}
-{weight}[policy]
-K0 = {toml_matrix(settings.K0)}
-[regulation]
-C = {toml_matrix(np.eye(2))}
-E = {toml_matrix(np.zeros((3, 3)))}
-F = {toml_matrix(CURRENT_REFERENCE_F)}
-[learning]
-target = "{options.target}"
-method = "identify"
-structure = "incremental"
-input_delay = {options.input_delay}
-logged_input = "{options.logged_input}"
-integral_action = {str(settings.integral_action).lower()}
-dead_time = {str(options.dead_time).lower()}
-electrical_speed = {options.electrical_speed!r}
-voltage_hold = "{options.voltage_hold}"
-interval = {options.interval}
-max_iterations = {options.max_iterations}
-"""
-    )
+    config.write_text(re.findall(r"^```toml\n(.*?)^```", section, re.DOTALL | re.MULTILINE)[0])
     out = tmp_path / "out.json"
     args = ["learn", str(tmp_path / "level.npz"), "--config", str(config), "--json", str(out)]
     assert main(args) == 0
