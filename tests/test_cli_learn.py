@@ -21,6 +21,11 @@ from selftune.learn import (
     save_trajectory,
 )
 from selftune.sim import held, prbs, simulate, uniform
+from selftune.tuning._interior import CURRENT_REFERENCE_F
+from selftune.tuning._saturation import incremental_theta, level_log
+from test_saturation_learning import MOTOR as SATURATING
+from test_saturation_learning import SATURATION
+from test_saturation_learning import _settings as saturating_settings
 
 MOTOR = SPMSM.paper()
 PROBLEM = MOTOR.regulation_problem(10.0)
@@ -142,6 +147,46 @@ def test_learn_without_regulation_learns_state_feedback(tmp_path: Path) -> None:
     np.testing.assert_allclose(np.array(result["K"]), expected.K, rtol=1e-8)
 
 
+def test_learn_file_identifies_a_saturating_motor_about_its_operating_current(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A saturating motor's log at 70 % of rated torque (0.2 s on the realistic drive, as
+    the incremental structure's own test) learned by ``selftune learn`` with ``structure =
+    "incremental"`` (docs/saturation.md's file): the law the learner gives in memory with
+    the log's options, the JSON's R_s, incremental L_d, L_q, L_dq and flux offset phi_pm,
+    phi_q within 3.5 of their standard errors of the truth at the log's mean current
+    (``d psi / d i`` and ``psi - L i`` there), and the printout showing L_dq and phi_q."""
+    settings, drive = saturating_settings()
+    log, options = level_log(SATURATING, SATURATION, settings, drive, 0.7, seconds=0.2, seed=0)
+    save_trajectory(log, tmp_path / "level.npz")
+    # docs/saturation.md's learn file: it must state the options the drive's log needs
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "saturation.md").read_text()
+    section = docs.split("## In a learn file", 1)[1].split("\n## ", 1)[0]
+    config = tmp_path / "incremental.toml"
+    config.write_text(re.findall(r"^```toml\n(.*?)^```", section, re.DOTALL | re.MULTILINE)[0])
+    out = tmp_path / "out.json"
+    args = ["learn", str(tmp_path / "level.npz"), "--config", str(config), "--json", str(out)]
+    assert main(args) == 0
+    result = json.loads(out.read_text())
+    problem = LearningProblem(
+        settings.Q, settings.R, C=np.eye(2), F=CURRENT_REFERENCE_F,
+        integral_action=settings.integral_action, integral_weight=settings.Q_i,
+    )  # fmt: skip
+    expected = learn_controller(log, problem, settings.K0, options)
+    for key in ("K", "K_i", "U"):
+        np.testing.assert_array_equal(np.array(result[key]), getattr(expected.law, key), key)
+    motor = result["quality"]["motor"]
+    # the truth's flux offset over 1 Wb: c = psi(i0) - L i0 itself, Wb (phi_pm, phi_q)
+    truth = incremental_theta(SATURATION, SATURATING.R_s, np.mean(log.x, axis=0), 1.0)
+    names = ("R_s", "L_d", "L_q", "L_dq", "phi_pm", "phi_q")
+    for name, true in zip(names, truth, strict=True):
+        se = motor[f"{name}_se"]
+        assert se > 0.0 and abs(motor[name] - true) < 3.5 * se, (name, motor[name], se, true)
+    printed = capsys.readouterr().out
+    for name, unit in (("L_dq", "H"), ("phi_q", "Wb")):
+        assert f"{name} = {motor[name]:.6g} +- {motor[f'{name}_se']:.2g} {unit}" in printed
+
+
 def one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
     captured = capsys.readouterr()
     lines = captured.err.strip().splitlines()
@@ -199,6 +244,34 @@ def one_error_line(capsys: pytest.CaptureFixture[str]) -> str:
                 text.replace("[policy]", "Q_i = [[1.0]]\n[policy]") + "integral_action = true\n"
             ),
             "[cost] Q_i: must be a 2x2 matrix, got 1x1",
+        ),
+        (  # the saturating motor's structure: the choices listed, the key named
+            lambda text: text + 'method = "identify"\nstructure = "saturating"\n',
+            '[learning] structure: must be one of "none", "spmsm", "ipmsm", "incremental", '
+            "got 'saturating'",
+        ),
+        (
+            lambda text: text + 'structure = "incremental"\nelectrical_speed = 400.0\n',
+            "[learning] structure: a model structure is for method = 'identify'",
+        ),
+        (
+            lambda text: text + 'method = "identify"\nstructure = "incremental"\n',
+            '[learning] electrical_speed: structure = "incremental" needs p speed (rad/s)',
+        ),
+        (
+            lambda text: (
+                text + 'method = "identify"\nstructure = "incremental"\nelectrical_speed = -inf\n'
+            ),
+            "[learning] electrical_speed: must be finite, got -inf",
+        ),
+        (  # one operating current's motor: no speed schedule on it, said with the way out
+            lambda text: (
+                text + 'method = "identify"\nstructure = "incremental"\n'
+                "[schedule]\npole_pairs = 4\nspeeds = [5.0, 100.0]\n"
+            ),
+            "[schedule]: a speed schedule is designed on a surface or interior motor, not on "
+            '[learning] structure = "incremental" (its L_dq and phi_q hold at one operating '
+            'current): remove [schedule], or set structure = "ipmsm"',
         ),
     ],
 )

@@ -68,8 +68,9 @@ class LearnConfig:
     options : mapping
         The other ``[learning]`` keys as given (validated), the keyword arguments of
         :class:`selftune.learn.LearningOptions`: target, method, input_delay,
-        logged_input, dead_time, noise, structure, electrical_speed, voltage_hold,
-        max_relative_error.
+        logged_input, dead_time, noise, structure (``"incremental"``: a saturating
+        motor's :class:`selftune.learn.IncrementalStructure`), electrical_speed,
+        voltage_hold, max_relative_error.
     integral_action : bool
         Learn the optimal servo controller (integral action on ``e = C x + F w``).
     Q_i : ndarray, shape (r, r), or None
@@ -140,7 +141,10 @@ def load_learn_config(
         integral_action = false   # true: the optimal servo controller
         dead_time = false     # true: model the inverter's dead time (n = m = 2)
         noise = "smoothed"    # or "instruments", "none"
-        structure = "none"    # or "spmsm", "ipmsm" (identify only, needs electrical_speed)
+        structure = "none"    # or "spmsm", "ipmsm", "incremental" (a saturating motor's
+                              # incremental L_d, L_q, L_dq and flux offset phi_pm, phi_q
+                              # about the log's operating current; identify only, needs
+                              # electrical_speed; not with [schedule])
         electrical_speed = 150.0  # p speed, rad/s (structure, unless [schedule]: each
                               # held speed's own; dead time without angle)
         voltage_hold = "stationary"  # or "rotor": what the drive holds over a sample
@@ -230,7 +234,9 @@ def _schedule(
     config: ConfigFile, options: Mapping[str, object]
 ) -> tuple[ScheduleConfig | None, int | None]:
     """``[schedule]``: its speeds and pole pairs; it needs identify-then-design with a
-    motor's structure."""
+    motor's structure whose parameters hold at every speed (a surface or interior motor:
+    the incremental structure's hold at one operating current, and the schedule's motor
+    has no cross-saturation or q flux offset)."""
     if "schedule" not in config:
         return None, None
     table = config.table("schedule")
@@ -239,6 +245,13 @@ def _schedule(
             None,
             'a schedule is designed on the motor learned: set [learning] method = "identify" '
             'and structure = "spmsm" or "ipmsm"',
+        )
+    if options["structure"] == "incremental":
+        raise table.error(
+            None,
+            "a speed schedule is designed on a surface or interior motor, not on [learning] "
+            'structure = "incremental" (its L_dq and phi_q hold at one operating current): '
+            'remove [schedule], or set structure = "ipmsm"',
         )
     pole_pairs = table.positive_integer("pole_pairs", maximum=int(PLAUSIBLE_RANGES["p"][1]))
     return schedule_config(table, None), pole_pairs
@@ -273,7 +286,9 @@ def _options(
         ),
         "dead_time": learning.flag("dead_time", False),
         "noise": learning.choice("noise", ("smoothed", "instruments", "none"), "smoothed"),
-        "structure": learning.choice("structure", ("none", "spmsm", "ipmsm"), "none"),
+        "structure": learning.choice(
+            "structure", ("none", "spmsm", "ipmsm", "incremental"), "none"
+        ),
         "voltage_hold": learning.choice("voltage_hold", ("stationary", "rotor"), "stationary"),
         "max_relative_error": learning.positive("max_relative_error", 0.05),
     }

@@ -36,7 +36,14 @@ import numpy as np
 
 from ..core import Array
 from ..errors import SelftuneError
-from ..learn import IncrementalStructure, LearnedController, LearningProblem, learn_controller
+from ..learn import (
+    IncrementalStructure,
+    LearnedController,
+    LearningOptions,
+    LearningProblem,
+    Trajectory,
+    learn_controller,
+)
 from ..learn._speeds import _part
 from ..model import (
     IPMSM,
@@ -61,6 +68,7 @@ __all__ = [
     "commission_over_current",
     "incremental_theta",
     "learn_level",
+    "level_log",
 ]
 
 #: The steps about each level's current reference, a share of the rated q current: small
@@ -173,7 +181,7 @@ def incremental_theta(saturation: Saturation, R_s: float, current: Array, flux: 
     return np.array([R_s, L[0, 0], L[1, 1], L[0, 1], offset[0] / flux, offset[1] / flux])
 
 
-def learn_level(
+def level_log(
     motor: IPMSM,
     saturation: Saturation,
     settings: TuningSettings,
@@ -182,8 +190,10 @@ def learn_level(
     *,
     seconds: float = 0.4,
     seed: int = 0,
-) -> CurrentLevel:
-    """One level learned (see the module docstring).
+) -> tuple[Trajectory, LearningOptions]:
+    """One level's log (see the module docstring) and the options it is learned with
+    (identify-then-design with the incremental structure at the drive's speed, delay and
+    hold).
 
     Parameters
     ----------
@@ -202,11 +212,6 @@ def learn_level(
         The log's length after :data:`SETTLE`, s.
     seed : int
         Seed of the exploration and noise.
-
-    Raises
-    ------
-    SelftuneError
-        The learner's refusal.
     """
     plant = RealisticDrive(motor, settings.speed, settings.h, drive, saturation=saturation)
     back_emf = motor.p * settings.speed * motor.phi_pm
@@ -231,7 +236,46 @@ def learn_level(
     )  # fmt: skip
     log = _part(log, settle, log.num_samples + 1)
     options = replace(learning_options(plant, settings), method="identify", structure="incremental")
-    learned = learn_controller(log, problem, settings.K0, options)
+    return log, options
+
+
+def learn_level(
+    motor: IPMSM,
+    saturation: Saturation,
+    settings: TuningSettings,
+    drive: DriveSettings,
+    share: float,
+    *,
+    seconds: float = 0.4,
+    seed: int = 0,
+) -> CurrentLevel:
+    """One level learned (see the module docstring): :func:`level_log`'s log learned.
+
+    Parameters
+    ----------
+    motor : IPMSM
+        The nameplate motor.
+    saturation : SaturationModel or FluxMap
+        The true flux linkages.
+    settings : TuningSettings
+        Operating point, cost, exploration.
+    drive : DriveSettings
+        The drive.
+    share : float
+        The level, a share of rated torque.
+    seconds : float
+        The log's length after :data:`SETTLE`, s.
+    seed : int
+        Seed of the exploration and noise.
+
+    Raises
+    ------
+    SelftuneError
+        The learner's refusal.
+    """
+    log, options = level_log(motor, saturation, settings, drive, share, seconds=seconds, seed=seed)
+    reference = motor.current_reference(share * settings.torque)
+    learned = learn_controller(log, _learning_problem(settings), settings.K0, options)
     assert learned.quality is not None and learned.quality.motor is not None  # the verdict
     found = learned.quality.motor
     names = ("R_s", "L_d", "L_q", "L_dq", "phi_pm", "phi_q")
