@@ -46,6 +46,7 @@ def test_an_experiment_beyond_the_adc_range_is_refused_naming_it() -> None:
         commission_interior(MOTOR, _settings(DRIVE), DRIVE, seed=1)
     assert caught.value.peak > caught.value.full_scale == 50.0
     assert "at 200 rad/s" in str(caught.value) and "\n" not in str(caught.value)
+    assert "[learning] K0" in str(caught.value)
 
 
 def test_the_same_experiment_within_the_range_is_learned() -> None:

@@ -33,6 +33,7 @@ from ._settings import TuningSettings
 
 __all__ = [
     "D_SHARE",
+    "K0_REMEDY",
     "InteriorCommissioning",
     "check_current_range",
     "commission_interior",
@@ -136,7 +137,16 @@ def current_steps(t: Array, scale: float) -> tuple[Array, Array]:
     return d, q
 
 
-def check_current_range(record: DriveRecord, drive: DriveSettings, rated: float, what: str) -> None:
+#: What to do when an experiment under K0 alone goes beyond the ADC's range.
+K0_REMEDY = (
+    "under K0 alone the back-EMF drives the current: commission at a lower speed, with a "
+    "larger K0 (its [learning] K0), or on a drive whose ADC range covers the current"
+)
+
+
+def check_current_range(
+    record: DriveRecord, drive: DriveSettings, rated: float, what: str, remedy: str = K0_REMEDY
+) -> None:
     """Refuse an experiment whose current went beyond the drive's ADC full scale.
 
     A phase current beyond ``adc_range`` reads as the ADC's extreme code: the clipped
@@ -155,6 +165,8 @@ def check_current_range(record: DriveRecord, drive: DriveSettings, rated: float,
         The rated current the experiment's references scale with, A (for the message).
     what : str
         The experiment, for the message (``"the commissioning at 200 rad/s"``).
+    remedy : str
+        What to do, for the message (default :data:`K0_REMEDY`).
 
     Raises
     ------
@@ -168,10 +180,8 @@ def check_current_range(record: DriveRecord, drive: DriveSettings, rated: float,
         return
     raise CurrentOverrange(
         f"{what} drove the current to {peak:.3g} A ({peak / rated:.2g} times the rated "
-        f"{rated:.3g} A) under K0 against the back-EMF, beyond the ADC's full scale "
-        f"adc_range = {drive.adc_range:g} A: its readings are clipped and no model explains "
-        "them; commission at a lower speed, with a larger K0 (its [learning] K0), or on a "
-        "drive whose ADC range covers the current",
+        f"{rated:.3g} A), beyond the ADC's full scale adc_range = {drive.adc_range:g} A: its "
+        f"readings are clipped and no model explains them; {remedy}",
         peak=peak, full_scale=float(drive.adc_range),
     )  # fmt: skip
 

@@ -53,7 +53,7 @@ from ..model import (
     solve_digital_regulation,
 )
 from ..sim import DriveSettings, RealisticDrive, Saturation, held, uniform
-from ._interior import CURRENT_REFERENCE_F, D_SHARE, current_steps
+from ._interior import CURRENT_REFERENCE_F, D_SHARE, check_current_range, current_steps
 from ._learning import learning_options
 from ._settings import TuningSettings
 
@@ -230,11 +230,16 @@ def level_log(
         plant=motor.sampled_plant(settings.speed, settings.h, plant.loop.hold),
     )  # fmt: skip
     settle = round(SETTLE / settings.h)
-    log = plant.run(
+    record = plant.record(
         nameplate.law, held(references), num_samples=settle + round(seconds / settings.h),
         exploration=uniform(settings.exploration), seed=seed,
     )  # fmt: skip
-    log = _part(log, settle, log.num_samples + 1)
+    rated = float(np.hypot(*motor.current_reference(settings.torque)))
+    check_current_range(
+        record, drive, rated, f"the level at {share:.0%} of rated torque",
+        "the references and steps of this level need a drive whose ADC range covers them",
+    )  # fmt: skip
+    log = _part(record.trajectory, settle, record.trajectory.num_samples + 1)
     options = replace(learning_options(plant, settings), method="identify", structure="incremental")
     return log, options
 
