@@ -1,6 +1,6 @@
-"""An experiment that drives the current beyond the ADC's full scale is refused, naming
-the current and the scale (:func:`selftune.tuning.check_current_range`), not learned from
-clipped readings.
+"""An experiment that drives the current beyond the ADC's full scale (by more than
+:data:`~selftune.tuning._interior.CLIP_TOLERANCE` of it) is refused, naming the current and
+the scale (:func:`selftune.tuning.check_current_range`), not learned from clipped readings.
 
 At twice the interior bench's speed (``w_e h`` = 0.08), the 2/5 mH motor's experiment under
 K0 alone against the back-EMF reached 62-66 A on a +-50 A ADC; before the check the
