@@ -1,7 +1,8 @@
 """Study 13: interior PM motors commissioned on the hardware-like drive.
 
 Each run is ``selftune tune`` of an interior motor (:func:`selftune.tuning.
-commission_interior`): 0.5 s of the current-reference form under the gentle K0 on the
+commission_interior`): 0.5 s of the current-reference form under the gentle K0 (the
+back-EMF and the cross-coupling fed forward) on the
 hardware-like drive (carrier PWM, 2 V of dead time, 10 mA noise, a 12-bit ADC, one
 sample of delay; 0.5 us of dead time on the 48 V bus) with the motor 20 K warmer than its
 nameplate, identify-then-design
