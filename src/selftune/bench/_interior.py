@@ -61,7 +61,8 @@ TEMPERATURE_RISE = 20.0
 
 #: The dead time of the low-voltage (48 V) drives, s: the hardware-like drive's 2 V per
 #: phase would be 4.2 us on 48 V, which no low-voltage drive has; with it the 25 uH motor's
-#: R_s came out 86% high and L_d 4% low at 4-5 standard errors (docs/interior.md).
+#: R_s came out 86% high and L_d 4% low at 4-5 standard errors (docs/interior.md), which
+#: the learner now refuses, naming the signs near zero current.
 LOW_VOLTAGE_DEAD_TIME = 0.5e-6
 
 #: The top of the schedule's speed range, in units of the operating point's speed.
