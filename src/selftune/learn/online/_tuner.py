@@ -94,15 +94,15 @@ GUARD_DOUBT = (0.3, 0.3, 0.3, 0.3)
 #: The drift correction's doubt in the reported covariance (the events' estimates and
 #: :attr:`OnlineTuner.estimate`: the error bars), a share of the correction as in
 #: :data:`GUARD_DOUBT`, calibrated on bench section 11's twelve runs (each look acted on
-#: against the truth of its instant, :func:`selftune.report.error_bars`). R_s: none; its
-#: true errors were within one standard error at 49-76% of the looks, rms 0.83-1.48 (the
-#: lower after the resistance step, when the estimates were 0.15-0.19% low). L_s: the
-#: guard's; narrower only narrows bars already too narrow on carrier PWM (its ripple the
-#: average model leaves out), which scatters L_s beyond them (rms 4.0-5.5 without doubt
-#: on the medium and large motors, 0.9 on the medium one with average PWM; 1.2 on the
-#: servo).
-#: The flux: 5%, the servo's (rms 1.07-1.43; 3.3-4.5 without doubt), too wide on the
-#: slower motors (rms 0.13-0.47; 0.35-1.37 without doubt). The dead-time voltage: the
+#: against the true motor of its data's last sample, :func:`selftune.report.error_bars`;
+#: docs/online.md). R_s: none; its true errors were within one standard error at 49-76%
+#: of the looks, rms 0.83-1.48 (the lower after the resistance step, when the estimates
+#: stayed 0.15-0.19% low). L_s: the guard's; a narrower share only narrows bars already
+#: too narrow on carrier PWM (its ripple, which the average model leaves out, scatters
+#: L_s beyond them: rms 4.0-5.5 without doubt on the medium and large motors, 0.9 on the
+#: medium one with average PWM, 1.2 on the servo). The flux: 5%, the servo's (rms
+#: 1.07-1.43; 3.3-4.5 without doubt), too wide on the slower motors (rms 0.13-0.47;
+#: 0.35-1.37 without doubt): no one share fits the three. The dead-time voltage: the
 #: guard's (no truth to measure it against).
 REPORTED_DOUBT = (0.0, 0.3, 0.05, 0.3)
 
