@@ -97,13 +97,15 @@ GUARD_DOUBT = (0.3, 0.3, 0.3, 0.3)
 #: against the true motor of its data's last sample, :func:`selftune.report.error_bars`;
 #: docs/online.md). R_s: none; its true errors were within one standard error at 49-76%
 #: of the looks, rms 0.83-1.48 (the lower after the resistance step, when the estimates
-#: stayed 0.15-0.19% low). L_s: the guard's; a narrower share only narrows bars already
-#: too narrow on carrier PWM (its ripple, which the average model leaves out, scatters
-#: L_s beyond them: rms 4.0-5.5 without doubt on the medium and large motors, 0.9 on the
-#: medium one with average PWM, 1.2 on the servo). The flux: 5%, the servo's (rms
-#: 1.07-1.43; 3.3-4.5 without doubt), too wide on the slower motors (rms 0.13-0.47;
-#: 0.35-1.37 without doubt): no one share fits the three. The dead-time voltage: the
-#: guard's (no truth to measure it against).
+#: stayed 0.15-0.19% low: the looks then fall later in the reference's cycle of torque
+#: steps, and the split of the voltage between R_s and the dead-time voltage follows the
+#: current levels the last second holds). L_s: the guard's; a narrower share only
+#: narrows bars already too narrow on carrier PWM (its ripple, which the average model
+#: leaves out, scatters L_s beyond them: rms 4.0-5.5 without doubt on the medium and
+#: large motors, 0.9 on the medium one with average PWM, 1.2 on the servo). The flux:
+#: 5%, the servo's (rms 1.07-1.43; 3.3-4.5 without doubt), too wide on the slower
+#: motors (rms 0.13-0.47; 0.35-1.37 without doubt): no one share fits the three. The
+#: dead-time voltage: the guard's (no truth to measure it against).
 REPORTED_DOUBT = (0.0, 0.3, 0.05, 0.3)
 
 #: The least move of a parameter, a fraction of it, for which a look designs a new law
