@@ -119,15 +119,27 @@ def test_the_run_follows_the_motor_and_every_switch_is_safe(run: OnlineRun) -> N
 
 def test_the_error_bars_are_judged_against_the_truth_of_each_look(run: OnlineRun) -> None:
     """The share within one standard error and the rms of the looks' errors in standard
-    errors, each parameter against the truth at its look (the profile's values read off
-    by interpolation here, not by the chunk the report finds), in the summary too."""
+    errors, each parameter against the truth of the last sample its look's data hold:
+    the profile one period before the look (its points interpolated here), which the
+    drive's record of the chunk holds to the drive's hold of a ramp; the look at the
+    step's instant is judged against the value before it (the record at its chunk's end
+    is the next sample's, after the step). In the summary too."""
     found = error_bars(run)
-    nameplate = run.motor.phi_pm
-    for column, (name, truth) in enumerate(
-        [("R_s", run.R_s), ("L_s", run.L_s), ("phi_pm", run.phi_pm / nameplate)]
-    ):
-        at_looks = np.interp(run.look_time, run.chunk_time, truth)
-        z = (run.estimates[:, column] - at_looks) / run.standard_errors[:, column]
+    assert run.drive.temperature_rise == 0.0  # the drive's true motor is the nameplate's
+    profile, t = run.profile, run.look_time - run.h
+    truths = [
+        run.motor.R_s * np.interp(t, profile.time, profile.R_s),
+        run.motor.L_s * np.interp(t, profile.time, profile.L_s),
+        np.interp(t, profile.time, profile.phi_pm),
+    ]
+    chunks = np.searchsorted(run.chunk_time, run.look_time - 0.5 * run.h)
+    recorded = [run.R_s[chunks - 1], run.L_s[chunks - 1], run.phi_pm[chunks - 1] / run.motor.phi_pm]
+    for truth, record in zip(truths, recorded, strict=True):  # the record: the chunk's first
+        np.testing.assert_allclose(truth, record, rtol=1e-4)  # sample's (no step inside one)
+    stepped = int(np.flatnonzero(np.isclose(run.look_time, 2.0))[0])
+    assert truths[0][stepped] < 0.9 * run.R_s[chunks[stepped]]
+    for column, (name, truth) in enumerate(zip(("R_s", "L_s", "phi_pm"), truths, strict=True)):
+        z = (run.estimates[:, column] - truth) / run.standard_errors[:, column]
         assert run.look_time.size > 5
         assert found[name]["within_one_ratio"] == pytest.approx(np.mean(np.abs(z) <= 1.0))
         assert found[name]["rms_ratio"] == pytest.approx(np.sqrt(np.mean(z**2)), rel=1e-9)

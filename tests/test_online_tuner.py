@@ -18,8 +18,9 @@ import pytest
 
 import selftune
 from selftune.learn import LearningProblem
-from selftune.learn.online import OnlineSettings, OnlineTuner
-from selftune.learn.online._tuner import YOUNG_SHARE
+from selftune.learn.online import OnlineSettings, OnlineTuner, _tuner
+from selftune.learn.online._physical import physical_estimate
+from selftune.learn.online._tuner import GUARD_DOUBT, YOUNG_SHARE
 from selftune.model import solve_digital_regulation
 from selftune.sim import DriveSettings, ParameterProfile, RealisticDrive
 
@@ -43,14 +44,15 @@ def _optimum(motor: selftune.SPMSM):  # type: ignore[no-untyped-def]
     )  # fmt: skip
 
 
-def _run(seconds: float, seed: int, learner: str = "identify"):  # type: ignore[no-untyped-def]
+def _run(seconds: float, seed: int, learner: str = "identify", flux_rate: float = 0.0):  # type: ignore[no-untyped-def]
     """The tuner in the loop: chunks of 100 samples, the torque reference stepping
     through +-T* and +-T*/3 every 10 ms, probing of 2.7 V (0.5% of the bus) while the
-    tuner asks for it; the controller starts tuned for a motor 30% off."""
+    tuner asks for it; the controller starts tuned for a motor 30% off. The flux moves
+    by ``flux_rate`` of itself a second."""
     settings = replace(DriveSettings(input_delay=1), current_noise=0.01,
                        logged_input="commanded")  # fmt: skip
-    profile = ParameterProfile([0.0, STEP_TIME, STEP_TIME, seconds], [1.0, 1.0, 1.2, 1.2],
-                               [1.0] * 4)  # fmt: skip
+    times = np.array([0.0, STEP_TIME, STEP_TIME, seconds])
+    profile = ParameterProfile(times, [1.0, 1.0, 1.2, 1.2], 1.0 + flux_rate * times)
     detuned = selftune.SPMSM(R_s=0.78, L_s=5.6e-3, phi_pm=0.35, p=3)
     law = _optimum(detuned).law
     drive = RealisticDrive(MOTOR, SPEED, H, settings)
@@ -62,7 +64,7 @@ def _run(seconds: float, seed: int, learner: str = "identify"):  # type: ignore[
     )  # fmt: skip
     rng = np.random.default_rng(seed)
     levels = np.array([1.0, 1 / 3, -1 / 3, -1.0])
-    switches, changes, chunk, pending = [], [], 100, None
+    switches, changes, events, chunk, pending = [], [], [], 100, None
     x_next = np.zeros(2)
     for index in range(round(seconds / H) // chunk):
         w = MOTOR.exogenous(SPEED, TORQUE * levels[index % levels.size])
@@ -81,12 +83,13 @@ def _run(seconds: float, seed: int, learner: str = "identify"):  # type: ignore[
         rows = slice(0, chunk)
         ws = np.broadcast_to(w, (chunk, w.size))
         for event in tuner.feed(part.measured[rows], part.logged_input, ws, part.angle[rows]):
+            events.append(event)
             if event.law is not None:
                 pending = event.law
                 switches.append((tuner.sample * H, event.law, float(part.R_s[-1]), event.reason))
             if event.kind == "change":
                 changes.append(tuner.sample * H)
-    return switches, changes, tuner
+    return switches, changes, tuner, events
 
 
 def _step_cost(motor: selftune.SPMSM, law) -> float:  # type: ignore[no-untyped-def]
@@ -110,7 +113,7 @@ def test_the_tuner_switches_only_to_laws_better_on_the_true_motor(learner: str) 
     50 ms and nothing before it; at the end the estimated R_s is the stepped one within 3
     standard errors. The same with the paper's ADP as the learner (the model only
     certifies its law)."""
-    switches, changes, tuner = _run(2.0, 1, learner)
+    switches, changes, tuner, _ = _run(2.0, 1, learner)
     acted = YOUNG_SHARE * tuner.settings.memories[2]
     assert switches and switches[0][0] <= acted + 0.1 + 1e-9, switches[0][0]
     law = _optimum(selftune.SPMSM(R_s=0.78, L_s=5.6e-3, phi_pm=0.35, p=3)).law
@@ -123,6 +126,68 @@ def test_the_tuner_switches_only_to_laws_better_on_the_true_motor(learner: str) 
     assert tuner.estimate is not None
     error = tuner.estimate.theta[0] - 1.2 * MOTOR.R_s
     assert abs(error) <= 3.0 * tuner.estimate.standard_errors[0]
+
+
+def test_the_reported_covariance_differs_from_the_guard_only_by_the_doubt(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A look's two covariances are the instruments' plus a share of the drift
+    correction's square on the diagonal: with the reported shares zero the reported
+    covariance is the instruments' (the fit recomputed here), and the guard's excess
+    over it is diagonal; with other shares the reported excess is the guard's scaled by
+    the shares' squared ratio; the parameters are the same."""
+    tuner = _run(4.0, 2)[2]
+    model, Theta, _, lag = tuner._model.drift_free(1, 2)
+    assert lag == 0.0  # the two memories' ages differ: the correction is made
+    start = tuner._theta
+    fitted = physical_estimate(model, tuner.settings.structure, start,
+                               weight=tuner._model.moments[2].instrument_weight(Theta))  # fmt: skip
+    monkeypatch.setattr(_tuner, "REPORTED_DOUBT", (0.0, 0.0, 0.0, 0.0))
+    guard, reported = tuner._estimate(model, Theta, lag)
+    np.testing.assert_array_equal(reported.covariance, fitted.covariance)
+    np.testing.assert_array_equal(guard.theta, reported.theta)
+    excess = guard.covariance - fitted.covariance
+    np.testing.assert_allclose(excess, np.diag(np.diag(excess)), rtol=0.0, atol=0.0)
+    assert np.all(np.diag(excess) > 0.0)
+    shares = (0.05, 0.1, 0.2, 0.0)
+    monkeypatch.setattr(_tuner, "REPORTED_DOUBT", shares)
+    guard_again, reported = tuner._estimate(model, Theta, lag)
+    np.testing.assert_array_equal(guard_again.covariance, guard.covariance)
+    ratio = (np.array(shares) / np.array(GUARD_DOUBT))[: guard.theta.size] ** 2
+    np.testing.assert_allclose(
+        reported.covariance - fitted.covariance, np.diag(ratio * np.diag(excess)),
+        rtol=1e-9, atol=1e-12 * np.max(np.abs(fitted.covariance)),
+    )  # fmt: skip
+
+
+def test_the_decisions_do_not_depend_on_the_reported_doubt(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The same run (the resistance step, the flux falling 1%/s) with the reported shares
+    at zero and at the guard's gives the same events (times, kinds, reasons, laws, the
+    parameters), while the error bars the events carry differ."""
+    runs = []
+    for shares in ((0.0, 0.0, 0.0, 0.0), GUARD_DOUBT):
+        monkeypatch.setattr(_tuner, "REPORTED_DOUBT", shares)
+        runs.append(_run(4.0, 1, flux_rate=-0.01)[3])
+    narrow, wide = runs
+    assert [(e.sample, e.kind, e.reason) for e in narrow] == [
+        (e.sample, e.kind, e.reason) for e in wide
+    ]
+    kinds = {e.kind for e in narrow}
+    assert {"switch", "rescale", "change"} <= kinds, kinds
+    widened = 0
+    for a, b in zip(narrow, wide, strict=True):
+        assert (a.law is None) == (b.law is None)
+        if a.law is not None and b.law is not None:
+            for name in ("K", "X", "U", "K_i", "F"):
+                np.testing.assert_array_equal(getattr(a.law, name), getattr(b.law, name))
+        assert (a.estimate is None) == (b.estimate is None)
+        if a.estimate is not None and b.estimate is not None:
+            np.testing.assert_array_equal(a.estimate.theta, b.estimate.theta)
+            assert np.all(a.estimate.standard_errors <= b.estimate.standard_errors)
+            widened += bool(np.any(a.estimate.standard_errors < b.estimate.standard_errors))
+    assert widened > 0
 
 
 def test_the_docs_example_runs_and_follows_the_step() -> None:

@@ -383,8 +383,8 @@ def online_targets(study: OnlineStudy, quick: bool = False) -> list[TargetOutcom
                       "error (rms 0.5-2 standard errors in every run)",
                       "; ".join(f"{name} {_range(shares[name], '.0%')}" for name in shares),
                       bool(all(0.5 <= value <= 2.0 for values in rms.values() for value in values)),
-                      "the looks' estimates against the truth of their instant, per run; rms "
-                      "in standard errors " + "; ".join(
+                      "the looks' estimates against the truth of their data's last sample, per "
+                      "run; rms in standard errors " + "; ".join(
                           f"{name} {_range(rms[name], '.2f')}" for name in rms)),
         TargetOutcome("online replay", "a recorded log replayed gives the same events",
                       f"{study.replay.events_count} events, "

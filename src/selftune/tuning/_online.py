@@ -150,7 +150,9 @@ class OnlineRun:
     estimates : ndarray, shape (looks, p)
         Its ``[R_s, L_s, kappa(, v)]`` (kappa: the flux over the nameplate's).
     standard_errors : ndarray, shape (looks, p)
-        Their standard errors.
+        Their reported standard errors (the error bars:
+        :data:`~selftune.learn.online._tuner.REPORTED_DOUBT`; the tuner decided with
+        wider ones).
     tuner_seconds : float
         CPU time the tuner took, s.
     drive_seconds : float

@@ -80,6 +80,12 @@ class PhysicalEstimate:
         """The parameters' standard errors, in their units."""
         return np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
 
+    def doubted(self, doubt: Array) -> PhysicalEstimate:
+        """The same estimate with ``doubt`` added to its covariance as independent
+        standard errors, one a parameter (in their units)."""
+        covariance = self.covariance + np.diag(np.asarray(doubt, dtype=float) ** 2)
+        return PhysicalEstimate(self.theta, covariance, self.sensitivities, self.gain)
+
 
 def physical_estimate(
     model: DiscreteModel,
