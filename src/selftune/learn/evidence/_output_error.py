@@ -277,6 +277,9 @@ def _residuals_and_jacobian(
     return residuals, jacobians, simulated
 
 
+#: The double precision's unit roundoff.
+EPS = float(np.finfo(float).eps)
+
 #: Rounds of re-estimating the noise weight W; Levenberg-Marquardt runs within each.
 WEIGHT_ROUNDS = 3
 
@@ -400,7 +403,15 @@ def _noise_root(stacked: Array, floor: Array) -> Array:
     data weigh finitely)."""
     covariance = np.atleast_2d(np.cov(stacked.T))
     covariance = covariance + np.diag(np.maximum(floor**2 - np.diag(covariance), 0.0))
-    return np.asarray(scipy.linalg.cholesky(np.linalg.inv(covariance)), dtype=np.float64)
+    try:
+        return np.asarray(scipy.linalg.cholesky(np.linalg.inv(covariance)), dtype=np.float64)
+    except np.linalg.LinAlgError:
+        # output errors that move together (a stiff plant's noise-free log, at rounding):
+        # the sample covariance is singular or indefinite by rounding; the root from its
+        # eigenvalues, held at the smallest floor and at what the largest can resolve
+        values, vectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
+        least = max(float(np.min(floor)) ** 2, values.size * EPS * float(np.max(values)))
+        return np.asarray(vectors.T / np.sqrt(np.maximum(values, least))[:, None])
 
 
 def resolution_floor(x: Array, relative: float) -> Array:
