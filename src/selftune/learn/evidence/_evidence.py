@@ -72,8 +72,8 @@ from ._output_error import (
     OutputErrorFit,
     SpmsmStructure,
     fit_output_error,
-    resolution_floor,
 )
+from ._rounding import resolution_floor
 from ._sign_bias import without_sign_bias
 
 __all__ = [

@@ -28,7 +28,6 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-import scipy.linalg
 
 from ...core import Array
 from ...errors import InputError
@@ -46,6 +45,7 @@ from ._propagation import (
     simulate_model,
 )
 from ._propagation import _Log as _Log
+from ._rounding import at_rounding, noise_root, resolution_floor
 from ._spmsm_structure import SpmsmStructure
 
 __all__ = [
@@ -55,7 +55,6 @@ __all__ = [
     "SpmsmStructure",
     "Structure",
     "fit_output_error",
-    "resolution_floor",
     "simulate_model",
     "simulated_trajectories",
 ]
@@ -218,7 +217,7 @@ def fit_output_error(
     # output errors at the log's rounding (noise-free data) leave the linearization exact
     # to rounding: the fit's nonlinearity enters with the noise squared, and the refits
     # would only resample rounding
-    if short and not _at_rounding(list(fit.residuals), floor):
+    if short and not at_rounding(list(fit.residuals), floor):
         fit = bootstrapped(fit, logs, matrices, structure is not None, floor)
     return fit
 
@@ -277,15 +276,8 @@ def _residuals_and_jacobian(
     return residuals, jacobians, simulated
 
 
-#: The double precision's unit roundoff.
-EPS = float(np.finfo(float).eps)
-
 #: Rounds of re-estimating the noise weight W; Levenberg-Marquardt runs within each.
 WEIGHT_ROUNDS = 3
-
-#: Output errors (rms, per state) within this many times the log's rounding leave a fit
-#: nothing to explain: noise-free data stop there instead of iterating on rounding.
-ROUNDING_RESIDUAL = 2.0
 
 
 def _cost(
@@ -339,7 +331,7 @@ def _search(
             chain = _jacobian_map(matrices, theta, structured)
             current = yield from _residuals_and_jacobian(logs, matrices(theta), x0s, chain)
         residuals, jacobians, _ = current
-        root = _noise_root(np.concatenate(residuals), floor)  # W = root' root
+        root = noise_root(np.concatenate(residuals), floor)  # W = root' root
         weight, damping = root.T @ root, 1e-4
         cost = _weighted(residuals, weight)  # the residuals are those at (theta, x0s)
         equations = None  # the normal equations at (theta, x0s) under this weight
@@ -367,9 +359,9 @@ def _search(
             )
             residuals, jacobians, _ = current
             equations = None
-            if _at_rounding(residuals, floor):
+            if at_rounding(residuals, floor):
                 break
-        if _at_rounding(residuals, floor):
+        if at_rounding(residuals, floor):
             break
     return theta, x0s, iterations, current
 
@@ -388,46 +380,6 @@ def _gauss_newton(
         [_search(logs, theta, (matrices, structured), max_iterations, floor)]
     )
     return _finish(logs, theta, matrices, structured, x0s, h, iterations, floor, current=current)
-
-
-def _at_rounding(residuals: list[Array], floor: Array) -> bool:
-    """Whether every state's rms output error is within :data:`ROUNDING_RESIDUAL` times
-    its rounding floor."""
-    rms = np.sqrt(np.mean(np.concatenate(residuals) ** 2, axis=0))
-    return bool(np.all(rms <= ROUNDING_RESIDUAL * floor))
-
-
-def _noise_root(stacked: Array, floor: Array) -> Array:
-    """``root`` with ``root' root`` the inverse of the residuals' covariance, each state's
-    variance at least ``floor^2`` (the log's resolution; never zero, so that noise-free
-    data weigh finitely)."""
-    covariance = np.atleast_2d(np.cov(stacked.T))
-    covariance = covariance + np.diag(np.maximum(floor**2 - np.diag(covariance), 0.0))
-    try:
-        return np.asarray(scipy.linalg.cholesky(np.linalg.inv(covariance)), dtype=np.float64)
-    except np.linalg.LinAlgError:
-        # output errors that move together (a stiff plant's noise-free log, at rounding):
-        # the sample covariance is singular or indefinite by rounding; the root from its
-        # eigenvalues, held at the smallest floor and at what the largest can resolve
-        values, vectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
-        least = max(float(np.min(floor)) ** 2, values.size * EPS * float(np.max(values)))
-        return np.asarray(vectors.T / np.sqrt(np.maximum(values, least))[:, None])
-
-
-def resolution_floor(x: Array, relative: float) -> Array:
-    """The standard deviation of rounding to ``relative`` precision of each state's values
-    (uniform rounding, ``relative max|x| / sqrt(3)``), at least 1e-12 of the states' size.
-
-    Parameters
-    ----------
-    x : ndarray, shape (T, n)
-        The states.
-    relative : float
-        The log's relative precision (e.g. 6e-8 for float32).
-    """
-    size = float(np.max(np.abs(x))) if x.size else 1.0
-    per_state = relative * np.max(np.abs(x), axis=0) / np.sqrt(3.0)
-    return np.asarray(np.maximum(per_state, 1e-12 * max(size, 1e-300)))
 
 
 def _whitened(
@@ -550,7 +502,7 @@ def _finish(
     noise = noise + np.diag(np.maximum(floor**2 - np.diag(noise), 0.0))
     p = theta.shape[0]
     robust, fisher = _robust_covariance(
-        _whitened(residuals, jacobians, _noise_root(stacked, floor), p),
+        _whitened(residuals, jacobians, noise_root(stacked, floor), p),
         [r.shape[0] for r in residuals],
     )
     white = np.diag(np.linalg.pinv(fisher))[:p]
