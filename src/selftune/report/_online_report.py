@@ -31,9 +31,8 @@ from ..core import Array, ControlLaw, write_json
 from ..core._atomic import output_directory, write_text
 from ..learn.evidence._spmsm_structure import SpmsmStructure
 from ..model import SPMSM, ModelBasedSolution, solve_digital_regulation
-from ..sim._inverter import heated_motor
 from ..tuning import CHUNK_SECONDS, SEGMENT_CHUNKS, OnlineRun
-from ._digital_evaluation import step_cost
+from ._digital_evaluation import step_cost, true_motor
 
 __all__ = [
     "ONLINE_REPORT_FILES",
@@ -240,7 +239,7 @@ def error_bars(run: OnlineRun) -> dict[str, dict[str, float]]:
         ``{"R_s" | "L_s" | "phi_pm": {"within_one_ratio": share, "rms_ratio": rms}}``
         (nan without a look).
     """
-    true = heated_motor(run.motor, run.drive.temperature_rise)
+    true = true_motor(run.motor, run.drive)
     factors = run.profile.factors(run.look_time - run.h)
     flux = true.phi_pm * factors.phi_pm / run.motor.phi_pm  # the estimate's: over the nameplate's
     truths = (true.R_s * factors.R_s, true.L_s * factors.L_s, flux)
