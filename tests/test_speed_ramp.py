@@ -23,6 +23,7 @@ from selftune.sim import (
     DriveSettings,
     RealisticDrive,
     constant,
+    held,
     ramp_speeds,
     run_speed_profile,
     uniform,
@@ -129,6 +130,52 @@ def test_a_ramp_is_the_integrated_motor(motor: Motor, levels: int | None) -> Non
     logged = record.trajectory.angle
     assert logged is not None
     np.testing.assert_allclose(np.exp(1j * logged[1:]), np.exp(1j * angle), rtol=0, atol=1e-11)
+
+
+def test_a_law_per_speed_is_called_at_each_held_speed_and_its_state_carries_over() -> None:
+    """A function of the speed gives the law over each run of equal speeds: the
+    feedforward following the speed. Given the same law at every speed, the record is
+    the law's own to the bit; a law whose state differs is refused naming the speed."""
+    motor, count = SALIENT, 600
+    speeds = ramp_speeds(20.0, 200.0, count, 3)
+    w = constant(motor.exogenous(200.0, 1.0))
+    fixed = law_for(motor, 200.0)
+    asked: list[float] = []
+
+    def same(speed: float) -> ControlLaw:
+        asked.append(speed)
+        return fixed
+
+    records = [
+        run_speed_profile(motor, speeds, H, HARDWARE, law, w, exploration=uniform(3.0), seed=5)
+        for law in (fixed, same)
+    ]
+    assert asked == [20.0, 110.0, 200.0]
+    for name in ("true_currents", "applied_voltages", "commanded_voltages"):
+        assert np.array_equal(getattr(records[0], name), getattr(records[1], name)), name
+
+    # each speed's own law from the first sample at that speed: the first level is the
+    # run under the lowest speed's law alone to the bit, up to the second level
+    def exogenous(t: Array) -> Array:  # w_1 following the speed
+        rows = np.minimum(np.round(t / H).astype(int), count - 1)
+        return np.array([motor.exogenous(speed, 1.0) for speed in speeds[rows]])
+
+    following, lowest = (
+        run_speed_profile(
+            motor, speeds, H, HARDWARE, law, held(exogenous), exploration=uniform(3.0), seed=5
+        )
+        for law in (lambda speed: law_for(motor, speed), law_for(motor, 20.0))
+    )
+    change = count // 3  # the second level's first sample
+    ours, theirs = following.commanded_voltages, lowest.commanded_voltages  # (N, 2)
+    assert np.array_equal(ours[:change], theirs[:change])
+    assert not np.array_equal(ours[change], theirs[change])
+
+    def changing(speed: float) -> ControlLaw:
+        return fixed if speed < 100.0 else ControlLaw.regulator(fixed.K, fixed.X, fixed.U)
+
+    with pytest.raises(InputError, match="at 110 rad/s"):
+        run_speed_profile(motor, speeds, H, HARDWARE, changing, w, exploration=None, seed=5)
 
 
 def test_ramp_speeds() -> None:

@@ -80,6 +80,11 @@ class RampCase:
     top_w_e_h : float
         ``p speed h`` at the rated speed, rad per sample.
     wall_seconds : float
+    top_current_median_ratio : float
+        The median measured current magnitude at the top speed, in rated currents (the
+        experiment's: a drive trips far above it).
+    top_current_peak_ratio : float
+        Its largest, in rated currents.
     """
 
     motor_text: str
@@ -91,6 +96,8 @@ class RampCase:
     grid_points: int
     top_w_e_h: float
     wall_seconds: float
+    top_current_median_ratio: float = float("nan")
+    top_current_peak_ratio: float = float("nan")
 
     @property
     def learned(self) -> bool:
@@ -163,11 +170,15 @@ def _case(index: int, seed: int) -> RampCase:
     ]
     identified, true = designs
     single = identified.pointwise_optimum(SINGLE_SPEED_SHARE * motor.p * speed).law
+    rated = float(np.hypot(*motor.current_reference(torque)))
+    currents = result.log.x[:-1][result.record_speeds == speed]  # at the top speed
+    magnitude = np.hypot(currents[:, 0], currents[:, 1]) / rated
     return RampCase(
         label, seed, "", 100.0 * _errors(result, truth),
         100.0 * float(np.max(true.excess_of(identified.schedule))),
         100.0 * float(true.excess_of(single)[-1]),
         identified.schedule.electrical_speed.size, top, time.perf_counter() - started,
+        float(np.median(magnitude)), float(np.max(magnitude)),
     )  # fmt: skip
 
 
@@ -205,19 +216,23 @@ def markdown_ramp(study: RampStudy) -> list[str]:
         if not case.learned:
             refusal = "refused: " + case.refusal_text
             rows.append([case.motor_text, str(case.seed), refusal, "-", "-", "-",
-                         f"{case.top_w_e_h:.3f}", f"{case.wall_seconds:.1f}"])  # fmt: skip
+                         f"{case.top_w_e_h:.3f}", "-", f"{case.wall_seconds:.1f}"])  # fmt: skip
             continue
         rows.append([case.motor_text, str(case.seed), f"{case.parameter_error_percent:.3f}",
                      f"{case.schedule_excess_percent:.2e}",
                      f"{case.single_speed_excess_percent:.3f}", str(case.grid_points),
-                     f"{case.top_w_e_h:.3f}", f"{case.wall_seconds:.1f}"])  # fmt: skip
+                     f"{case.top_w_e_h:.3f}",
+                     f"{case.top_current_median_ratio:.2f} / {case.top_current_peak_ratio:.2f}",
+                     f"{case.wall_seconds:.1f}"])  # fmt: skip
     learned = [case for case in study.cases if case.learned]
     schedule = [case.schedule_excess_percent for case in learned]
     single = [case.single_speed_excess_percent for case in learned]
+    median = [case.top_current_median_ratio for case in learned]
     summary = (
         f"{len(learned)} of {len(study.cases)} learned; the schedule's largest excess "
         f"{min(schedule):.2e}-{max(schedule):.2e}%, the single-speed controller's at the "
-        f"top {min(single):.3f}-{max(single):.3f}%"
+        f"top {min(single):.3f}-{max(single):.3f}%; the experiment's median current at the "
+        f"top speed {min(median):.2f}-{max(median):.2f} times the rated"
         if learned
         else f"0 of {len(study.cases)} learned"
     )
@@ -235,6 +250,7 @@ def markdown_ramp(study: RampStudy) -> list[str]:
                 "single-speed excess at top %",
                 "grid",
                 "w_e h at rated",
+                "current at top, median / peak, x rated",
                 "s",
             ],
             rows,

@@ -19,6 +19,7 @@ a few levels costs a constant-speed run.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from itertools import pairwise
 from typing import Any
@@ -43,7 +44,7 @@ from ._realistic import (
     _reference,
 )
 from ._signals import ExogenousSignal
-from ._stepper import feedback_of
+from ._stepper import Feedback, feedback_of
 
 __all__ = ["ramp_speeds", "run_speed_profile"]
 
@@ -78,7 +79,7 @@ def run_speed_profile(
     speeds: ArrayLike,
     h: float,
     settings: DriveSettings,
-    law: ControlLaw,
+    law: ControlLaw | Callable[[float], ControlLaw],
     reference: ExogenousSignal,
     *,
     exploration: Exploration | None,
@@ -97,8 +98,12 @@ def run_speed_profile(
         Sampling (and PWM) period, s.
     settings : DriveSettings
         The drive's effects.
-    law : ControlLaw
-        The controller (n = m = 2; q of the reference).
+    law : ControlLaw or callable
+        The controller (n = m = 2; q of the reference), or a function of the held
+        mechanical speed (rad/s) giving the controller over each run of equal speeds: a
+        feedforward that follows the speed (the experiment's decoupling), a schedule's
+        law. Every speed's law has the first one's dimensions, fed-back inputs and
+        integrators: the loop's state carries over from one speed to the next.
     reference : ExogenousSignal
         The controller's ``w`` at the sample instants (e.g. ``w_1 = p speed phi`` following
         the speed).
@@ -125,14 +130,21 @@ def run_speed_profile(
     given, _ = _motors([motor], 0.0)
     t = h * np.arange(count + 1, dtype=float)
     w = _reference(reference, t, 1)
-    [checked_law] = _laws(law, 1, w.shape[-1])
-    feedback = feedback_of([checked_law])
+    law_at = None
+    if isinstance(law, ControlLaw) or not callable(law):
+        [first] = _laws(law, 1, w.shape[-1])
+    else:
+        law_at = law
+        [first] = _laws(law_at(float(profile[0])), 1, w.shape[-1])
+    feedback = feedback_of([first])
     rho, noise = random_inputs(exploration, t, seed, 1, checked.current_noise)
     cuts = [0, *(np.flatnonzero(np.diff(profile) != 0.0) + 1).tolist(), count]
     state: LoopState | None = None
     angle = np.zeros(1)
     pieces: list[tuple[LoopInputs, LoopOutputs]] = []
     for a, b in pairwise(cuts):
+        if law_at is not None and a > 0:
+            feedback = _same_loop(first, law_at(float(profile[a])), float(profile[a]))
         batch = MotorBatch.build(given, np.array([profile[a]]), checked.temperature_rise)
         inputs = _loop_inputs(
             batch, checked, feedback, t[a : b + 1], h, w[:, a : b + 1], rho[:, a:b],
@@ -144,6 +156,23 @@ def run_speed_profile(
         state = outputs.state
         angle = angle + batch.electrical_speed * (t[b] - t[a])
     return _records(*_joined(pieces, t, w, rho), checked, t)[0]
+
+
+def _same_loop(first: ControlLaw, law: ControlLaw, speed: float) -> Feedback:
+    """``law`` (the one at ``speed``, rad/s) as the loop's map, if its state is the first
+    law's: the same dimensions, fed-back inputs and integrators."""
+    expected = (first.n, first.m, first.q, first.history, first.r)
+    if not isinstance(law, ControlLaw):
+        raise InputError(
+            f"law: at {speed:g} rad/s it gave a {type(law).__name__}, not a ControlLaw"
+        )
+    shape = (law.n, law.m, law.q, law.history, law.r)
+    if shape != expected:
+        raise InputError(
+            f"law: at {speed:g} rad/s its (n, m, q, history, integrators) are {shape}, the "
+            f"first speed's {expected}: the loop's state carries over between speeds"
+        )
+    return feedback_of([law])
 
 
 def _joined(

@@ -156,11 +156,12 @@ K0_REMEDY = (
 )
 
 
-def decoupling_feedforward(motor: IPMSM, electrical_speed: float) -> Array:
-    """``U`` of the experiment's law on ``w = [w_1, i_d*, i_q*]``: the back-EMF ``w_1`` and
-    the cross-coupling of the current references through the nameplate inductances,
-    ``u_d = -w_e L_q i_q*``, ``u_q = w_1 + w_e L_d i_d*``, so that the currents follow
-    their references (about the rated current) under the gentle K0.
+def decoupling_feedforward(motor: Motor, electrical_speed: float) -> Array:
+    """``U`` of the experiment's law on the motor's ``w`` (``[w_1, i_d*, i_q*]`` for an
+    interior motor, ``[w_1, T*]`` for a surface one): the back-EMF ``w_1`` and the
+    cross-coupling of the current references ``[i_d*, i_q*] = -F w`` through the nameplate
+    inductances, ``u_d = -w_e L_q i_q*``, ``u_q = w_1 + w_e L_d i_d*``, so that the
+    currents follow their references (about the rated current) under the gentle K0.
 
     Under K0 alone the back-EMF drove the currents: 4-5 times the rated current at the
     interior bench's speeds on three of its six motors (a median of 39-40 A against
@@ -172,17 +173,16 @@ def decoupling_feedforward(motor: IPMSM, electrical_speed: float) -> Array:
 
     Parameters
     ----------
-    motor : IPMSM
-        The nameplate motor (its L_d and L_q, H; as K0's default uses them).
+    motor : SPMSM or IPMSM
+        The nameplate motor (its L_d and L_q, H, as K0's default uses them; its ``F``).
     electrical_speed : float
         ``p`` times the mechanical speed, rad/s.
     """
-    return np.array(
-        [
-            [0.0, 0.0, -electrical_speed * motor.L_q],
-            [1.0, electrical_speed * motor.L_d, 0.0],
-        ]
-    )
+    references = -motor.regulation_problem(electrical_speed / motor.p).F  # w -> [i_d*, i_q*]
+    coupling = electrical_speed * np.array([[0.0, -motor.L_q], [motor.L_d, 0.0]])
+    U = coupling @ references
+    U[1, 0] += 1.0  # w_1, the back-EMF
+    return U
 
 
 def check_current_range(

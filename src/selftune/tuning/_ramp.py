@@ -6,15 +6,18 @@ inductances and the flux do not depend on the speed, so the affine-in-speed plan
 identified motor, and a speed schedule is designed on it
 (:func:`~selftune.model.design_schedule`) only within the speeds the data cover.
 
-The experiment (:func:`commission_ramp`) runs the drive over a staircase of speeds from a
-low to a high one (:func:`~selftune.sim.ramp_speeds`, the speed held within each sample,
-the angle integrating it: :func:`~selftune.sim.run_speed_profile`), under the gentle K0
-with the current steps of the interior commissioning (:func:`~._interior.current_steps`;
-a surface motor's torque reference through the same levels), ``w_1 = p speed
-phi_assumed`` following the speed. The log is learned part by part, each held speed with
-the motor's structure (``"ipmsm"`` or ``"spmsm"``) at its own speed, and the parts'
-parameters combined (:func:`selftune.learn.learn_over_speeds`, which also says why one
-fit over a linear ramp is not done).
+The experiment (:func:`commission_ramp`) runs the drive over a staircase of speeds from
+a low to a high one (:func:`~selftune.sim.ramp_speeds`, the speed held within each
+sample, the angle integrating it: :func:`~selftune.sim.run_speed_profile`), under the
+gentle K0 with the back-EMF and the references' cross-coupling fed forward at each held
+speed (:func:`~._interior.decoupling_feedforward`: under K0 alone the back-EMF drove the
+top speed's currents to a median of 1.5-4.8 and peaks of 1.4-8.4 times the rated current
+on the ramp bench's nine motors), with the current steps of the interior commissioning
+(:func:`~._interior.current_steps`; a surface motor's torque reference through the same
+levels), ``w_1 = p speed phi_assumed`` following the speed. The log is learned part by
+part, each held speed with the motor's structure (``"ipmsm"`` or ``"spmsm"``) at its own
+speed, and the parts' parameters combined (:func:`selftune.learn.learn_over_speeds`,
+which also says why one fit over a linear ramp is not done).
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ from ..core import Array, ControlLaw
 from ..learn import LearnedController, LearningProblem, Trajectory, learn_over_speeds
 from ..model import IPMSM, Motor
 from ..sim import DriveSettings, RealisticDrive, held, ramp_speeds, run_speed_profile, uniform
-from ._interior import check_current_range, current_steps, motor_of
+from ._interior import check_current_range, current_steps, decoupling_feedforward, motor_of
 from ._knowledge import STEP_DWELL, STEP_LEVELS
 from ._learning import learning_options
 from ._settings import TuningSettings
@@ -124,7 +127,9 @@ def commission_ramp(
         torque = levels_array[np.floor(t / STEP_DWELL).astype(int) % levels_array.size]
         return np.column_stack([back_emf, torque * settings.torque])
 
-    law = ControlLaw.regulator(settings.K0, -F, np.zeros((2, F.shape[1])))
+    def law(speed: float) -> ControlLaw:  # K0, the feedforward following the speed
+        return ControlLaw.regulator(settings.K0, -F, decoupling_feedforward(motor, motor.p * speed))
+
     record = run_speed_profile(
         motor, profile, h, drive, law, held(reference), exploration=uniform(settings.exploration),
         seed=seed,
