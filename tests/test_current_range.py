@@ -6,10 +6,12 @@ At twice the interior bench's speed (``w_e h`` = 0.08), the 2/5 mH motor's exper
 K0 alone against the back-EMF reached 62-70 A on a +-50 A ADC; before the check the
 clipped log was learned with L_d 1.6-2.3% and the flux 1.4-2.1% high (torque errors
 1.3-1.8%). The interior commissioning now feeds the back-EMF and the cross-coupling
-forward and stays in range; the ramp still runs under K0 alone.
+forward and stays in range, and so does the ramp, with each held speed's feedforward.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import pytest
 
@@ -39,13 +41,19 @@ def _settings(drive: DriveSettings, seed: int = 1) -> TuningSettings:
 
 
 def test_a_ramp_beyond_the_adc_range_is_refused_naming_it() -> None:
-    """The ramp runs under K0 alone: at 200 rad/s the back-EMF drives 8 times the rated
-    current."""
+    """With each held speed's feedforward the ramp's currents follow their references (up
+    to 8.3 A of q current and half of it in d), in range at +-50 A and learned; an ADC of
+    +-10 A clips the steps' transients."""
+    learned = commission_ramp(MOTOR, _settings(DRIVE), DRIVE, (10.0, SPEED), seconds=1.0, seed=1)
+    for name in ("L_d", "L_q", "phi_pm"):
+        assert getattr(learned.motor, name) == pytest.approx(getattr(MOTOR, name), rel=5e-3)
+    small = replace(DRIVE, adc_range=10.0)
     with pytest.raises(CurrentOverrange, match=r"the ramp from 10 to 200 rad/s drove") as caught:
-        commission_ramp(MOTOR, _settings(DRIVE), DRIVE, (10.0, SPEED), seconds=1.0, seed=1)
+        commission_ramp(MOTOR, _settings(small), small, (10.0, SPEED), seconds=1.0, seed=1)
     assert caught.value.peak > 1.05 * caught.value.full_scale
-    assert "adc_range = 50 A" in str(caught.value) and "[learning] K0" in str(caught.value)
-    assert "\n" not in str(caught.value)
+    message = str(caught.value)
+    assert "adc_range = 10 A" in message and "[learning] exploration" in message
+    assert "\n" not in message
 
 
 def test_the_commissioning_at_that_speed_stays_in_range_and_is_learned() -> None:

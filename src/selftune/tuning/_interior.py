@@ -149,10 +149,14 @@ def current_steps(t: Array, scale: float) -> tuple[Array, Array]:
 #: errors); 5.6-8% over, 0.11-0.42%; 8-20% over, 0.3-1.4% (torque errors up to 1.1%).
 CLIP_TOLERANCE = 0.05
 
-#: What to do when an experiment under K0 alone goes beyond the ADC's range.
+#: What to do when an experiment under the gentle K0 (with the feedforward) goes beyond
+#: the ADC's range: its steps, its exploration (large on a small inductance: 10.8 V on
+#: 25 uH at 10 kHz is 43 A a sample) and what the nameplate's feedforward misses of the
+#: back-EMF drive the current.
 K0_REMEDY = (
-    "under K0 alone the back-EMF drives the current: commission at a lower speed, with a "
-    "larger K0 (its [learning] K0), or on a drive whose ADC range covers the current"
+    "the experiment's steps, exploration and back-EMF under the gentle K0 drive the "
+    "current: lower the exploration (its [learning] exploration, V), commission at a lower "
+    "speed, use a larger K0 (its [learning] K0), or a drive whose ADC range covers the current"
 )
 
 
