@@ -57,7 +57,8 @@ are the field names.
     with MTPA, refusals.
 
 Outside ``selftune bench`` (run alone, as docs/schedule.md says): :func:`measure_ramp`
-(:mod:`._ramp`), speed schedules learned from 1 s over 5-100% of rated speed; and (as
+(:mod:`._ramp`), speed schedules learned from 1 s over 5-100% of rated speed, and
+:func:`measure_ramp_draws` the same on motors drawn at random; and (as
 docs/saturation.md says) :func:`measure_saturation` (:mod:`._saturation`), saturating
 motors learned at several currents, the current schedule against the true pointwise
 optimum from 10% to 100% of rated current (about 1.5 min of CPU a motor).
@@ -102,7 +103,7 @@ from ._online import (
     markdown_online,
     measure_online,
 )
-from ._ramp import RampStudy, markdown_ramp, measure_ramp
+from ._ramp import RampStudy, markdown_ramp, measure_ramp, measure_ramp_draws
 from ._realistic_drive import (
     RealisticDriveComparison,
     markdown_realistic_drive,
@@ -200,6 +201,7 @@ __all__ = [
     "measure_noise",
     "measure_online",
     "measure_ramp",
+    "measure_ramp_draws",
     "measure_realistic_drive",
     "measure_refusals",
     "measure_saturation",

@@ -14,6 +14,9 @@ grid speeds (:meth:`selftune.model.ScheduleDesign.excess_of`, worst initial stat
 it, the single-speed controller: the identified motor's optimum at 50% of rated, its
 excess at the top speed.
 
+:func:`measure_ramp_draws` runs the same on motors drawn at random across the issue's
+range (:func:`drawn_motor`), which no table was chosen for.
+
 The motors: the interior bench's six (:data:`~._interior.INTERIOR_MOTORS`: 25 uH to 150 mH,
 ``L_q / L_d`` 1.5 to 3, 2 to 20 pole pairs) at their speeds taken as rated, and three
 surface motors (25 uH to 60 mH, 2 to 10 pole pairs).
@@ -28,7 +31,7 @@ import numpy as np
 
 from ..config import MotorConfig
 from ..errors import SelftuneError
-from ..model import SPMSM, Motor, design_schedule
+from ..model import IPMSM, SPMSM, Motor, design_schedule
 from ..report._digital_evaluation import true_motor
 from ..sim import DriveSettings
 from ..tuning import tuning_settings
@@ -41,7 +44,15 @@ from ._interior import (
     TEMPERATURE_RISE,
 )
 
-__all__ = ["RAMP_MOTORS", "RampCase", "RampStudy", "markdown_ramp", "measure_ramp"]
+__all__ = [
+    "RAMP_MOTORS",
+    "RampCase",
+    "RampStudy",
+    "drawn_motor",
+    "markdown_ramp",
+    "measure_ramp",
+    "measure_ramp_draws",
+]
 
 #: The motors: (motor, rated mechanical speed rad/s, rated torque N m, DC bus V).
 RAMP_MOTORS: tuple[tuple[Motor, float, float, float], ...] = (
@@ -85,6 +96,9 @@ class RampCase:
         experiment's: a drive trips far above it).
     top_current_peak_ratio : float
         Its largest, in rated currents.
+    largest_z : float
+        The largest error of the identified inductances and flux, in their standard
+        errors.
     """
 
     motor_text: str
@@ -98,6 +112,7 @@ class RampCase:
     wall_seconds: float
     top_current_median_ratio: float = float("nan")
     top_current_peak_ratio: float = float("nan")
+    largest_z: float = float("nan")
 
     @property
     def learned(self) -> bool:
@@ -125,22 +140,37 @@ def _label(motor: Motor) -> str:
     return f"IPMSM {motor.L_d * 1e3:g}/{motor.L_q * 1e3:g} mH, p {motor.p}"
 
 
-def _errors(result: RampCommissioning, truth: Motor) -> float:
+def _errors(result: RampCommissioning, truth: Motor) -> tuple[float, float]:
+    """The largest relative error of the inductances and flux, and the largest in their
+    standard errors."""
     names = ("L_s", "phi_pm") if isinstance(truth, SPMSM) else ("L_d", "L_q", "phi_pm")
-    return max(abs(getattr(result.motor, name) / getattr(truth, name) - 1.0) for name in names)
+    errors = [getattr(result.motor, name) - getattr(truth, name) for name in names]
+    relative = max(abs(e / getattr(truth, n)) for e, n in zip(errors, names, strict=True))
+    z = max(abs(e / result.standard_errors[n]) for e, n in zip(errors, names, strict=True))
+    return float(relative), float(z)
 
 
 def _case(index: int, seed: int) -> RampCase:
     motor, speed, torque, bus = RAMP_MOTORS[index]
+    return _run(motor, speed, torque, bus, seed, f"{index + 1}: {_label(motor)}")
+
+
+def _run(
+    motor: Motor, speed: float, torque: float, bus: float, seed: int, label: str,
+    adc_range: float | None = None,
+) -> RampCase:  # fmt: skip
+    """One ramp commissioning judged against the truth (``adc_range``, A: the
+    hardware-like drive's 50 A unless given)."""
     drive = replace(DriveSettings.hardware_like(dc_voltage=bus), temperature_rise=TEMPERATURE_RISE)
     if bus < 100.0:
         drive = replace(drive, dead_time=LOW_VOLTAGE_DEAD_TIME)
+    if adc_range is not None:
+        drive = replace(drive, adc_range=adc_range)
     config = MotorConfig(
         motor=motor, speed=speed, torque=torque, drive=drive, drive_h=1e-4,
-        learning={"integral_action": True}, source=f"ramp motor {index + 1}",
+        learning={"integral_action": True}, source=label,
     )  # fmt: skip
     settings = tuning_settings(config, seed)
-    label = f"{index + 1}: {_label(motor)}"
     speeds = (BOTTOM_SPEED_SHARE * speed, speed)
     started = time.perf_counter()
     top = motor.p * speed * settings.h
@@ -173,13 +203,66 @@ def _case(index: int, seed: int) -> RampCase:
     rated = float(np.hypot(*motor.current_reference(torque)))
     currents = result.log.x[:-1][result.record_speeds == speed]  # at the top speed
     magnitude = np.hypot(currents[:, 0], currents[:, 1]) / rated
+    relative, z = _errors(result, truth)
     return RampCase(
-        label, seed, "", 100.0 * _errors(result, truth),
+        label, seed, "", 100.0 * relative,
         100.0 * float(np.max(true.excess_of(identified.schedule))),
         100.0 * float(true.excess_of(single)[-1]),
         identified.schedule.electrical_speed.size, top, time.perf_counter() - started,
-        float(np.median(magnitude)), float(np.max(magnitude)),
+        float(np.median(magnitude)), float(np.max(magnitude)), z,
     )  # fmt: skip
+
+
+def drawn_motor(rng: np.random.Generator) -> tuple[Motor, float, float, float, float]:
+    """A motor across the issue's range (surface or interior up to ``L_q / L_d`` 3, 25 uH
+    to 100 mH, L/R 1-100 ms, 2 to 20 pole pairs, 300-2,000 rad/s electrical at rated
+    speed): the motor, its rated mechanical speed (rad/s) and torque (N m), its DC bus
+    (48 V below 0.3 mH, else 540 V; the back-EMF at rated speed 11% of it) and the ADC's
+    range (A: 50 A or six times the rated current)."""
+    L_d = 10 ** rng.uniform(np.log10(25e-6), -1.0)
+    ratio = 1.0 if rng.random() < 0.4 else rng.uniform(1.2, 3.0)
+    tau = 10 ** rng.uniform(-3.0, -1.0)
+    p = int(rng.integers(2, 21))
+    w_e = 10 ** rng.uniform(np.log10(300.0), np.log10(2000.0))
+    bus = 48.0 if L_d < 3e-4 else 540.0
+    phi = 0.11 * bus / w_e
+    # from 0.5 A at 1 mH, at least what makes the cross-coupling 5% of the bus
+    current = max(0.5 * np.sqrt(1e-3 / L_d), 0.05 * bus / (w_e * L_d * ratio))
+    motor: Motor
+    if ratio == 1.0:
+        motor = SPMSM(R_s=L_d / tau, L_s=L_d, phi_pm=phi, p=p)
+    else:
+        motor = IPMSM(R_s=L_d / tau, L_d=L_d, L_q=ratio * L_d, phi_pm=phi, p=p)
+    return motor, w_e / p, 1.5 * p * phi * current, bus, max(50.0, 6.0 * current)
+
+
+def measure_ramp_draws(count: int = 60, seed: int = 11, progress: bool = True) -> RampStudy:
+    """The study on ``count`` motors drawn at random (:func:`drawn_motor`), each with a
+    seed drawn with it: what no motor of the table was chosen for (about 3-8 s a run).
+
+    Parameters
+    ----------
+    count : int
+        Motors.
+    seed : int
+        Seed of the draws.
+    progress : bool
+        Show a progress bar.
+    """
+    rng = np.random.default_rng(seed)
+    draws = []
+    for number in range(count):
+        motor, speed, torque, bus, adc_range = drawn_motor(rng)
+        draws.append((motor, speed, torque, bus, int(rng.integers(0, 1000)), number, adc_range))
+    started = time.perf_counter()
+
+    def run(draw: tuple[Motor, float, float, float, int, int, float]) -> RampCase:
+        motor, speed, torque, bus, seed, number, adc_range = draw
+        label = f"drawn {number + 1}: {_label(motor)}, {motor.p * speed:.0f} rad/s"
+        return _run(motor, speed, torque, bus, seed, label, adc_range)
+
+    results = with_progress(draws, run, "ramp draws", progress)
+    return RampStudy(tuple(results), time.perf_counter() - started)
 
 
 def measure_ramp(quick: bool, progress: bool = True, seeds: int = 3) -> RampStudy:
@@ -218,7 +301,8 @@ def markdown_ramp(study: RampStudy) -> list[str]:
             rows.append([case.motor_text, str(case.seed), refusal, "-", "-", "-",
                          f"{case.top_w_e_h:.3f}", "-", f"{case.wall_seconds:.1f}"])  # fmt: skip
             continue
-        rows.append([case.motor_text, str(case.seed), f"{case.parameter_error_percent:.3f}",
+        rows.append([case.motor_text, str(case.seed),
+                     f"{case.parameter_error_percent:.3f} ({case.largest_z:.1f} se)",
                      f"{case.schedule_excess_percent:.2e}",
                      f"{case.single_speed_excess_percent:.3f}", str(case.grid_points),
                      f"{case.top_w_e_h:.3f}",
@@ -232,7 +316,9 @@ def markdown_ramp(study: RampStudy) -> list[str]:
         f"{len(learned)} of {len(study.cases)} learned; the schedule's largest excess "
         f"{min(schedule):.2e}-{max(schedule):.2e}%, the single-speed controller's at the "
         f"top {min(single):.3f}-{max(single):.3f}%; the experiment's median current at the "
-        f"top speed {min(median):.2f}-{max(median):.2f} times the rated"
+        f"top speed {min(median):.2f}-{max(median):.2f} times the rated; the largest "
+        f"inductance or flux error {max(c.parameter_error_percent for c in learned):.3f}%, "
+        f"beyond 3 standard errors in {sum(c.largest_z > 3.0 for c in learned)} runs"
         if learned
         else f"0 of {len(study.cases)} learned"
     )
@@ -245,7 +331,7 @@ def markdown_ramp(study: RampStudy) -> list[str]:
             [
                 "motor",
                 "seed",
-                "largest L/flux error %",
+                "largest L/flux error % (in standard errors)",
                 "schedule excess %",
                 "single-speed excess at top %",
                 "grid",
