@@ -23,7 +23,7 @@ import pytest
 from hypothesis import Phase, given, settings
 from hypothesis import strategies as st
 
-from selftune.bench._ramp import drawn_motor
+from selftune.bench._interior import drawn_motor
 from selftune.cli import main
 from selftune.config import MotorConfig, load_learn_config
 from selftune.core import ControlLaw
@@ -285,17 +285,20 @@ def test_a_part_below_the_top_speed_too_imprecise_for_its_own_law_counts_by_its_
 
 
 def test_the_drawn_motors_span_the_issues_range() -> None:
-    """The ramp study's random motors (:func:`selftune.bench._ramp.drawn_motor`): surface
-    and interior, ``L_q / L_d`` up to 3, 25 uH to 100 mH, 2 to 20 pole pairs, the back-EMF
-    at rated speed 11% of the bus."""
+    """The ramp study's random motors (:func:`selftune.bench._interior.drawn_motor`): surface
+    and interior, ``L_q / L_d`` up to 3, 25 uH to 100 mH, 2 to 20 pole pairs, within the
+    bus's voltage at rated torque and speed."""
     rng = np.random.default_rng(0)
     draws = [drawn_motor(rng) for _ in range(500)]
     kinds = {type(motor) for motor, *_ in draws}
     assert kinds == {SPMSM, IPMSM}
     for motor, speed, torque, bus, adc_range in draws:
-        assert 25e-6 <= motor.L_d <= 0.1 and 1.0 <= motor.L_q / motor.L_d <= 3.0
+        assert 25e-6 <= motor.L_d <= 0.1 and 1.0 <= motor.L_q / motor.L_d <= 3.0 + 1e-12
         assert 2 <= motor.p <= 20 and torque > 0.0 and adc_range >= 50.0
-        assert motor.p * speed * motor.phi_pm == pytest.approx(0.11 * bus)
+        current = torque / (1.5 * motor.p * motor.phi_pm)
+        w_e = motor.p * speed
+        steady = np.hypot(w_e * motor.phi_pm + motor.R_s * current, w_e * motor.L_q * current)
+        assert steady <= bus / np.sqrt(3.0)
     smallest = min(motor.L_d for motor, *_ in draws)
     largest = max(motor.L_d for motor, *_ in draws)
     assert smallest < 50e-6 and largest > 0.05  # both ends of the range are drawn

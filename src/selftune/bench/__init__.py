@@ -58,7 +58,8 @@ are the field names.
 
 Outside ``selftune bench`` (run alone, as docs/schedule.md says): :func:`measure_ramp`
 (:mod:`._ramp`), speed schedules learned from 1 s over 5-100% of rated speed, and
-:func:`measure_ramp_draws` the same on motors drawn at random; and (as
+:func:`measure_ramp_draws` the same on motors drawn at random (and
+:func:`measure_interior_draws` study 13 on interior ones); and (as
 docs/saturation.md says) :func:`measure_saturation` (:mod:`._saturation`), saturating
 motors learned at several currents, the current schedule against the true pointwise
 optimum from 10% to 100% of rated current (about 1.5 min of CPU a motor).
@@ -90,7 +91,13 @@ from ._drive_rates import DelayCost, DriveRates, RateErrors, measure_drive_rates
 from ._fleet import FleetDesign, FleetStudy, FleetTruth, make_fleet, measure_fleet
 from ._gem import GymElectricMotor
 from ._honesty import HazardTally, Honesty, HonestyCase, HonestyOutcome, measure_honesty
-from ._interior import InteriorStudy, interior_targets, markdown_interior, measure_interior
+from ._interior import (
+    InteriorStudy,
+    interior_targets,
+    markdown_interior,
+    measure_interior,
+    measure_interior_draws,
+)
 from ._learning_cost import LearningCost, LearningDataset, LearningRun, measure_learning_cost
 from ._loop import SimulatorMeasurement
 from ._noise_study import ConsistencyRatio, NoiseCell, NoiseConfig, NoiseStudy, measure_noise
@@ -197,6 +204,7 @@ __all__ = [
     "measure_fleet",
     "measure_honesty",
     "measure_interior",
+    "measure_interior_draws",
     "measure_learning_cost",
     "measure_noise",
     "measure_online",

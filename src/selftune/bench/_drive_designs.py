@@ -116,12 +116,12 @@ class DriveCase:
 
 
 def _case(drawn: RandomMotor, index: int) -> DriveCase:
-    nameplate = drawn.nameplate
+    nameplate, built = drawn.surface()
     name = (
         f"M{index + 1}: p = {nameplate.p}, {nameplate.R_s:.3g} ohm, {nameplate.L_s * 1e3:.3g} mH, "
         f"{nameplate.phi_pm * 1e3:.3g} mWb, {drawn.electrical_speed:.0f} rad/s el."
     )
-    return DriveCase(name, nameplate, drawn.as_built, drawn.speed, drawn.torque)
+    return DriveCase(name, nameplate, built, drawn.speed, drawn.torque)
 
 
 def drive_cases(count: int, dc_voltage: float) -> tuple[DriveCase, ...]:

@@ -223,7 +223,8 @@ def random_experiment(rng: np.random.Generator) -> Experiment:
     """
     drawn = draw_motor(rng, EXPERIMENT_RANGES)
     assert drawn.sampling_frequency is not None
-    return Experiment(drawn.nameplate, drawn.speed, drawn.torque, h=1.0 / drawn.sampling_frequency)
+    nameplate, _ = drawn.surface()
+    return Experiment(nameplate, drawn.speed, drawn.torque, h=1.0 / drawn.sampling_frequency)
 
 
 def truncated(log: Trajectory, samples: int) -> Trajectory:

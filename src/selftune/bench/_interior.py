@@ -29,21 +29,26 @@ import numpy as np
 
 from ..config import MotorConfig
 from ..errors import SelftuneError
-from ..model import IPMSM, design_schedule
+from ..model import IPMSM, Motor, design_schedule
 from ..report import evaluate_interior
 from ..report._digital_evaluation import true_motor
 from ..sim import DriveSettings
 from ..tuning import InteriorCommissioning, TuningSettings, commission_interior, tuning_settings
 from ._common import table, with_progress
+from ._motors import Choice, MotorRanges, Span, draw_motor
 from ._targets import TargetOutcome
 
 __all__ = [
+    "DRAW_RANGES",
     "INTERIOR_MOTORS",
     "InteriorCase",
     "InteriorStudy",
+    "drawn_cases",
+    "drawn_motor",
     "interior_targets",
     "markdown_interior",
     "measure_interior",
+    "measure_interior_draws",
 ]
 
 #: The motors: (motor, mechanical speed rad/s, rated torque N m, DC bus V).
@@ -73,6 +78,45 @@ BOTTOM_SPEED_SHARE = 0.05
 
 #: The parameters judged.
 _JUDGED = ("L_d", "L_q", "phi_pm")
+
+
+def _ranges(bus: float, inductance: tuple[float, float], back_emf: tuple[float, float],
+            current: tuple[float, float]) -> MotorRanges:  # fmt: skip
+    """The issue's range on one DC bus (V): inductances (H), back-EMF at rated speed (V)
+    and rated current (A) as given; the steady voltage at rated torque within 90% of the
+    modulation's limit ``bus / sqrt(3)``."""
+    return MotorRanges(
+        draws=(
+            ("pole_pairs", Choice(tuple(float(p) for p in range(2, 21)))),
+            ("L_s_henry", Span(*inductance, log=True)),
+            ("saliency", Choice((1.0, 1.0, 1.5, 2.0, 2.5, 3.0))),
+            ("time_constant_seconds", Span(1e-3, 0.1, log=True)),
+            ("back_emf_volts", Span(*back_emf)),
+            ("current_amperes", Span(*current, log=True)),
+            ("electrical_speed_rad_per_second", Span(300.0, 2000.0, log=True)),
+        ),
+        voltage_limit_volts=0.9 * bus / np.sqrt(3.0),
+    )
+
+
+#: The random motors' ranges (:func:`drawn_motor`): on a 48 V bus 25-300 uH, on 540 V
+#: 0.3-100 mH.
+DRAW_RANGES = (
+    (48.0, _ranges(48.0, (25e-6, 3e-4), (3.0, 20.0), (2.0, 100.0))),
+    (540.0, _ranges(540.0, (3e-4, 0.1), (30.0, 250.0), (0.2, 30.0))),
+)
+
+
+def drawn_motor(rng: np.random.Generator) -> tuple[Motor, float, float, float, float]:
+    """A motor across the issue's range (surface or interior up to ``L_q / L_d`` 3, 25 uH
+    to 100 mH, L/R 1-100 ms, 2 to 20 pole pairs, 300-2,000 rad/s electrical at rated
+    speed; :data:`DRAW_RANGES`, the bus drawn first, each equally likely): the motor,
+    its rated mechanical speed (rad/s) and torque (N m), its DC bus (V) and the ADC's
+    range (A: 50 A or six times the rated current)."""
+    bus, ranges = DRAW_RANGES[int(rng.integers(0, len(DRAW_RANGES)))]
+    drawn = draw_motor(rng, ranges)
+    adc_range = max(50.0, 6.0 * drawn.current)
+    return drawn.nameplate, drawn.speed, drawn.torque, bus, adc_range
 
 
 @dataclass(frozen=True)
@@ -152,15 +196,26 @@ class InteriorStudy:
 
 def _case(index: int, seed: int) -> InteriorCase:
     motor, speed, torque, bus = INTERIOR_MOTORS[index]
+    label = f"{index + 1}: {motor.L_d * 1e3:g}/{motor.L_q * 1e3:g} mH, p {motor.p}"
+    return _run(motor, speed, torque, bus, seed, label)
+
+
+def _run(
+    motor: IPMSM, speed: float, torque: float, bus: float, seed: int, label: str,
+    adc_range: float | None = None,
+) -> InteriorCase:  # fmt: skip
+    """One commissioning judged against the truth (``adc_range``, A: the hardware-like
+    drive's 50 A unless given)."""
     drive = replace(DriveSettings.hardware_like(dc_voltage=bus), temperature_rise=TEMPERATURE_RISE)
     if bus < 100.0:  # a low-voltage drive's MOSFETs: 0.5 us, 0.24 V at 48 V and 10 kHz
         drive = replace(drive, dead_time=LOW_VOLTAGE_DEAD_TIME)
+    if adc_range is not None:
+        drive = replace(drive, adc_range=adc_range)
     config = MotorConfig(
         motor=motor, speed=speed, torque=torque, drive=drive, drive_h=1e-4,
-        learning={"integral_action": True}, source=f"interior motor {index + 1}",
+        learning={"integral_action": True}, source=label,
     )  # fmt: skip
     settings = tuning_settings(config, seed)
-    label = f"{index + 1}: {motor.L_d * 1e3:g}/{motor.L_q * 1e3:g} mH, p {motor.p}"
     started = time.perf_counter()
     w_e_h = motor.p * speed * settings.h
     try:
@@ -229,6 +284,57 @@ def measure_interior(quick: bool, progress: bool = True, seeds: int = 4) -> Inte
     ]  # fmt: skip
     started = time.perf_counter()
     results = with_progress(cases, lambda case: _case(*case), "interior", progress)
+    return InteriorStudy(tuple(results), time.perf_counter() - started)
+
+
+def drawn_cases(
+    count: int, seed: int, interior: bool = False
+) -> list[tuple[Motor, float, float, float, int, float]]:
+    """``count`` motors of :func:`drawn_motor` (interior ones only if ``interior``: the
+    surface ones drawn again), each with its run's seed drawn after it.
+
+    Parameters
+    ----------
+    count : int
+        Motors.
+    seed : int
+        Seed of the draws.
+    interior : bool
+        Interior motors only.
+
+    Returns
+    -------
+    list of (motor, speed, torque, bus, seed, adc_range)
+        The motor, its rated mechanical speed (rad/s) and torque (N m), DC bus (V), the
+        run's seed and the ADC's range (A).
+    """
+    rng = np.random.default_rng(seed)
+    cases: list[tuple[Motor, float, float, float, int, float]] = []
+    while len(cases) < count:
+        motor, speed, torque, bus, adc_range = drawn_motor(rng)
+        if interior and not isinstance(motor, IPMSM):
+            continue
+        cases.append((motor, speed, torque, bus, int(rng.integers(0, 1000)), adc_range))
+    return cases
+
+
+def measure_interior_draws(count: int = 30, seed: int = 13, progress: bool = True) -> InteriorStudy:
+    """The study on ``count`` interior motors drawn at random (:func:`drawn_cases` with
+    ``seed``), each at its rated speed (``w_e h`` up to 0.2): what no motor of the table
+    was chosen for (about 2-5 s a run); ``progress`` shows a progress bar."""
+
+    def run(number: int) -> InteriorCase:
+        motor, speed, torque, bus, case_seed, adc_range = cases[number]
+        assert isinstance(motor, IPMSM)
+        label = (
+            f"drawn {number + 1}: {motor.L_d * 1e3:g}/{motor.L_q * 1e3:g} mH, "
+            f"p {motor.p}, {motor.p * speed:.0f} rad/s"
+        )
+        return _run(motor, speed, torque, bus, case_seed, label, adc_range)
+
+    cases = drawn_cases(count, seed, interior=True)
+    started = time.perf_counter()
+    results = with_progress(list(range(count)), run, "interior draws", progress)
     return InteriorStudy(tuple(results), time.perf_counter() - started)
 
 

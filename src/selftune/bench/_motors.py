@@ -14,10 +14,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import overload
 
 import numpy as np
 
-from ..model import SPMSM
+from ..model import IPMSM, SPMSM, Motor
 
 __all__ = ["Choice", "MotorRanges", "RandomMotor", "Span", "as_built", "draw_motor"]
 
@@ -83,7 +84,9 @@ class MotorRanges:
         The quantities in the order drawn: ``pole_pairs``; ``L_s_henry``; ``R_s_ohm`` or
         ``time_constant_seconds`` (then ``R_s = L_s / tau``); ``phi_pm_weber`` or
         ``back_emf_volts`` (then ``phi_pm = e / w_e``); ``current_amperes`` (i_q*);
-        ``electrical_speed_rad_per_second``; optionally ``sampling_frequency_hz``.
+        ``electrical_speed_rad_per_second``; optionally ``sampling_frequency_hz`` and
+        ``saliency`` (``L_q / L_d``, with ``L_d`` the drawn ``L_s``; above 1 an interior
+        motor).
     tolerances : (float, float, float) or None
         Relative tolerances of R_s, L_s and phi_pm of the motor as built, drawn after the
         nameplate (:func:`as_built`); None: the motor is its nameplate (nothing drawn).
@@ -107,9 +110,9 @@ class RandomMotor:
 
     Attributes
     ----------
-    nameplate : SPMSM
+    nameplate : SPMSM or IPMSM
         The motor as drawn.
-    as_built : SPMSM
+    as_built : SPMSM or IPMSM
         The motor itself (the nameplate when the ranges state no tolerances).
     electrical_speed : float
         ``w_e``, rad/s.
@@ -119,11 +122,23 @@ class RandomMotor:
         f_s, Hz (None when the ranges draw none).
     """
 
-    nameplate: SPMSM
-    as_built: SPMSM
+    nameplate: Motor
+    as_built: Motor
     electrical_speed: float
     current: float
     sampling_frequency: float | None
+
+    def surface(self) -> tuple[SPMSM, SPMSM]:
+        """The nameplate and the motor as built, of ranges that draw no saliency.
+
+        Raises
+        ------
+        TypeError
+            If the motor is an interior one.
+        """
+        if not (isinstance(self.nameplate, SPMSM) and isinstance(self.as_built, SPMSM)):
+            raise TypeError("an interior motor was drawn where a surface one was expected")
+        return self.nameplate, self.as_built
 
     @property
     def speed(self) -> float:
@@ -136,37 +151,58 @@ class RandomMotor:
         return 1.5 * self.nameplate.p * self.nameplate.phi_pm * self.current
 
 
+@overload
 def as_built(
     rng: np.random.Generator, nameplate: SPMSM, tolerances: tuple[float, float, float]
-) -> SPMSM:
-    """The motor as built: R_s, L_s and phi_pm each uniform within its relative tolerance
-    of the nameplate's (drawn in that order).
+) -> SPMSM: ...
+@overload
+def as_built(
+    rng: np.random.Generator, nameplate: IPMSM, tolerances: tuple[float, float, float]
+) -> IPMSM: ...
+def as_built(
+    rng: np.random.Generator, nameplate: Motor, tolerances: tuple[float, float, float]
+) -> Motor:
+    """The motor as built: R_s, the inductance (both of an interior motor's, by one
+    factor) and phi_pm each uniform within its relative tolerance of the nameplate's
+    (drawn in that order).
 
     Parameters
     ----------
     rng : numpy.random.Generator
         The generator.
-    nameplate : SPMSM
+    nameplate : SPMSM or IPMSM
         The motor as stated.
     tolerances : (float, float, float)
-        Relative tolerances of R_s, L_s and phi_pm.
+        Relative tolerances of R_s, the inductance and phi_pm.
     """
     R, L, phi = (1.0 + rng.uniform(-tolerance, tolerance) for tolerance in tolerances)
-    return SPMSM(
-        R_s=nameplate.R_s * R, L_s=nameplate.L_s * L, phi_pm=nameplate.phi_pm * phi,
-        p=nameplate.p,
+    return _built(
+        nameplate.R_s * R, nameplate.L_d * L, nameplate.L_q / nameplate.L_d,
+        nameplate.phi_pm * phi, nameplate.p,
     )  # fmt: skip
 
 
-def _motor(values: Mapping[str, float], ranges: MotorRanges) -> tuple[SPMSM, float]:
+def _built(R_s: float, L_d: float, saliency: float, phi_pm: float, p: int) -> Motor:
+    """A surface motor (``saliency`` 1) or an interior one with ``L_q = saliency L_d``."""
+    if saliency == 1.0:
+        return SPMSM(R_s=R_s, L_s=L_d, phi_pm=phi_pm, p=p)
+    return IPMSM(R_s=R_s, L_d=L_d, L_q=saliency * L_d, phi_pm=phi_pm, p=p)
+
+
+def _motor(values: Mapping[str, float], ranges: MotorRanges) -> tuple[Motor, float]:
     """The nameplate and ``w_e`` from the drawn values."""
     L_s, current = values["L_s_henry"], values["current_amperes"]
     w_e = values["electrical_speed_rad_per_second"]
     R_s = values["R_s_ohm"] if "R_s_ohm" in values else L_s / values["time_constant_seconds"]
     phi_pm = values["phi_pm_weber"] if "phi_pm_weber" in values else values["back_emf_volts"] / w_e
+    saliency = values.get("saliency", 1.0)
     if ranges.speed_cap_volts is not None:
-        w_e = min(w_e, ranges.speed_cap_volts / phi_pm, ranges.speed_cap_volts / (L_s * current))
-    return SPMSM(R_s=R_s, L_s=L_s, phi_pm=phi_pm, p=int(values["pole_pairs"])), w_e
+        w_e = min(
+            w_e,
+            ranges.speed_cap_volts / phi_pm,
+            ranges.speed_cap_volts / (saliency * L_s * current),
+        )
+    return _built(R_s, L_s, saliency, phi_pm, int(values["pole_pairs"])), w_e
 
 
 def draw_motor(rng: np.random.Generator, ranges: MotorRanges) -> RandomMotor:
@@ -192,7 +228,7 @@ def draw_motor(rng: np.random.Generator, ranges: MotorRanges) -> RandomMotor:
             built = as_built(rng, nameplate, ranges.tolerances)
         limit = ranges.voltage_limit_volts
         voltage = np.hypot(
-            w_e * nameplate.phi_pm + 2.0 * nameplate.R_s * current, w_e * nameplate.L_s * current
+            w_e * nameplate.phi_pm + 2.0 * nameplate.R_s * current, w_e * nameplate.L_q * current
         )
         if limit is None or voltage <= limit:
             f_s = values.get("sampling_frequency_hz")

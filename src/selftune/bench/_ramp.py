@@ -15,7 +15,7 @@ it, the single-speed controller: the identified motor's optimum at 50% of rated,
 excess at the top speed.
 
 :func:`measure_ramp_draws` runs the same on motors drawn at random across the issue's
-range (:func:`drawn_motor`), which no table was chosen for.
+range (:func:`~._interior.drawn_motor`), which no table was chosen for.
 
 The motors: the interior bench's six (:data:`~._interior.INTERIOR_MOTORS`: 25 uH to 150 mH,
 ``L_q / L_d`` 1.5 to 3, 2 to 20 pole pairs) at their speeds taken as rated, and three
@@ -31,7 +31,7 @@ import numpy as np
 
 from ..config import MotorConfig
 from ..errors import SelftuneError
-from ..model import IPMSM, SPMSM, Motor, design_schedule
+from ..model import SPMSM, Motor, design_schedule
 from ..report._digital_evaluation import true_motor
 from ..sim import DriveSettings
 from ..tuning import tuning_settings
@@ -42,13 +42,13 @@ from ._interior import (
     INTERIOR_MOTORS,
     LOW_VOLTAGE_DEAD_TIME,
     TEMPERATURE_RISE,
+    drawn_cases,
 )
 
 __all__ = [
     "RAMP_MOTORS",
     "RampCase",
     "RampStudy",
-    "drawn_motor",
     "markdown_ramp",
     "measure_ramp",
     "measure_ramp_draws",
@@ -213,58 +213,6 @@ def _run(
     )  # fmt: skip
 
 
-def drawn_motor(rng: np.random.Generator) -> tuple[Motor, float, float, float, float]:
-    """A motor across the issue's range (surface or interior up to ``L_q / L_d`` 3, 25 uH
-    to 100 mH, L/R 1-100 ms, 2 to 20 pole pairs, 300-2,000 rad/s electrical at rated
-    speed): the motor, its rated mechanical speed (rad/s) and torque (N m), its DC bus
-    (48 V below 0.3 mH, else 540 V; the back-EMF at rated speed 11% of it) and the ADC's
-    range (A: 50 A or six times the rated current)."""
-    L_d = 10 ** rng.uniform(np.log10(25e-6), -1.0)
-    ratio = 1.0 if rng.random() < 0.4 else rng.uniform(1.2, 3.0)
-    tau = 10 ** rng.uniform(-3.0, -1.0)
-    p = int(rng.integers(2, 21))
-    w_e = 10 ** rng.uniform(np.log10(300.0), np.log10(2000.0))
-    bus = 48.0 if L_d < 3e-4 else 540.0
-    phi = 0.11 * bus / w_e
-    # from 0.5 A at 1 mH, at least what makes the cross-coupling 5% of the bus
-    current = max(0.5 * np.sqrt(1e-3 / L_d), 0.05 * bus / (w_e * L_d * ratio))
-    motor: Motor
-    if ratio == 1.0:
-        motor = SPMSM(R_s=L_d / tau, L_s=L_d, phi_pm=phi, p=p)
-    else:
-        motor = IPMSM(R_s=L_d / tau, L_d=L_d, L_q=ratio * L_d, phi_pm=phi, p=p)
-    return motor, w_e / p, 1.5 * p * phi * current, bus, max(50.0, 6.0 * current)
-
-
-def measure_ramp_draws(count: int = 60, seed: int = 11, progress: bool = True) -> RampStudy:
-    """The study on ``count`` motors drawn at random (:func:`drawn_motor`), each with a
-    seed drawn with it: what no motor of the table was chosen for (about 3-8 s a run).
-
-    Parameters
-    ----------
-    count : int
-        Motors.
-    seed : int
-        Seed of the draws.
-    progress : bool
-        Show a progress bar.
-    """
-    rng = np.random.default_rng(seed)
-    draws = []
-    for number in range(count):
-        motor, speed, torque, bus, adc_range = drawn_motor(rng)
-        draws.append((motor, speed, torque, bus, int(rng.integers(0, 1000)), number, adc_range))
-    started = time.perf_counter()
-
-    def run(draw: tuple[Motor, float, float, float, int, int, float]) -> RampCase:
-        motor, speed, torque, bus, seed, number, adc_range = draw
-        label = f"drawn {number + 1}: {_label(motor)}, {motor.p * speed:.0f} rad/s"
-        return _run(motor, speed, torque, bus, seed, label, adc_range)
-
-    results = with_progress(draws, run, "ramp draws", progress)
-    return RampStudy(tuple(results), time.perf_counter() - started)
-
-
 def measure_ramp(quick: bool, progress: bool = True, seeds: int = 3) -> RampStudy:
     """The study (see the module).
 
@@ -283,6 +231,22 @@ def measure_ramp(quick: bool, progress: bool = True, seeds: int = 3) -> RampStud
     ]  # fmt: skip
     started = time.perf_counter()
     results = with_progress(cases, lambda case: _case(*case), "ramp", progress)
+    return RampStudy(tuple(results), time.perf_counter() - started)
+
+
+def measure_ramp_draws(count: int = 60, seed: int = 11, progress: bool = True) -> RampStudy:
+    """The study on ``count`` motors drawn at random (:func:`~._interior.drawn_cases` with
+    ``seed``): what no motor of the table was chosen for (about 3-8 s a run);
+    ``progress`` shows a progress bar."""
+
+    def run(number: int) -> RampCase:
+        motor, speed, torque, bus, case_seed, adc_range = cases[number]
+        label = f"drawn {number + 1}: {_label(motor)}, {motor.p * speed:.0f} rad/s"
+        return _run(motor, speed, torque, bus, case_seed, label, adc_range)
+
+    cases = drawn_cases(count, seed)
+    started = time.perf_counter()
+    results = with_progress(list(range(count)), run, "ramp draws", progress)
     return RampStudy(tuple(results), time.perf_counter() - started)
 
 

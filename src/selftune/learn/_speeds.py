@@ -143,10 +143,11 @@ def _imprecise_part(
     what the schedule uses (the schedule is designed on the combined motor).
 
     At 5% of the rated speed the back-EMF and the cross-coupling are small, and the
-    feedforward U of a part's own law is small with them: on 5 of 60 random motors of
-    the issue's range (hardware-like drive, seeds and motors drawn at random) that part's
+    feedforward U of a part's own law is small with them: on 5 of 60 motors drawn at
+    random across the issue's range (hardware-like drive, docs/schedule.md) that part's
     U had a relative standard error of 30-39% against the 25% limit, while the top
-    speed's part passed and the motor's parameters were known to 0.1%.
+    speed's part passed and the motor's parameters were known to 0.1%; 4 of them are
+    learned so, within one standard error.
     """
     learned = learn_controller(part, problem, K0, replace(options, max_relative_error=UNGATED))
     assert learned.quality is not None
