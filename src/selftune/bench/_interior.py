@@ -321,7 +321,17 @@ def drawn_cases(
 def measure_interior_draws(count: int = 30, seed: int = 13, progress: bool = True) -> InteriorStudy:
     """The study on ``count`` interior motors drawn at random (:func:`drawn_cases` with
     ``seed``), each at its rated speed (``w_e h`` up to 0.2): what no motor of the table
-    was chosen for (about 2-5 s a run); ``progress`` shows a progress bar."""
+    was chosen for (about 2-5 s a run).
+
+    Parameters
+    ----------
+    count : int
+        Interior motors drawn.
+    seed : int
+        The draws' seed.
+    progress : bool
+        Show a progress bar.
+    """
 
     def run(number: int) -> InteriorCase:
         motor, speed, torque, bus, case_seed, adc_range = cases[number]

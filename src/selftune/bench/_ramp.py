@@ -236,8 +236,17 @@ def measure_ramp(quick: bool, progress: bool = True, seeds: int = 3) -> RampStud
 
 def measure_ramp_draws(count: int = 60, seed: int = 11, progress: bool = True) -> RampStudy:
     """The study on ``count`` motors drawn at random (:func:`~._interior.drawn_cases` with
-    ``seed``): what no motor of the table was chosen for (about 3-8 s a run);
-    ``progress`` shows a progress bar."""
+    ``seed``): what no motor of the table was chosen for (about 3-8 s a run).
+
+    Parameters
+    ----------
+    count : int
+        Motors drawn, surface and interior.
+    seed : int
+        Seed of the draws and of each run's own seed.
+    progress : bool
+        Show a progress bar of the runs.
+    """
 
     def run(number: int) -> RampCase:
         motor, speed, torque, bus, case_seed, adc_range = cases[number]
