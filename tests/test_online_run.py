@@ -533,8 +533,8 @@ def test_the_inductance_s_error_bars_hold_what_short_pulses_leave_out() -> None:
     12-bit ADC), 10 s at its warm-up's rates: each large torque step's first samples are
     at the voltage limit, where some legs' pulses are shorter than the dead time and do
     not carry all of it, which the model leaves out (it biased L_s by up to 0.3%). With the
-    bus known, L_s's reported errors are within 0.5-2 standard errors rms (1.53 measured,
-    38% within one; over 120 s 1.11, 59%). The same log replayed to a tuner that does not
+    bus known, L_s's reported errors are within 0.5-2 standard errors rms (1.57 measured,
+    35% within one; over 120 s 1.12, 58%). The same log replayed to a tuner that does not
     know the bus gives the same events and estimates (the term enters no decision) and
     error bars too narrow: rms above 3 (6.49 measured)."""
     from dataclasses import replace

@@ -26,6 +26,7 @@ unexplained error nor mistaken for back-EMF or feedforward.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Literal, cast
@@ -60,6 +61,7 @@ __all__ = [
     "path_signs",
     "path_vector",
     "phase_signs",
+    "pulse_delay_gain",
     "sign_vector",
     "with_dead_time",
     "with_signs_of",
@@ -249,6 +251,38 @@ def lost_signs(
     lost[(duties <= 0.0) | (duties >= 1.0)] = 1.0 if voltage > 0.0 else 0.0
     vector = from_phases(signs * lost) * np.conj(turn)
     return np.column_stack([vector.real, vector.imag])
+
+
+def pulse_delay_gain(R_s: float, L_s: float, dead_time: float) -> float:
+    """How much more a voltage held over a sample moves a surface PMSM's current when the
+    inverter's dead time delays every pulse by half of it.
+
+    The dead time moves one edge of each switching leg's pulse by ``t_d``: the rise of a
+    leg whose current flows out, the fall of one whose current flows in. Either way the
+    pulse's middle comes ``t_d / 2`` later in the carrier period: besides the dead-time
+    voltage (the pulse's width, :func:`phase_signs`), the inverter's output is the held
+    voltage ``t_d / 2`` late. In the stationary frame a surface motor's current decays
+    at ``R_s / L_s`` (the rotation is in the back-EMF), so a volt-second applied ``t_d /
+    2`` later has decayed by ``exp(-R_s t_d / (2 L_s))`` less at the sample's end: the
+    voltage's effect on the next sample, ``Bd`` per volt, is ``exp(R_s t_d / (2 L_s))``
+    times the held model's. A centred pulse (no dead time) is not late, and its
+    volt-seconds' spread about the middle is second order in ``R_s T / L_s``.
+
+    Parameters
+    ----------
+    R_s : float
+        Stator resistance, ohm.
+    L_s : float
+        Inductance, H.
+    dead_time : float
+        ``t_d``, s.
+
+    Returns
+    -------
+    float
+        The factor on ``Bd``: 1 without dead time.
+    """
+    return math.exp(R_s * dead_time / (2.0 * L_s))
 
 
 def path_signs(x: Array, angle: Array) -> Array:
