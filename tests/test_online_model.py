@@ -129,3 +129,43 @@ def test_forgetting_follows_a_changed_plant() -> None:
 def test_a_bad_forgetting_factor_is_refused() -> None:
     with pytest.raises(ValueError, match="forgetting"):
         ForgettingMoments(1.5, 2, 2)
+
+
+def test_the_moment_of_the_dead_time_short_pulses_leave_out_is_kept_in_any_chunking() -> None:
+    """With the inverter's bus given, each memory keeps ``sum_k w_k zeta_k c_k'`` over
+    its transitions (``c_k`` the signs' part short pulses do not carry, the instruments
+    ``[x_(k-1), a_k, w_k, s(x_(k-1))]``, every sign at row k's angle): the same whether fed
+    in one chunk or many, as the direct weighed sum, forgotten with the other moments
+    (a restart's share scales it); rows off the voltage limit add nothing."""
+    from selftune.learn.evidence._dead_time import lost_signs, phase_signs
+
+    rng = np.random.default_rng(3)
+    rows, bus, v, advance = 3000, 100.0, 1.0, 0.02
+    x = rng.normal(0.0, 5.0, (rows, 2))
+    turn = rng.uniform(-np.pi, np.pi, rows)
+    size = np.where(rng.random(rows) < 0.3, bus / np.sqrt(3.0), rng.uniform(0.0, 50.0, rows))
+    a = np.column_stack([size * np.cos(turn), size * np.sin(turn)])
+    w = np.column_stack([np.ones(rows), np.repeat(rng.uniform(-5, 5, rows // 100), 100)])
+    angle = 0.05 * np.arange(rows)
+
+    def fed(cuts: list[int]) -> OnlineModel:
+        model = OnlineModel(1e-4, (0.05, 0.2), 2, 2, 2, True, (advance, bus), v)
+        for start, stop in itertools.pairwise([0, *cuts, rows]):
+            model.add(x[start:stop], a[start:stop], w[start:stop], angle[start:stop])
+        return model
+
+    whole, chunked = fed([]), fed([7, 100, 101, 1333, 2500])
+    k = np.arange(1, rows - 1)  # the transitions: a row before and after
+    zeta = np.column_stack([x[k - 1], a[k], w[k], phase_signs(x[k - 1], angle[k])])
+    lost = lost_signs(x[k], a[k], angle[k], advance, bus, v)
+    assert 0.05 < np.mean(np.any(lost != 0.0, axis=1)) < 0.3
+    assert not np.any(lost[size[k] < 50.0])
+    for memory, again in zip(whole.moments, chunked.moments, strict=True):
+        weights = memory.forgetting ** np.arange(k.size - 1, -1, -1)
+        direct = (zeta * weights[:, None]).T @ lost
+        np.testing.assert_allclose(memory.omitted, direct, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(again.omitted, direct, rtol=1e-10, atol=1e-12)
+    memory = whole.moments[0]
+    kept = memory.omitted.copy()
+    memory.forget(0.1)
+    np.testing.assert_allclose(memory.omitted, 0.1 * kept, rtol=1e-15)

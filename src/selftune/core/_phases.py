@@ -29,6 +29,7 @@ __all__ = [
     "phase_currents",
     "phases_of_dq",
     "phases_to_dq",
+    "space_vector_duties",
     "to_phases",
 ]
 
@@ -85,3 +86,13 @@ def to_phases(vector: ComplexArray) -> Array:
 def from_phases(phases: Array) -> ComplexArray:
     """``alpha + j beta`` of phase values (..., 3) (Clarke; the common mode is dropped)."""
     return phases @ CLARKE
+
+
+def space_vector_duties(voltage: ComplexArray, dc_voltage: float) -> Array:
+    """A two-level inverter's leg duties ``[d_a, d_b, d_c]`` (..., 3), in ``[0, 1]``, for
+    stationary voltage references ``voltage`` (...), V: space-vector modulation,
+    ``d_x = 1/2 + (v_x + v_0) / V_dc`` with the min-max zero sequence ``v_0 = -(max v_x +
+    min v_x) / 2``, clipped (inside ``[0, 1]`` while ``|v| <= V_dc / sqrt(3)``)."""
+    phases = to_phases(np.asarray(voltage))
+    zero_sequence = -0.5 * (phases.max(axis=-1) + phases.min(axis=-1))
+    return np.clip(0.5 + (phases + zero_sequence[..., np.newaxis]) / dc_voltage, 0.0, 1.0)

@@ -19,7 +19,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..core import Array
-from ..core._phases import CLARKE, PHASE_DIRECTIONS, ComplexArray, from_phases, to_phases
+from ..core._phases import (
+    CLARKE,
+    PHASE_DIRECTIONS,
+    ComplexArray,
+    from_phases,
+    space_vector_duties,
+    to_phases,
+)
 from ._salient import RotorFrames
 from ._saturation import SaturatedMotors
 
@@ -59,14 +66,13 @@ def dead_time_voltage(signs: Array, amplitude: float) -> ComplexArray:
 
 
 def leg_duties(voltage: ComplexArray, dc_voltage: float) -> Array:
-    """Space-vector duties (P, 3) of legs a, b, c for the references ``voltage`` (P,), V,
-    with the min-max zero sequence, clipped to ``[0, 1]``; ``dc_voltage`` in V."""
-    rows = [_duties(complex(v), dc_voltage) for v in np.asarray(voltage).tolist()]
-    return np.array(rows, dtype=float).reshape(-1, 3)
+    """Space-vector duties (P, 3) of legs a, b, c for the references ``voltage`` (P,), V
+    (:func:`~selftune.core._phases.space_vector_duties`); ``dc_voltage`` in V."""
+    return space_vector_duties(np.asarray(voltage).reshape(-1), dc_voltage)
 
 
 def _duties(voltage: complex, dc_voltage: float) -> tuple[float, float, float]:
-    """:func:`leg_duties` of one reference, in Python floats."""
+    """:func:`leg_duties` of one reference, in Python floats (a sample's modulation)."""
     a, b, c = _phase_values(voltage)
     zero_sequence = -0.5 * (max(a, b, c) + min(a, b, c))
     return (

@@ -234,7 +234,9 @@ def online_settings(
 ) -> OnlineSettings:
     """What the tuner of an online run knows: the drive's sampling period, delay, hold
     and dead time, the pole pairs and speed, and the servo problem the commissioning
-    learned (Q, R, the nameplate flux's F, the default integral weight).
+    learned (Q, R, the nameplate flux's F, the default integral weight); on carrier PWM
+    with dead time, the DC bus (the pulses too short to carry the dead time: its error
+    bars; average PWM does not shorten them, :mod:`selftune.sim._inverter`).
 
     Parameters
     ----------
@@ -251,9 +253,11 @@ def online_settings(
     problem = LearningProblem(
         settings.Q, settings.R, C=C, F=F, integral_action=True, integral_weight=settings.Q_i
     )
+    dead_time = drive.dead_time > 0.0
     return OnlineSettings(
         settings.h, drive.input_delay, problem, motor.p * settings.speed, drive.voltage_hold,
-        dead_time=drive.dead_time > 0.0, learner=learner,
+        dead_time=dead_time, learner=learner,
+        dc_voltage=drive.dc_voltage if dead_time and drive.pwm == "carrier" else None,
     )  # fmt: skip
 
 

@@ -6,7 +6,8 @@ from ._certify import Certificate, certify
 from ._model import OnlineModel
 from ._moments import ForgettingMoments
 from ._physical import ChangeTest, ChangeWatch, PhysicalEstimate, physical_estimate
-from ._tuner import OnlineSettings, OnlineTuner, TunerEvent
+from ._settings import OnlineSettings
+from ._tuner import OnlineTuner, TunerEvent
 
 __all__ = [
     "Certificate",

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from ...core import Array, positive_finite
 from ...errors import InputError
-from ..evidence._dead_time import phase_signs
+from ..evidence._dead_time import lost_signs, phase_signs
 from ..evidence._discrete_model import DiscreteModel
 from ._moments import ForgettingMoments, add_rows, transposed_covariance
 
@@ -52,6 +52,14 @@ class OnlineModel:
         States, inputs and exogenous channels (the reference's, without the signs).
     dead_time : bool
         Model the inverter's dead time (the rows need the electrical angle).
+    pulses : (float, float) or None
+        With dead time on a PWM inverter: the angle its modulator turns a row's command
+        ahead, rad, and its DC bus, V; the moments then keep the dead time that short
+        pulses do not carry (:func:`~..evidence._dead_time.lost_signs`), which the model
+        leaves out (:meth:`omitted_shift`).
+    dead_time_voltage : float
+        ``v = t_d V_dc / T``, V, that pulses are judged short against (the caller's
+        latest estimate; 0: none is short).
     """
 
     h: float
@@ -60,6 +68,8 @@ class OnlineModel:
     m: int
     q: int
     dead_time: bool = False
+    pulses: tuple[float, float] | None = None
+    dead_time_voltage: float = 0.0
     _memories: list[ForgettingMoments] = field(init=False, repr=False)
     _tail: tuple[Array, Array] | None = field(init=False, default=None, repr=False)
     # the waiting transitions, rows 1 to _waiting, laid out [zeta_(k-1), zeta_k, z_k, y_k,
@@ -153,6 +163,8 @@ class OnlineModel:
             signs = phase_signs(data[_twice(count), :n], angles[1 : count + 1])
             rows[:, 3 * p - 2 : 3 * p] = signs[0]
             rows[:, 2 * p - 2 : 2 * p] = signs[1]
+            if self.pulses is not None:
+                self._add_lost(rows[:, p : 2 * p], data[1 : count + 1], angles[1 : count + 1])
         # the transition before each: [zeta_(k-1)] and [z_(k-1), y_(k-1)]
         rows[:, :p] = self._rows[first - 1 : last - 1, p : 2 * p]
         rows[:, 3 * p + n :] = self._rows[first - 1 : last - 1, 2 * p : 3 * p + n]
@@ -160,6 +172,23 @@ class OnlineModel:
         if self._waiting >= PENDING_ROWS:
             self._add_pending()
         return rows[:, p : 2 * p], rows[:, 2 * p : 3 * p], rows[:, 3 * p : 3 * p + n]
+
+    def _add_lost(self, zeta: Array, data: Array, angle: Array) -> None:
+        """Each memory's moment of the dead time short pulses do not carry, over a chunk's
+        transitions (rows ``[x_k, a_k, w_k]`` and their angles). A leg's pulse is short
+        only where ``sqrt(3) |a_k| > V_dc - 2 v``: its room is at least ``1/2 -
+        sqrt(3) |a_k| / (2 V_dc)`` of the period (space-vector duties), and short is
+        within ``v / V_dc`` of none; elsewhere nothing is lost (and not computed)."""
+        assert self.pulses is not None
+        advance, bus = self.pulses
+        n, m, v = self.n, self.m, self.dead_time_voltage
+        applied = data[:, n : n + m]
+        lost, rows = np.zeros((data.shape[0], 2)), np.zeros(0, dtype=np.intp)
+        if v > 0.0 and 3.0 * float(np.max(np.sum(applied**2, axis=1))) > (bus - 2.0 * v) ** 2:
+            lost = lost_signs(data[:, :n], applied, angle, advance, bus, v)
+            rows = np.flatnonzero(np.any(lost != 0.0, axis=1))
+        for memory in self._memories:
+            memory.add_omitted(zeta, lost, rows)
 
     def _grown(self, count: int) -> Array:
         """A buffer with the waiting transitions and room for ``count`` more."""
@@ -239,19 +268,46 @@ class OnlineModel:
         numpy.linalg.LinAlgError
             If the data so far do not excite every regressor.
         """
-        if not self.memories[recent] < self.memories[older]:
-            raise InputError(f"memories: {recent} must be shorter than {older}")
-        a, b = self.moments[recent].age, self.moments[older].age
+        weights = self._drift_weights(recent, older)
         Theta_b, Sigma, covariance = self.moments[older].estimate()
-        if not b - a > 0.1 * b:
+        if weights is None:
             model = self._discrete(self.moments[older], Theta_b, Sigma, covariance)
-            return model, Theta_b, covariance, b * self.h
+            return model, Theta_b, covariance, self.moments[older].age * self.h
         Theta_a = self.moments[recent].coefficients()
-        c_a, c_b = b / (b - a), -a / (b - a)
+        c_a, c_b = weights
+        a, b = self.moments[recent].age, self.moments[older].age
         scale = 2 * b * (c_a**2 / (2 * a) + c_b**2 / (2 * b) + 2 * c_a * c_b / (a + b))
         Theta = c_a * Theta_a + c_b * Theta_b
         covariance = scale * covariance
         return self._discrete(self.moments[older], Theta, Sigma, covariance), Theta, covariance, 0.0
+
+    def _drift_weights(self, recent: int, older: int) -> tuple[float, float] | None:
+        """:meth:`drift_free`'s ``(c_a, c_b)``, or None where the ages are within 10%."""
+        if not self.memories[recent] < self.memories[older]:
+            raise InputError(f"memories: {recent} must be shorter than {older}")
+        a, b = self.moments[recent].age, self.moments[older].age
+        return (b / (b - a), -a / (b - a)) if b - a > 0.1 * b else None
+
+    def omitted_shift(self, recent: int, older: int, effect: Array) -> Array:
+        """How far the left-out effect of :meth:`_add_lost` moves :meth:`drift_free`'s
+        coefficients: an error ``effect c_k`` in each transition (``effect`` (n, 2): the
+        model's dead-time channels' gain with the opposite sign, ``v`` times the held
+        vector's) moves a memory's IV estimate by ``G^-1 (sum w zeta c') effect'``, and
+        the drift-free model by the same combination of its two memories'.
+
+        Returns
+        -------
+        ndarray, shape (p, n)
+            The shift of ``Theta`` (``[Ad, Bd, Ed]'``).
+        """
+        weights = self._drift_weights(recent, older)
+        memories = (recent, older) if weights is not None else (older,)
+        shift = np.zeros((self.moments[older].regressors, self.n))
+        for index, weight in zip(memories, weights or (1.0,), strict=True):
+            moments = self.moments[index]
+            p = moments.regressors
+            shift += weight * np.linalg.solve(moments.cross[:, :p], moments.omitted @ effect.T)
+        return shift
 
 
 @lru_cache(maxsize=8)

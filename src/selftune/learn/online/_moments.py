@@ -77,6 +77,8 @@ class ForgettingMoments:
     gram: Array = field(init=False, repr=False)  # sum w [zeta; v; v_(k-1)] v'
     gram_squared: Array = field(init=False, repr=False)  # sum w^2 [zeta_(k-1); zeta] [.]'
     first: Array = field(init=False, repr=False)  # the first sample's w^2 zeta zeta' (no pair)
+    # sum w zeta c' of an effect the model leaves out, c its two channels (0 where absent)
+    omitted: Array = field(init=False, repr=False)
     weight: float = field(init=False, default=0.0)  # sum w
     aged: float = field(init=False, default=0.0)  # sum w age (samples; the newest 0)
     count: int = field(init=False, default=0)  # samples added
@@ -90,6 +92,7 @@ class ForgettingMoments:
         self.gram = np.zeros((3 * p + 2 * n, p + n))
         self.gram_squared = np.zeros((2 * p, 2 * p))
         self.first = np.zeros((p, p))
+        self.omitted = np.zeros((p, 2))
 
     @property
     def cross(self) -> Array:
@@ -152,8 +155,30 @@ class ForgettingMoments:
         self.gram *= keep
         self.gram_squared *= keep**2
         self.first *= keep**2
+        self.omitted *= keep
         self.weight *= keep
         self.aged *= keep
+
+    def add_omitted(self, zeta: Array, omitted: Array, rows: NDArray[np.intp]) -> None:
+        """Age :attr:`omitted` by a chunk's T transitions (in time order) and add ``sum_k
+        w_k zeta_k c_k'`` over them: the instruments' moment with an effect the model
+        leaves out (its error ``M c_k`` moves ``Theta`` by ``G^-1 omitted M'``, ``G`` the
+        instruments' cross moment). Called as the transitions come, whether or not the
+        other moments have them yet (they are added when read, :mod:`._model`).
+
+        Parameters
+        ----------
+        zeta : ndarray, shape (T, p)
+            The chunk's instruments.
+        omitted : ndarray, shape (T, 2)
+            ``c_k``.
+        rows : ndarray of int
+            The transitions where ``c_k`` is not zero (the others add nothing).
+        """
+        weights, _ = _chunk_weights(self.forgetting, zeta.shape[0])
+        self.omitted *= self.forgetting ** zeta.shape[0]
+        if rows.size:
+            self.omitted += (zeta[rows] * weights[rows, np.newaxis]).T @ omitted[rows]
 
     @property
     def age(self) -> float:

@@ -51,13 +51,14 @@ import numpy as np
 from ...core import Array, ControlLaw
 from ...errors import InputError, Refusal, UnsolvableError
 from .._problem import LearningProblem
+from ..evidence._dead_time import pulse_delay_gain
 from ..evidence._discrete_model import DiscreteModel
-from ..evidence._spmsm_structure import SpmsmStructure
 from ..learners._identify import design_digital
 from ._certify import Certificate, certify
 from ._model import OnlineModel
 from ._moments import transposed_covariance
 from ._physical import ChangeTest, ChangeWatch, PhysicalEstimate, physical_estimate
+from ._settings import OnlineSettings
 from ._window import LogWindow
 
 __all__ = [
@@ -67,7 +68,6 @@ __all__ = [
     "REPORTED_DOUBT",
     "RESTART_SHARE",
     "YOUNG_SHARE",
-    "OnlineSettings",
     "OnlineTuner",
     "TunerEvent",
 ]
@@ -99,13 +99,31 @@ GUARD_DOUBT = (0.3, 0.3, 0.3, 0.3)
 #: of the looks, rms 0.83-1.48 (the lower after the resistance step, when the estimates
 #: stayed 0.15-0.19% low: the looks then fall later in the reference's cycle of torque
 #: steps, and the split of the voltage between R_s and the dead-time voltage follows the
-#: current levels the last second holds). L_s: the guard's; a narrower share only
-#: narrows bars already too narrow on carrier PWM (its ripple, which the average model
-#: leaves out, scatters L_s beyond them: rms 4.0-5.5 without doubt on the medium and
-#: large motors, 0.9 on the medium one with average PWM, 1.2 on the servo). The flux:
-#: 5%, the servo's (rms 1.07-1.43; 3.3-4.5 without doubt), too wide on the slower
-#: motors (rms 0.13-0.47; 0.35-1.37 without doubt): no one share fits the three. The
-#: dead-time voltage: the guard's (no truth to measure it against).
+#: current levels the last second holds). L_s: the guard's. Its bars were too narrow on
+#: carrier PWM with dead time (rms 2.7-3.9 on the medium and large motors) for a reason
+#: the share cannot carry: a large torque step's first samples are at the voltage limit,
+#: where a leg's pulse is shorter than the dead time and loses only its own length, which
+#: the model's full dead-time voltage leaves out (:func:`~..evidence._dead_time.lost_signs`;
+#: the medium motor, 30 s: rms 0.9-1.1 without dead time, on average PWM, or with the
+#: simulator's pulses unclipped; 4.1 with them, the same bias under 3-30 mA of noise or a
+#: 12-bit ADC alone). The flux: 5%. It was the servo's (rms 3.4-4.3 without), and it
+#: covered a bias that is not the drift's: on a constant servo the flux was 0.0088% low,
+#: 23 standard errors (on average PWM 0.0001%; with the dead time centred in the pulse,
+#: 0.0012% high): the dead time delays every pulse by half of it, so the voltage moves
+#: the current ``R_s t_d / (2 L_s)`` more than the held model says
+#: (:func:`~..evidence._dead_time.pulse_delay_gain`; 0.010% on the servo, 0.0025% and
+#: 0.0016% on the medium and large motors, whose constant runs were 0.0023% and 0.0015%
+#: low). Where the DC bus is known (:attr:`OnlineSettings.dc_voltage`) the reported
+#: covariance holds the shift both leave in each parameter
+#: (:meth:`~._model.OnlineModel.omitted_shift` for the short pulses, read off the data's
+#: own moments): on the twelve runs L_s's rms 0.82-1.21 (52-75% within one), the flux's
+#: 0.12-0.64 (0.12-0.43 on the slower motors: too wide, as before). Without the 5% the
+#: flux's would be 0.27-0.85, but the looks of a young memory need it: at 1.2-2.0 s of
+#: tests/test_online_run.py's average-PWM drive the flux was 2-5e-5 off with standard
+#: errors of 4-8e-6 without it (z up to 7). The large motor's flux bars are too wide
+#: either way: its warm-up's drift correction leaves a residual that cancels most of the
+#: delay's bias, and its instruments' standard errors were 3.7 times its errors' spread.
+#: The dead-time voltage: the guard's (no truth to measure it against).
 REPORTED_DOUBT = (0.0, 0.3, 0.05, 0.3)
 
 #: The least move of a parameter, a fraction of it, for which a look designs a new law
@@ -127,99 +145,6 @@ JUMP = 0.2
 #: resistance step, the flux was 0.2-0.4% off with a standard error of 0.05%; watched
 #: from 0.1 s on the realistic drive, a constant motor raised an alarm at 0.2 s.
 YOUNG_SHARE = 0.25
-
-
-@dataclass(frozen=True)
-class OnlineSettings:
-    """What the online tuner knows and how it looks.
-
-    Attributes
-    ----------
-    h : float
-        Sampling period, s.
-    input_delay : int
-        d, the drive's computation delay, samples (the log's ``u`` is the command
-        computed at each row, applied d rows later).
-    problem : LearningProblem
-        Q, R, C, F (for the flux the reference assumes) and integral action.
-    electrical_speed : float
-        ``p`` times the mechanical speed, rad/s.
-    hold : {"stationary", "rotor"}
-        What the drive holds over a sample (:class:`~selftune.learn.SpmsmStructure`).
-    dead_time : bool
-        Model the inverter's dead time (the rows need the electrical angle).
-    memories : (float, float, float)
-        The fast model's memory and the two slow ones', s: the slow models' difference
-        removes the lag a steady drift leaves in them (:meth:`~._model.OnlineModel.drift_free`).
-    look_every : int
-        Samples between looks (a look costs as much as 30 chunks of 100 samples; at
-        10 kHz, 0.2 s between them follows heating, 0.4%/s at most, to 0.1%, and a
-        change is watched for at every chunk between them).
-    false_alarm : float
-        The change watch's false-alarm probability per window of ``window`` samples.
-    window : int
-        The transitions the change watch sums over.
-    torque_channel : int or None
-        The channel of ``w`` that is the torque reference: its current, ``F``'s column,
-        is scaled by the estimated flux ratio (None: F is kept).
-    least_saving : float
-        The least saving of a reference step's cost worth a switch, a fraction (a switch
-        adds a transient; below 0.1% it is not seen in the torque).
-    flux_tolerance : float
-        The least change of the flux ratio, a fraction, for which the torque reference's
-        current is rescaled (the steady torque error it leaves: a quarter of 0.1%, the
-        rest for the estimate's error and the current's noise; at half of it a 120 s
-        warm-up's largest steady error was 0.101%).
-    probation : int
-        Samples after a switch during which a detected change reverts it (the watchdog).
-    drift_rates : (float, float, float, float)
-        The fastest drift heating gives ``R_s``, ``L_s``, the flux ratio and the
-        dead-time voltage, fractions per second (copper 0.39%/K heating at up to 2 K/s;
-        the magnets' 0.1%/K at up to 1 K/s): drift this fast over the slow memory is not
-        a change (:class:`~._physical.ChangeWatch`'s allowance, over the time a
-        reference is used: until the next look, and the window).
-    learner : {"identify", "adp"}
-        How a look learns its candidate: identify-then-design (the digital optimum of
-        the estimated motor), or the paper's ADP, model-free (the digital learner of
-        :func:`~selftune.learn.learn_controller` on the last ``adp_window`` of the log,
-        from the law in force's feedback). Either candidate is certified the same way.
-    adp_window : float
-        The log the ADP learner takes, s (a sliding window: memory independent of the
-        run's length).
-    least_change : (float, float, float, float)
-        The least change of ``R_s``, ``L_s``, the flux ratio and the dead-time voltage
-        alone, fractions of each, that the change watch reports: what the model leaves
-        out is not a change. The carrier's ripple, which the average model leaves out,
-        grows as ``V_dc h / L_s`` and shows as an inductance change: on a 0.8 mH motor
-        at 540 V windows scored like a 4.7% change of L_s (false alarms every few
-        seconds at a 1% floor). The faults watched for are a loose connection (+20% on
-        R_s) and a demagnetized magnet; the inductance and the dead-time voltage move
-        with the operating point, not in steps.
-    """
-
-    h: float
-    input_delay: int
-    problem: LearningProblem
-    electrical_speed: float
-    hold: Literal["stationary", "rotor"] = "stationary"
-    dead_time: bool = True
-    memories: tuple[float, float, float] = (0.05, 1.0, 2.0)
-    look_every: int = 2000
-    false_alarm: float = 1e-4
-    window: int = 500
-    torque_channel: int | None = 1
-    least_saving: float = 1e-3
-    flux_tolerance: float = 2.5e-4
-    probation: int = 1000
-    drift_rates: tuple[float, float, float, float] = (0.008, 0.001, 0.001, 0.01)
-    least_change: tuple[float, float, float, float] = (0.02, 0.1, 0.01, 0.2)
-    learner: Literal["identify", "adp"] = "identify"
-    adp_window: float = 1.0
-
-    @property
-    def structure(self) -> SpmsmStructure:
-        """The motor's structure at the speed and sampling period."""
-        return SpmsmStructure(self.electrical_speed, self.h, self.dead_time, self.hold)
 
 
 @dataclass(frozen=True)
@@ -311,9 +236,11 @@ class OnlineTuner:
         self.law_flux = float(law_flux)
         self._previous: tuple[ControlLaw, float] | None = None
         self._probation_end = -1
+        bus, advance = settings.dc_voltage, 0.5 * settings.electrical_speed * settings.h
         self._model = OnlineModel(
-            settings.h, settings.memories, problem.n, problem.m, problem.q, settings.dead_time
-        )
+            settings.h, settings.memories, problem.n, problem.m, problem.q, settings.dead_time,
+            (advance, bus) if bus is not None and settings.hold == "stationary" else None,
+        )  # fmt: skip
         self._theta = None if start is None else np.asarray(start, dtype=float)
         self._pending = np.zeros((settings.input_delay, problem.m))
         self._window = LogWindow(round(settings.adp_window / settings.h))  # the ADP's data
@@ -510,24 +437,37 @@ class OnlineTuner:
         standard error in each, :data:`GUARD_DOUBT` in the guard estimate the decisions
         use, :data:`REPORTED_DOUBT` in the one reported; where the model is ``lag``
         seconds late (no correction), the fastest drift
-        (:attr:`OnlineSettings.drift_rates`) over that lag in both."""
+        (:attr:`OnlineSettings.drift_rates`) over that lag in both. The reported one also
+        holds the shift the dead time's pulses leave in the parameters (with
+        :attr:`OnlineSettings.dc_voltage`: the short ones' lost part,
+        :meth:`~._model.OnlineModel.omitted_shift`, and every pulse's delay,
+        :func:`~..evidence._dead_time.pulse_delay_gain`)."""
         settings, slow = self.settings, self._model.moments[2]
         assert self._theta is not None
         weight = slow.instrument_weight(Theta)
         estimate = physical_estimate(model, settings.structure, self._theta, weight=weight)
-        theta = estimate.theta
+        theta, gain, shift = estimate.theta, estimate.gain, np.zeros(estimate.theta.size)
+        assert gain is not None
+        if self._model.pulses is not None:  # what the dead time's pulses leave out: the
+            # short ones' lost part (-Ed's dead-time block: v times the held vector), and
+            # every pulse t_d / 2 late (Bd too small by the delay's gain)
+            _, Bd, Ed = settings.structure(theta)
+            v = max(float(theta[3]), 0.0)
+            moved = self._model.omitted_shift(1, 2, -Ed[:, -2:]).T.ravel(order="F")
+            t_d = v * settings.h / self._model.pulses[1]
+            delayed = pulse_delay_gain(float(theta[0]), float(theta[1]), t_d)
+            moved[Bd.size : 2 * Bd.size] += (delayed - 1.0) * Bd.ravel(order="F")
+            shift = gain @ moved
+            self._model.dead_time_voltage = v  # judges pulses short from now
         if lag > 0.0:
             late = np.array(settings.drift_rates[: theta.size]) * np.abs(theta) * lag
-            return estimate.doubted(late), estimate.doubted(late)
+            return estimate.doubted(late), estimate.doubted(np.hypot(late, shift))
         # the lagging memory's parameters, to first order: the fit's gain on its model
-        assert estimate.gain is not None
         lagging = slow.coefficients().T.ravel(order="F")  # vec([Ad, Bd, Ed])
-        correction = estimate.gain @ (lagging - model.parameters)
-        guard, reported = (
-            estimate.doubted(np.array(shares[: theta.size]) * correction)
-            for shares in (GUARD_DOUBT, REPORTED_DOUBT)
-        )
-        return guard, reported
+        correction = gain @ (lagging - model.parameters)
+        guard = estimate.doubted(np.array(GUARD_DOUBT[: theta.size]) * correction)
+        reported = np.array(REPORTED_DOUBT[: theta.size]) * correction
+        return guard, estimate.doubted(np.hypot(reported, shift))
 
     def _doubt(self, estimate: PhysicalEstimate, previous: PhysicalEstimate | None) -> str:
         """Why the estimate is not to be acted on ("" if it is): ``R_s``, ``L_s`` or the

@@ -10,13 +10,13 @@ from ...core import Array, ControlLaw
 from .._problem import LearningProblem
 
 if TYPE_CHECKING:
-    from ._tuner import OnlineSettings
+    from ._settings import OnlineSettings
 
 __all__ = ["LogWindow"]
 
 
 class LogWindow:
-    """The last ``rows`` rows of the log (:attr:`~._tuner.OnlineSettings.adp_window`),
+    """The last ``rows`` rows of the log (:attr:`~._settings.OnlineSettings.adp_window`),
     kept as ``[x, u commanded, w, angle]`` chunks: memory independent of the run's length.
 
     Parameters
