@@ -258,20 +258,8 @@ def learn_level(
 
     Parameters
     ----------
-    motor : IPMSM
-        The nameplate motor.
-    saturation : SaturationModel or FluxMap
-        The true flux linkages.
-    settings : TuningSettings
-        Operating point, cost, exploration.
-    drive : DriveSettings
-        The drive.
-    share : float
-        The level, a share of rated torque.
-    seconds : float
-        The log's length after :data:`SETTLE`, s.
-    seed : int
-        Seed of the exploration and noise.
+    motor, saturation, settings, drive, share, seconds, seed
+        As :func:`level_log` takes them.
 
     Raises
     ------
