@@ -49,6 +49,7 @@ __all__ = [
     "markdown_interior",
     "measure_interior",
     "measure_interior_draws",
+    "study_drive",
 ]
 
 #: The motors: (motor, mechanical speed rad/s, rated torque N m, DC bus V).
@@ -200,17 +201,23 @@ def _case(index: int, seed: int) -> InteriorCase:
     return _run(motor, speed, torque, bus, seed, label)
 
 
+def study_drive(bus: float, adc_range: float | None = None) -> DriveSettings:
+    """The studies' drive: hardware-like on the DC bus ``bus`` (V), the motor
+    :data:`TEMPERATURE_RISE` warmer than its nameplate, :data:`LOW_VOLTAGE_DEAD_TIME` on a
+    bus under 100 V, the ADC's range ``adc_range`` (A; None: the hardware-like 50 A)."""
+    drive = replace(DriveSettings.hardware_like(dc_voltage=bus), temperature_rise=TEMPERATURE_RISE)
+    if bus < 100.0:  # a low-voltage drive's MOSFETs: 0.5 us, 0.24 V at 48 V and 10 kHz
+        drive = replace(drive, dead_time=LOW_VOLTAGE_DEAD_TIME)
+    return drive if adc_range is None else replace(drive, adc_range=adc_range)
+
+
 def _run(
     motor: IPMSM, speed: float, torque: float, bus: float, seed: int, label: str,
     adc_range: float | None = None,
 ) -> InteriorCase:  # fmt: skip
     """One commissioning judged against the truth (``adc_range``, A: the hardware-like
     drive's 50 A unless given)."""
-    drive = replace(DriveSettings.hardware_like(dc_voltage=bus), temperature_rise=TEMPERATURE_RISE)
-    if bus < 100.0:  # a low-voltage drive's MOSFETs: 0.5 us, 0.24 V at 48 V and 10 kHz
-        drive = replace(drive, dead_time=LOW_VOLTAGE_DEAD_TIME)
-    if adc_range is not None:
-        drive = replace(drive, adc_range=adc_range)
+    drive = study_drive(bus, adc_range)
     config = MotorConfig(
         motor=motor, speed=speed, torque=torque, drive=drive, drive_h=1e-4,
         learning={"integral_action": True}, source=label,

@@ -25,7 +25,7 @@ surface motors (25 uH to 60 mH, 2 to 10 pole pairs).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,16 +33,14 @@ from ..config import MotorConfig
 from ..errors import SelftuneError
 from ..model import SPMSM, Motor, design_schedule
 from ..report._digital_evaluation import true_motor
-from ..sim import DriveSettings
 from ..tuning import tuning_settings
 from ..tuning._ramp import RampCommissioning, commission_ramp
 from ._common import table, with_progress
 from ._interior import (
     BOTTOM_SPEED_SHARE,
     INTERIOR_MOTORS,
-    LOW_VOLTAGE_DEAD_TIME,
-    TEMPERATURE_RISE,
     drawn_cases,
+    study_drive,
 )
 
 __all__ = [
@@ -161,11 +159,7 @@ def _run(
 ) -> RampCase:  # fmt: skip
     """One ramp commissioning judged against the truth (``adc_range``, A: the
     hardware-like drive's 50 A unless given)."""
-    drive = replace(DriveSettings.hardware_like(dc_voltage=bus), temperature_rise=TEMPERATURE_RISE)
-    if bus < 100.0:
-        drive = replace(drive, dead_time=LOW_VOLTAGE_DEAD_TIME)
-    if adc_range is not None:
-        drive = replace(drive, adc_range=adc_range)
+    drive = study_drive(bus, adc_range)
     config = MotorConfig(
         motor=motor, speed=speed, torque=torque, drive=drive, drive_h=1e-4,
         learning={"integral_action": True}, source=label,
