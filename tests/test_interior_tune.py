@@ -12,7 +12,7 @@ import pytest
 from selftune.cli import main
 from selftune.config import load_motor_config
 from selftune.model import IPMSM, solve_digital_regulation
-from selftune.report import LEARN_REPORT_FILES
+from selftune.report import LEARN_REPORT_FILES, report_files
 from selftune.report._digital_evaluation import true_motor
 
 DRIVE = """
@@ -101,16 +101,40 @@ def test_interior_tune_asks_for_a_drive_and_the_right_options(tmp_path, capsys) 
     assert len(err) == 1 and "--algorithm: an interior PM motor" in err[0]
 
 
+def test_an_exact_drive_is_commissioned_exactly(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """A [drive] table with no noise, dead time, ADC or heating (the simulator's exact
+    drive) gives the motor to the rounding. Its one-step residuals are the rounding's, with
+    the log's angle or without: the angle's check refused it before 2026-11-26 ("theta
+    explains the data worse than no angle at all", 3629% above)."""
+    path = tmp_path / "motor.toml"
+    path.write_text(
+        "[motor]\nR_s = 0.2\nL_d = 2e-3\nL_q = 5e-3\nphi_pm = 0.1\np = 4\n"
+        "[operating_point]\nspeed = 100.0\ntorque = 5.0\n[learning]\nintegral_action = true\n"
+        "[drive]\nswitching_frequency = 10000.0\ninput_delay = 1\ndc_voltage = 540.0\n"
+    )
+    out = tmp_path / "result.json"
+    assert main(["tune", "--motor", str(path), "--json", str(out)]) == 0
+    identified = json.loads(out.read_text())["identified"]
+    for name, value in (("R_s", 0.2), ("L_d", 2e-3), ("L_q", 5e-3), ("phi_pm", 0.1)):
+        assert identified[name] == pytest.approx(value, rel=1e-9), name
+
+
 def test_tune_schedules_the_identified_motor_never_the_files(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     """An interior motor's schedule is designed on the motor its tune identified (the
-    JSON says so and states it); a surface motor's tune, which identifies no R_s and L_s,
-    refuses a [schedule] table in one line instead of writing the model's."""
+    JSON says so and states it), and its report draws it; a surface motor's tune, which
+    identifies no R_s and L_s, refuses a [schedule] table in one line instead of writing
+    the model's."""
     motor = "R_s = 0.2\nL_d = 2e-3\nL_q = 5e-3\nphi_pm = 0.1\np = 4"
     path = _file(tmp_path, motor, 100.0, 5.0)
     with open(path, "a") as handle:
         handle.write("[schedule]\nspeed_range = [20.0, 200.0]\n")
-    out = tmp_path / "result.json"
-    assert main(["tune", "--motor", path, "--json", str(out), "--seed", "2"]) == 0
+    out, report = tmp_path / "result.json", tmp_path / "report"
+    assert main(["tune", "--motor", path, "--json", str(out), "--seed", "2",
+                 "--report", str(report)]) == 0  # fmt: skip
+    files = report_files(scheduled=True)
+    assert sorted(p.name for p in report.iterdir()) == sorted(files)
+    assert f"wrote {report}/ ({', '.join(files)})" in capsys.readouterr().out
+    assert '<figure id="schedule">' in (report / "report.html").read_text()
     document = json.loads(out.read_text())
     design = document["schedule_design"]
     assert design["designed_on"] == "the identified motor"

@@ -155,11 +155,15 @@ def _check_angle_explains(episodes: Sequence[Trajectory], signs: list[Array], sh
     the mechanical for the electrical, a constant) puts the dead-time voltage at the wrong
     place, and the one-step residual rises above the direction's by more than the
     :data:`ANGLE_EVIDENCE` standard deviations its sampling allows."""
-    floor = _direction_floor([e.x for e in episodes])
+    scale = _current_scale([e.x for e in episodes])
+    floor = DIRECTION_FLOOR * scale
     with_angle = sum(_residual(e, s, shift) for e, s in zip(episodes, signs, strict=True))
     without = sum(_residual(e, direction_signs(e.x, floor), shift) for e in episodes)
     count = sum(e.num_samples for e in episodes)
-    excess = with_angle / without - 1.0 if without > 0.0 else 0.0
+    # a residual at the rounding of the currents (an exact drive: no noise, no dead time)
+    # tells no angle from another, however the two roundings compare
+    rounding = (ROUNDING * scale) ** 2 * episodes[0].n
+    excess = (with_angle - without) / max(without, rounding)
     if excess > ANGLE_EVIDENCE * np.sqrt(2.0 / count):
         raise InputError(
             f"theta (the electrical rotor angle, rad): explains the data worse than no angle "
@@ -416,10 +420,19 @@ def _appended(episode: Trajectory, signs: Array) -> Trajectory:
     return Trajectory(t=episode.t, x=episode.x, u=episode.u, w=w, angle=episode.angle)
 
 
+#: Below this share of the currents' rms the direction's vector fades
+#: (:func:`direction_signs`).
+DIRECTION_FLOOR = 0.02
+
+
+def _current_scale(currents: Sequence[Array]) -> float:
+    """The currents' rms (A), at least the smallest positive float."""
+    return max(float(np.sqrt(np.mean(np.concatenate(list(currents)) ** 2))), 1e-300)
+
+
 def _direction_floor(currents: Sequence[Array]) -> float:
-    """Below 2% of the currents' rms the direction's vector fades (:func:`direction_signs`)."""
-    scale = float(np.sqrt(np.mean(np.concatenate(list(currents)) ** 2)))
-    return 0.02 * max(scale, 1e-300)
+    """Below :data:`DIRECTION_FLOOR` of the currents' rms the direction's vector fades."""
+    return DIRECTION_FLOOR * _current_scale(currents)
 
 
 def _residual(episode: Trajectory, signs: Array, shift: int) -> float:
