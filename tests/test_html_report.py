@@ -1,6 +1,7 @@
 """``--report DIR`` of ``selftune learn`` and ``selftune tune``: one self-contained HTML
-page with the verdict on top and six figures embedded, the same PNGs beside it, written
-as one set; a refused log or a foreign directory writes nothing."""
+page with the verdict on top and six figures embedded (seven with a speed schedule's),
+the same PNGs beside it, written as one set; a refused log or a foreign directory writes
+nothing."""
 
 from __future__ import annotations
 
@@ -15,7 +16,14 @@ import pytest
 from selftune.cli import main
 from selftune.config import learn_with_config, load_learn_config
 from selftune.learn import load_trajectory
-from selftune.report import FIGURE_STEMS, LEARN_REPORT_FILES, learn_figure_data
+from selftune.model import SPMSM, design_schedule
+from selftune.report import (
+    FIGURE_STEMS,
+    figure_schedule,
+    learn_figure_data,
+    report_files,
+    write_learn_report,
+)
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "data"
 LOG, CONFIG = EXAMPLES / "drive_log.csv", EXAMPLES / "learn.toml"
@@ -63,14 +71,18 @@ def _parsed(directory: Path) -> _Page:
     return page
 
 
-def _check_page(directory: Path) -> _Page:
-    """The set is complete; the page embeds every figure as the PNG written beside it."""
-    assert sorted(path.name for path in directory.iterdir()) == sorted(LEARN_REPORT_FILES)
+def _check_page(directory: Path, scheduled: bool = False) -> _Page:
+    """The set is complete (with the schedule's figure if ``scheduled``, else without it);
+    the page embeds every figure as the PNG written beside it."""
+    assert sorted(path.name for path in directory.iterdir()) == sorted(report_files(scheduled))
+    stems = (*FIGURE_STEMS, *(["schedule"] if scheduled else []))
     page = _parsed(directory)
-    assert len(page.images) == len(FIGURE_STEMS) == 6
-    assert page.captions == 6 and page.headings == 1
+    assert len(FIGURE_STEMS) == 6 and len(page.images) == len(stems)
+    assert page.captions == len(stems) and page.headings == 1
     assert page.scripts == 0 and page.external == []
-    for image, stem in zip(page.images, FIGURE_STEMS, strict=True):
+    if scheduled:
+        assert (directory / "schedule.svg").read_text().lstrip().startswith("<?xml")
+    for image, stem in zip(page.images, stems, strict=True):
         prefix = "data:image/png;base64,"
         assert image["src"].startswith(prefix) and image["alt"]
         embedded = base64.b64decode(image["src"][len(prefix) :], validate=True)
@@ -193,6 +205,25 @@ def test_a_previous_report_is_replaced_as_a_set(
     capsys.readouterr()
     assert main([*args, "--json", "-"]) == 0
     assert capsys.readouterr().out.lstrip().startswith("{")
+    _check_page(directory)
+
+
+def test_a_schedules_figure_joins_the_set_and_leaves_with_it(tmp_path: Path) -> None:
+    """A scheduled law's report adds the schedule's figure (embedded, and as PNG and SVG);
+    the next report of a law without a schedule replaces the whole set, leaving no stale
+    schedule files."""
+    config = load_learn_config(str(CONFIG), 2, 2, 2)
+    result = learn_with_config(load_trajectory(LOG), config, str(LOG))
+    motor = SPMSM(R_s=0.8, L_s=0.02, phi_pm=0.15, p=3)
+    design = design_schedule(motor, [20.0, 200.0], np.diag([10.0, 10.0]), np.eye(2), 1e-4)
+    single = design.pointwise_optimum(600.0).law
+    figure = figure_schedule(design, design.excess_of(single), 600.0)
+    directory = tmp_path / "report"
+    written = write_learn_report(result, "scheduled", ["printed"], str(directory), None, figure)
+    assert sorted(path.name for path in written) == sorted(report_files(True))
+    _check_page(directory, scheduled=True)
+    args = ["learn", str(LOG), "--config", str(CONFIG), "--report", str(directory)]
+    assert main(args) == 0
     _check_page(directory)
 
 

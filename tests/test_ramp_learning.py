@@ -31,6 +31,7 @@ from selftune.errors import DataFileError, InputError
 from selftune.learn import Trajectory, save_trajectory
 from selftune.learn._speeds import MIN_SEGMENT, speed_segments
 from selftune.model import EXCESS, IPMSM, SPMSM, Motor, design_schedule
+from selftune.report import report_files
 from selftune.report._digital_evaluation import true_motor
 from selftune.sim import DriveSettings, constant, ramp_speeds, run_speed_profile
 from selftune.tuning import TuningSettings, commission_ramp, tuning_settings
@@ -180,7 +181,8 @@ def test_learn_writes_the_schedule_of_the_motor_learned_over_speeds(
     """``selftune learn`` on a two-speed log with a [schedule] table: the JSON's schedule
     is the one designed on the motor it states (recomputed from the file), that motor is
     the truth within 4 of the standard errors ``commission_ramp`` gives on the same log,
-    and the schedule covers the log's speeds; a speed beyond them is refused, named."""
+    the schedule covers the log's speeds and the report draws it; a speed beyond them is
+    refused, named."""
     speed, torque = 100.0, 5.0
     config = MotorConfig(
         motor=MOTOR, speed=speed, torque=torque, drive=DRIVE, drive_h=H,
@@ -194,8 +196,13 @@ def test_learn_writes_the_schedule_of_the_motor_learned_over_speeds(
         tmp_path / "learn.toml", tuning,
         "[schedule]\npole_pairs = 4\nspeed_range = [5.0, 100.0]\n",
     )  # fmt: skip
-    out = tmp_path / "out.json"
-    assert main(["learn", str(log), "--config", str(toml), "--json", str(out)]) == 0
+    out, report = tmp_path / "out.json", tmp_path / "report"
+    args = ["learn", str(log), "--config", str(toml), "--json", str(out), "--report", str(report)]
+    assert main(args) == 0
+    files = report_files(scheduled=True)  # the report draws the schedule
+    assert sorted(path.name for path in report.iterdir()) == sorted(files)
+    assert f"wrote {report}/ ({', '.join(files)})" in capsys.readouterr().out
+    assert '<figure id="schedule">' in (report / "report.html").read_text()
     document = json.loads(out.read_text())
     design = document["schedule_design"]
     learned = IPMSM(**{key: value for key, value in design["motor"].items() if key != "J"})

@@ -75,15 +75,17 @@ def learn_command(
     problem = learning_problem(config)
     pi, why = pi_equivalent_or_reason(result.law, problem, result.judged, result.target)
     lines += ["", *(pi.lines(inputs, states) if pi else [f"no PI equivalent: {why}"])]
-    schedule: dict[str, Any] = {}
+    schedule = None
     if learned.speeds is not None:
-        motor, design, schedule = learned_schedule(learned.speeds, config, result)
-        lines += _schedule_lines(learned.speeds, motor, design)
+        schedule = learned_schedule(learned.speeds, config, result)
+        lines += _schedule_lines(learned.speeds, schedule.motor, schedule.design)
     if json_path is not None:
-        _write_json(json_path, {**_learn_document(result, problem, pi), **schedule})
-    _write_report(result, f"selftune learn: {data_path}", lines, report_dir)
+        document = _learn_document(result, problem, pi)
+        _write_json(json_path, {**document, **(schedule.document if schedule else {})})
+    figure = schedule.figure() if schedule is not None and report_dir is not None else None
+    _write_report(result, f"selftune learn: {data_path}", lines, report_dir, schedule=figure)
     _print_report(lines, json_path)
-    _say_report_written(report_dir, json_path)
+    _say_report_written(report_dir, json_path, scheduled=schedule is not None)
     return 0
 
 

@@ -7,13 +7,16 @@ from __future__ import annotations
 import json
 import sys
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..core import Array, finite_or_null, to_jsonable, write_json
 from ..core._atomic import check_output_directory, check_output_file
 from ..core._numerics import check_numerics as _check_numerics
 from ..core._numerics import numerics as _numerics
 from ..errors import SelftuneError
+
+if TYPE_CHECKING:  # matplotlib is loaded only to draw
+    from matplotlib.figure import Figure
 
 #: The ``--json`` value that writes the JSON to standard output.
 STANDARD_OUTPUT = "-"
@@ -27,11 +30,11 @@ def _check_json_target(path: str | None) -> None:
 
 def _check_report_target(directory: str | None) -> None:
     """Refuse, before anything is computed, a ``--report`` directory that cannot receive
-    a learned controller's report (:data:`selftune.report.LEARN_REPORT_FILES`)."""
+    a learned controller's report (:data:`selftune.report.LEARN_REPORT_NAMES`)."""
     if directory is not None:
-        from ..report import LEARN_REPORT_FILES
+        from ..report import LEARN_REPORT_NAMES
 
-        check_output_directory(directory, LEARN_REPORT_FILES, "learn report")
+        check_output_directory(directory, LEARN_REPORT_NAMES, "learn report")
 
 
 def _write_report(
@@ -40,21 +43,26 @@ def _write_report(
     lines: Sequence[str],
     directory: str | None,
     step: tuple[Array, Array] | None = None,
+    schedule: Figure | None = None,
 ) -> None:
     """Write the report of a learned controller (with its evidence) into ``directory``
-    (``step``: the reference before and after its step response's step)."""
+    (``step``: the reference before and after its step response's step; ``schedule``: the
+    speed schedule's figure, when the law is scheduled)."""
     if directory is not None:
         from ..report import write_learn_report
 
-        write_learn_report(result, title, lines, directory, step)
+        write_learn_report(result, title, lines, directory, step, schedule)
 
 
-def _say_report_written(directory: str | None, json_path: str | None) -> None:
-    """Say where the report went (not when the JSON goes to standard output)."""
+def _say_report_written(
+    directory: str | None, json_path: str | None, scheduled: bool = False
+) -> None:
+    """Say where the report went (not when the JSON goes to standard output), with the
+    schedule's figure if ``scheduled``."""
     if directory is not None and json_path != STANDARD_OUTPUT:
-        from ..report import LEARN_REPORT_FILES
+        from ..report import report_files
 
-        print(f"wrote {directory}/ ({', '.join(LEARN_REPORT_FILES)})")
+        print(f"wrote {directory}/ ({', '.join(report_files(scheduled))})")
 
 
 def _write_json(path: str, data: dict[str, Any]) -> None:

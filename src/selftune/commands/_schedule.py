@@ -27,10 +27,13 @@ from ..core import Array, ControlLaw, cost_document
 from ..errors import SelftuneError
 from ..model import ModelBasedSolution, Motor, ScheduleDesign, bandwidth, design_schedule
 
-if TYPE_CHECKING:  # selftune solve loads no learner
+if TYPE_CHECKING:  # selftune solve loads no learner, and matplotlib only to draw
+    from matplotlib.figure import Figure
+
     from ..learn import LearnedController, SpeedsLearned
 
 __all__ = [
+    "LearnedSchedule",
     "ScheduleRun",
     "check_document",
     "learned_schedule",
@@ -77,6 +80,51 @@ class ScheduleRun:
     def single_law(self) -> ControlLaw:
         """The single-speed controller's law."""
         return self.single.law
+
+    def figure(self, operating_speed: float) -> Figure:
+        """The schedule's figure (:func:`selftune.report.figure_schedule`).
+
+        Parameters
+        ----------
+        operating_speed : float
+            The operating point's mechanical speed, rad/s (the single-speed law's).
+        """
+        from ..report import figure_schedule
+
+        return figure_schedule(self.design, self.single_excess, self.motor.p * operating_speed)
+
+
+@dataclass(frozen=True, eq=False)
+class LearnedSchedule:
+    """``selftune learn``'s schedule: designed on the motor learned from a log over
+    several held speeds, beside the law learned at the highest of them.
+
+    Attributes
+    ----------
+    motor : SPMSM or IPMSM
+        The motor combined from the speeds' parts, the schedule's design model.
+    design : ScheduleDesign
+        The schedule, its grid's optima and its check.
+    single_excess : ndarray
+        The law learned at the highest speed: its excess cost at the check's speeds.
+    single_speed : float
+        That speed, electrical rad/s.
+    document : dict
+        The JSON keys ``schedule`` and ``schedule_design``.
+    """
+
+    motor: Motor
+    design: ScheduleDesign
+    single_excess: Array
+    single_speed: float
+    document: dict[str, Any]
+
+    def figure(self) -> Figure:
+        """The schedule's figure (:func:`selftune.report.figure_schedule`), the
+        single-speed law being the one learned at the highest speed."""
+        from ..report import figure_schedule
+
+        return figure_schedule(self.design, self.single_excess, self.single_speed)
 
 
 def scheduled(config: MotorConfig, identified: Motor | None = None) -> ScheduleRun | None:
@@ -192,7 +240,7 @@ def check_document(design: ScheduleDesign, single_excess: Array) -> dict[str, An
 
 def learned_schedule(
     speeds: SpeedsLearned, config: LearnConfig, top: LearnedController
-) -> tuple[Motor, ScheduleDesign, dict[str, Any]]:
+) -> LearnedSchedule:
     """``selftune learn``'s schedule: designed on the motor learned from a log over
     several held speeds, within the speeds it covers, for the log's loop (its period, the
     learner's delay, the ``[learning]`` hold, the ``[cost]`` with integral action as the
@@ -231,6 +279,7 @@ def learned_schedule(
         )  # fmt: skip
     except SelftuneError as exc:
         raise exc.retold(f"{config.source}: [schedule] {exc}") from None
+    single_excess = design.excess_of(top.law)
     document = {
         "schedule": design.schedule.document(),
         "schedule_design": {
@@ -245,10 +294,10 @@ def learned_schedule(
             config.schedule.key: list(config.schedule.speeds),
             "added": list(design.added),
             "excess_limit": design.check.limit,
-            "check": check_document(design, design.excess_of(top.law)),
+            "check": check_document(design, single_excess),
         },
     }
-    return motor, design, document
+    return LearnedSchedule(motor, design, single_excess, speeds.top[0], document)
 
 
 def schedule_document(run: ScheduleRun, config: MotorConfig) -> dict[str, Any]:

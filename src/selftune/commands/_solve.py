@@ -133,10 +133,6 @@ def solve_report(config: MotorConfig, solution: ModelBasedSolution) -> str:
     return "\n".join(lines)
 
 
-#: The files ``selftune solve --report DIR`` writes (the schedule's figure).
-SCHEDULE_REPORT_FILES = ("schedule.png", "schedule.svg")
-
-
 def solve_command(config: MotorConfig, json_path: str | None, report_dir: str | None = None) -> int:
     """``selftune solve``: print the model-based optimum of ``config``; write its JSON
     (with the whole problem: the motor, the operating point, the cost ``Q, R, Q_i``, the
@@ -152,7 +148,7 @@ def solve_command(config: MotorConfig, json_path: str | None, report_dir: str | 
     json_path : str or None
         Where to write the JSON (``-``: standard output, without the report).
     report_dir : str or None
-        Where to write the schedule's figure (:data:`SCHEDULE_REPORT_FILES`); needs a
+        Where to write the schedule's figure (:data:`selftune.report.SCHEDULE_FILES`); needs a
         ``[schedule]`` table.
     """
     _check_json_target(json_path)
@@ -162,7 +158,9 @@ def solve_command(config: MotorConfig, json_path: str | None, report_dir: str | 
                 f"--report: the figure is a speed schedule's, and {config.source} has no"
                 " [schedule] table (speeds = [...] or speed_range = [min, max])"
             )
-        check_output_directory(report_dir, SCHEDULE_REPORT_FILES, "schedule report")
+        from ..report import SCHEDULE_FILES  # drawing loads the report (not otherwise)
+
+        check_output_directory(report_dir, SCHEDULE_FILES, "schedule report")
     solution = model_based(config)
     w = config.exogenous()
     with _numerics(config.source) as caught:
@@ -181,19 +179,23 @@ def solve_command(config: MotorConfig, json_path: str | None, report_dir: str | 
         if run is not None:
             document.update(schedule_document(run, config))
         _write_json(json_path, document)
+    written = None
     if report_dir is not None and run is not None:
-        _write_schedule_figure(run, config, report_dir)
+        written = _write_schedule_figure(run, config, report_dir)
     _print_report(lines, json_path)
-    if report_dir is not None and json_path != STANDARD_OUTPUT:
-        print(f"wrote {report_dir}/ ({', '.join(SCHEDULE_REPORT_FILES)})")
+    if written is not None and json_path != STANDARD_OUTPUT:
+        print(f"wrote {report_dir}/ ({', '.join(written)})")
     return 0
 
 
-def _write_schedule_figure(run: ScheduleRun, config: MotorConfig, directory: str) -> None:
-    """The schedule's figure as one set of files in ``directory``."""
-    from ..report import figure_schedule
+def _write_schedule_figure(
+    run: ScheduleRun, config: MotorConfig, directory: str
+) -> tuple[str, ...]:
+    """The schedule's figure as one set of files in ``directory``; their names."""
+    from ..report import SCHEDULE_FILES
     from ..report._figures import save_figure
 
-    figure = figure_schedule(run.design, run.single_excess, run.motor.p * config.speed)
-    with output_directory(directory, SCHEDULE_REPORT_FILES, "schedule report") as temporary:
+    figure = run.figure(config.speed)
+    with output_directory(directory, SCHEDULE_FILES, "schedule report") as temporary:
         save_figure(figure, temporary / "schedule")
+    return SCHEDULE_FILES

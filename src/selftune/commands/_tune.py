@@ -76,9 +76,11 @@ def _tune_interior(
     # the step response's step: the MTPA currents from 0 at the operating point's speed
     back_emf = motor.p * settings.speed * motor.phi_pm
     step = (np.array([back_emf, 0.0, 0.0]), np.concatenate([[back_emf], result.references]))
-    _write_report(result.learned, f"selftune tune: {config.source}", lines, report_dir, step)
+    figure = run.figure(config.speed) if run is not None and report_dir is not None else None
+    title = f"selftune tune: {config.source}"
+    _write_report(result.learned, title, lines, report_dir, step, schedule=figure)
     _print_report(lines, json_path)
-    _say_report_written(report_dir, json_path)
+    _say_report_written(report_dir, json_path, scheduled=run is not None)
     return 0
 
 

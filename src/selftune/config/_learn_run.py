@@ -197,5 +197,4 @@ def learn_log(
     if config.schedule is None:
         return LearnedLog(data, config, learn_with_config(data, config, name))
     speeds = learn_over_speeds_with_config(data, config, name)
-    top = max(speeds.parts, key=lambda part: abs(part[0]))[1]
-    return LearnedLog(data, config, top, speeds)
+    return LearnedLog(data, config, speeds.top[1], speeds)

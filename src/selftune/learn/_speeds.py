@@ -178,6 +178,12 @@ class SpeedsLearned:
     motor: MotorEstimate
     covered: tuple[float, float]
 
+    @property
+    def top(self) -> tuple[float, LearnedController]:
+        """The part at the highest speed in magnitude: its electrical speed (rad/s) and
+        its law (the single-speed law a schedule is judged beside)."""
+        return max(self.parts, key=lambda part: abs(part[0]))
+
 
 def learn_over_speeds(
     log: Trajectory, problem: LearningProblem, K0: Array, options: LearningOptions

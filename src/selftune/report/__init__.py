@@ -37,7 +37,14 @@ from ._evaluate import (
     steady_state,
 )
 from ._firmware import ANTI_WINDUP, FIRMWARE_FILES, Firmware, firmware, write_firmware
-from ._html_report import LEARN_REPORT_FILES, verdict_sentence, write_learn_report
+from ._html_report import (
+    LEARN_REPORT_FILES,
+    LEARN_REPORT_NAMES,
+    SCHEDULE_FILES,
+    report_files,
+    verdict_sentence,
+    write_learn_report,
+)
 from ._interior_report import (
     InteriorEvaluation,
     evaluate_interior,
@@ -83,7 +90,9 @@ __all__ = [
     "FIRMWARE_FILES",
     "HOT_RESISTANCE",
     "LEARN_REPORT_FILES",
+    "LEARN_REPORT_NAMES",
     "ONLINE_REPORT_FILES",
+    "SCHEDULE_FILES",
     "STEADY_SECONDS",
     "TIMELINE_POINTS",
     "Firmware",
@@ -115,6 +124,7 @@ __all__ = [
     "online_summary",
     "regulator_document",
     "report",
+    "report_files",
     "reproduce",
     "results_document",
     "steady_state",

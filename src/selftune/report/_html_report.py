@@ -4,7 +4,9 @@
 The page holds the verdict in one sentence on top, the controller's numbers with their
 standard errors, the six figures of :mod:`._learn_figures` embedded as PNG (base64
 ``data:`` URLs, each with alt text and a caption) and the printed report; it loads
-nothing and runs no script. The same PNGs are written beside it. The set is written as
+nothing and runs no script. The same PNGs are written beside it. A law scheduled over
+speed adds the schedule's figure (:func:`~._schedule_figure.figure_schedule`), embedded
+and written as :data:`SCHEDULE_FILES`. The set is written as
 one (:func:`~selftune.core._atomic.output_directory`): into a new or empty directory, or
 over a previous report.
 """
@@ -26,7 +28,10 @@ from ._learn_figures import FIGURE_STEMS, LearnFigureData, learn_figure_data, le
 
 __all__ = [
     "LEARN_REPORT_FILES",
+    "LEARN_REPORT_NAMES",
     "REPORT_PAGE",
+    "SCHEDULE_FILES",
+    "report_files",
     "report_page",
     "verdict_sentence",
     "write_learn_report",
@@ -37,6 +42,13 @@ REPORT_PAGE = "report.html"
 
 #: The files of a learned controller's report: the page and one PNG per figure.
 LEARN_REPORT_FILES = (REPORT_PAGE, *(f"{stem}.png" for stem in FIGURE_STEMS))
+
+#: The speed schedule's figure, beside them when the law is scheduled over speed (and
+#: what ``selftune solve --report DIR`` writes).
+SCHEDULE_FILES = ("schedule.png", "schedule.svg")
+
+#: Every file a learned controller's report directory may hold (a previous report's).
+LEARN_REPORT_NAMES = (*LEARN_REPORT_FILES, *SCHEDULE_FILES)
 
 #: What each figure shows: its title (the alt text) and how to read it (the caption).
 _CAPTIONS = {
@@ -68,6 +80,13 @@ _CAPTIONS = {
     "spectrum": (
         "Spectrum of the model's errors",
         "Flat at the dashed level for white noise; peaks are what the model misses.",
+    ),
+    "schedule": (
+        "The speed schedule against electrical speed",
+        "Its gains K and K_i interpolated between the grid's laws (dots), the closed "
+        "loop's dominant-pole bandwidth beside the pointwise optimum's, and the excess "
+        "cost over the pointwise optimum of the schedule and of the single-speed law, "
+        "with the limit the design checked.",
     ),
 }
 
@@ -201,8 +220,10 @@ def write_learn_report(
     lines: Sequence[str],
     out: str,
     step: tuple[Array, Array] | None = None,
+    schedule: Figure | None = None,
 ) -> list[Path]:
-    """Write :data:`LEARN_REPORT_FILES` into ``out`` as one set.
+    """Write :data:`LEARN_REPORT_FILES` (and :data:`SCHEDULE_FILES` with ``schedule``)
+    into ``out`` as one set.
 
     Parameters
     ----------
@@ -217,12 +238,37 @@ def write_learn_report(
     step : (ndarray, ndarray), optional
         The reference before and after the step response's step (default: read off the
         logs, :func:`~._learn_figures.logged_step`).
+    schedule : Figure, optional
+        The speed schedule's figure (:func:`~._schedule_figure.figure_schedule`), when
+        the law is scheduled over speed.
+
+    Returns
+    -------
+    list of Path
+        The files written.
     """
     data = learn_figure_data(learned, step)
-    pngs = {stem: _png(figure) for stem, figure in learn_figures(data).items()}
+    figures = learn_figures(data)
+    if schedule is not None:
+        figures["schedule"] = schedule
+    pngs = {stem: _png(figure) for stem, figure in figures.items()}
     page = report_page(title, verdict_sentence(learned, data), _numbers(learned), pngs, lines)
-    with output_directory(out, LEARN_REPORT_FILES, "learn report") as temporary:
-        for stem, png in pngs.items():
+    names = report_files(schedule is not None)
+    with output_directory(out, LEARN_REPORT_NAMES, "learn report") as temporary:
+        for stem, png in pngs.items():  # the PNGs the page embeds
             (temporary / f"{stem}.png").write_bytes(png)
+        if schedule is not None:
+            schedule.savefig(temporary / "schedule.svg", format="svg")
         write_text(temporary / REPORT_PAGE, page)
-    return [Path(out) / name for name in LEARN_REPORT_FILES]
+    return [Path(out) / name for name in names]
+
+
+def report_files(scheduled: bool) -> tuple[str, ...]:
+    """The files of a learned controller's report, with the schedule's or without.
+
+    Parameters
+    ----------
+    scheduled : bool
+        Whether the law is scheduled over speed (its figure is in the report).
+    """
+    return LEARN_REPORT_FILES + (SCHEDULE_FILES if scheduled else ())
