@@ -121,9 +121,8 @@ def test_an_exact_drive_is_commissioned_exactly(tmp_path, capsys) -> None:  # ty
 
 def test_tune_schedules_the_identified_motor_never_the_files(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     """An interior motor's schedule is designed on the motor its tune identified (the
-    JSON says so and states it), and its report draws it; a surface motor's tune, which
-    identifies no R_s and L_s, refuses a [schedule] table in one line instead of writing
-    the model's."""
+    JSON says so and states it), and its report draws it (a surface motor's:
+    tests/test_ramp_learning.py)."""
     motor = "R_s = 0.2\nL_d = 2e-3\nL_q = 5e-3\nphi_pm = 0.1\np = 4"
     path = _file(tmp_path, motor, 100.0, 5.0)
     with open(path, "a") as handle:
@@ -141,15 +140,6 @@ def test_tune_schedules_the_identified_motor_never_the_files(tmp_path, capsys) -
     for name in ("R_s", "L_d", "L_q", "phi_pm"):
         assert design["motor"][name] == document["identified"][name]
     assert design["motor"]["L_d"] != 2e-3  # identified, not the file's
-    surface = tmp_path / "surface.toml"
-    surface.write_text(
-        "[motor]\nR_s = 0.2\nL_s = 2e-3\nphi_pm = 0.1\np = 4\n"
-        "[schedule]\nspeed_range = [20.0, 200.0]\n"
-    )
-    capsys.readouterr()
-    assert main(["tune", "--motor", str(surface)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "[schedule]: selftune tune learns a surface motor's law" in err[0]
 
 
 def test_the_online_tuner_refuses_an_interior_motor_in_one_line(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]

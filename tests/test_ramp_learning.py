@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -25,7 +26,7 @@ from hypothesis import strategies as st
 
 from selftune.bench._interior import drawn_motor
 from selftune.cli import main
-from selftune.config import MotorConfig, load_learn_config
+from selftune.config import MotorConfig, load_learn_config, load_motor_config
 from selftune.core import ControlLaw
 from selftune.errors import DataFileError, InputError
 from selftune.learn import Trajectory, save_trajectory
@@ -309,3 +310,94 @@ def test_the_drawn_motors_span_the_issues_range() -> None:
     smallest = min(motor.L_d for motor, *_ in draws)
     largest = max(motor.L_d for motor, *_ in draws)
     assert smallest < 50e-6 and largest > 0.05  # both ends of the range are drawn
+
+
+SURFACE_FILE = """[motor]
+R_s = 0.35
+L_s = 4e-3
+phi_pm = 0.08
+p = 5
+[operating_point]
+speed = 120.0
+torque = 3.0
+[learning]
+integral_action = true
+[drive]
+switching_frequency = 10000.0
+input_delay = 1
+dc_voltage = 540.0
+pwm = "carrier"
+dead_time = 3.7e-7
+current_noise = 0.01
+adc_bits = 12
+adc_range = 50.0
+temperature_rise = 20.0
+"""
+
+
+def test_tune_commissions_a_surface_motor_over_its_schedules_speeds(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``selftune tune`` of a surface motor with a [schedule] table runs the staircase over
+    the schedule's speeds on the file's drive: the JSON's schedule is the one designed on
+    the motor it states (recomputed from the file alone), that motor is the heated truth
+    within 4 standard errors, the schedule within the 1% excess of the true pointwise
+    optimum at every speed checked, and the report draws it."""
+    path = tmp_path / "motor.toml"
+    path.write_text(SURFACE_FILE + "[schedule]\nspeed_range = [10.0, 150.0]\n")
+    out, report = tmp_path / "out.json", tmp_path / "report"
+    args = ["tune", "--motor", str(path), "--json", str(out), "--report", str(report)]
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    assert "Surface PM motor commissioned over a speed ramp" in printed
+    assert sorted(p.name for p in report.iterdir()) == sorted(report_files(scheduled=True))
+    document = json.loads(out.read_text())
+    design = document["schedule_design"]
+    assert design["designed_on"] == "the identified motor"
+    assert design["covered"] == pytest.approx([50.0, 750.0], rel=1e-9)
+    learned = SPMSM(**{key: value for key, value in design["motor"].items() if key != "J"})
+    config = load_motor_config(str(path))
+    assert config.drive is not None
+    truth = true_motor(config.surface_motor(), config.drive)
+    for name in ("R_s", "L_s", "phi_pm"):
+        se = document["identified"][f"{name}_se"]
+        assert abs(getattr(learned, name) - getattr(truth, name)) <= 4.0 * se, name
+    cost = design["cost"]
+    expected = design_schedule(
+        learned, design["speed_range"], np.array(cost["Q"]), np.array(cost["R"]), design["h"],
+        input_delay=design["input_delay"], integral_weight=np.array(cost["Q_i"]),
+        hold=design["hold"],
+    )  # fmt: skip
+    for name in ("K", "K_i", "U", "X"):  # recomputed from the file: rounding apart
+        np.testing.assert_allclose(
+            document["schedule"][name], expected.schedule.table(name), rtol=1e-9, atol=1e-12
+        )
+    on_truth = design_schedule(
+        truth, design["speed_range"], np.array(cost["Q"]), np.array(cost["R"]), design["h"],
+        input_delay=design["input_delay"], integral_weight=np.array(cost["Q_i"]),
+        hold=design["hold"],
+    )  # fmt: skip
+    excess = on_truth.excess_of(expected.schedule)
+    assert float(np.max(excess)) <= EXCESS
+    np.testing.assert_allclose(document["true_schedule_excess"]["schedule"], excess, rtol=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("change", "said"),
+    [
+        (
+            lambda text: text.split("[drive]")[0],
+            "is commissioned on a realistic drive: add a [drive]",
+        ),
+        (lambda text: text, "--algorithm: a surface motor with a [schedule] table is"),
+    ],
+)
+def test_a_surface_schedule_tune_without_its_drive_or_with_an_algorithm_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], change: Any, said: str
+) -> None:
+    path = tmp_path / "motor.toml"
+    path.write_text(change(SURFACE_FILE) + "[schedule]\nspeed_range = [10.0, 150.0]\n")
+    extra = ["--algorithm", "1"] if "algorithm" in said else []
+    assert main(["tune", "--motor", str(path), *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and said in err[0]

@@ -32,9 +32,9 @@ import numpy as np
 from ..config import MotorConfig
 from ..errors import SelftuneError
 from ..model import SPMSM, Motor, design_schedule
-from ..report._digital_evaluation import true_motor
+from ..report import RampEvaluation, evaluate_ramp
 from ..tuning import tuning_settings
-from ..tuning._ramp import RampCommissioning, commission_ramp
+from ..tuning._ramp import commission_ramp
 from ._common import table, with_progress
 from ._interior import (
     BOTTOM_SPEED_SHARE,
@@ -138,14 +138,12 @@ def _label(motor: Motor) -> str:
     return f"IPMSM {motor.L_d * 1e3:g}/{motor.L_q * 1e3:g} mH, p {motor.p}"
 
 
-def _errors(result: RampCommissioning, truth: Motor) -> tuple[float, float]:
+def _errors(evaluation: RampEvaluation) -> tuple[float, float]:
     """The largest relative error of the inductances and flux, and the largest in their
     standard errors."""
-    names = ("L_s", "phi_pm") if isinstance(truth, SPMSM) else ("L_d", "L_q", "phi_pm")
-    errors = [getattr(result.motor, name) - getattr(truth, name) for name in names]
-    relative = max(abs(e / getattr(truth, n)) for e, n in zip(errors, names, strict=True))
-    z = max(abs(e / result.standard_errors[n]) for e, n in zip(errors, names, strict=True))
-    return float(relative), float(z)
+    names = [name for name in evaluation.parameter_errors if name != "R_s"]
+    relative = max(abs(evaluation.parameter_errors[name]) for name in names)
+    return float(relative), float(max(abs(evaluation.z[name]) for name in names))
 
 
 def _case(index: int, seed: int) -> RampCase:
@@ -177,31 +175,21 @@ def _run(
         return RampCase(
             label, seed, str(error)[:90], nan, nan, nan, 0, top, time.perf_counter() - started
         )
-    truth: Motor = true_motor(motor, drive)  # type: ignore[type-var]
-    designs = [
-        design_schedule(
-            model,
-            speeds,
-            settings.Q,
-            settings.R,
-            settings.h,
-            input_delay=drive.input_delay,
-            integral_weight=result.integral_weight,
-            hold=drive.voltage_hold,
-            covered=result.covered if model is result.motor else None,
-        )
-        for model in (result.motor, truth)
-    ]
-    identified, true = designs
+    identified = design_schedule(
+        result.motor, speeds, settings.Q, settings.R, settings.h,
+        input_delay=drive.input_delay, integral_weight=result.integral_weight,
+        hold=drive.voltage_hold, covered=result.covered,
+    )  # fmt: skip
     single = identified.pointwise_optimum(SINGLE_SPEED_SHARE * motor.p * speed).law
+    evaluation = evaluate_ramp(result, motor, settings, drive, speeds, identified, single)
     rated = float(np.hypot(*motor.current_reference(torque)))
     currents = result.log.x[:-1][result.record_speeds == speed]  # at the top speed
     magnitude = np.hypot(currents[:, 0], currents[:, 1]) / rated
-    relative, z = _errors(result, truth)
+    relative, z = _errors(evaluation)
     return RampCase(
         label, seed, "", 100.0 * relative,
-        100.0 * float(np.max(true.excess_of(identified.schedule))),
-        100.0 * float(true.excess_of(single)[-1]),
+        100.0 * float(np.max(evaluation.schedule_excess)),
+        100.0 * float(evaluation.single_excess[-1]),
         identified.schedule.electrical_speed.size, top, time.perf_counter() - started,
         float(np.median(magnitude)), float(np.max(magnitude)), z,
     )  # fmt: skip

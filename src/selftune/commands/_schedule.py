@@ -10,9 +10,10 @@ say). Beside it, the single-speed controller: the same optimum at the operating 
 speed, and its excess cost at each speed the schedule is checked at.
 
 ``solve`` designs on the file's motor (the model). ``tune`` never does: it designs on the
-motor it identified (an interior motor's commissioning), which the JSON states in
-``schedule_design.motor``; a surface motor's tune identifies no R_s and L_s, and refuses
-a ``[schedule]`` table.
+motor it identified, which the JSON states in ``schedule_design.motor``: an interior
+motor's commissioning at the operating speed, or a surface motor's over a staircase of
+the schedule's speeds (``covered``: the speeds its data cover, outside which the schedule
+is refused).
 """
 
 from __future__ import annotations
@@ -65,6 +66,9 @@ class ScheduleRun:
         The motor the schedule was designed on.
     designed_on : str
         What that motor is: ``"the model"`` (the file's) or ``"the identified motor"``.
+    covered : (float, float) or None
+        The electrical speeds the identifying data cover, rad/s (None: the model's, no
+        such limit).
     """
 
     design: ScheduleDesign
@@ -75,6 +79,7 @@ class ScheduleRun:
     speeds: tuple[float, ...]
     motor: Motor
     designed_on: str
+    covered: tuple[float, float] | None = None
 
     @property
     def single_law(self) -> ControlLaw:
@@ -127,7 +132,11 @@ class LearnedSchedule:
         return figure_schedule(self.design, self.single_excess, self.single_speed)
 
 
-def scheduled(config: MotorConfig, identified: Motor | None = None) -> ScheduleRun | None:
+def scheduled(
+    config: MotorConfig,
+    identified: Motor | None = None,
+    covered: tuple[float, float] | None = None,
+) -> ScheduleRun | None:
     """The schedule of ``config`` (None without a ``[schedule]`` table).
 
     Parameters
@@ -136,6 +145,9 @@ def scheduled(config: MotorConfig, identified: Motor | None = None) -> ScheduleR
         The motor file's content.
     identified : SPMSM or IPMSM, optional
         The motor a tuner identified, to design on; default: the file's (the model).
+    covered : (float, float), optional
+        The electrical speeds the tuner's data cover, rad/s: the schedule refuses speeds
+        outside them (:func:`selftune.model.design_schedule`); default: no such limit.
     """
     if config.schedule is None:
         return None
@@ -149,6 +161,7 @@ def scheduled(config: MotorConfig, identified: Motor | None = None) -> ScheduleR
         design = design_schedule(
             motor, config.schedule.speeds, config.Q, config.R, settings.h,
             input_delay=drive.input_delay, integral_weight=Q_i, hold=drive.voltage_hold,
+            covered=covered,
         )  # fmt: skip
     except SelftuneError as exc:  # said against the file's [schedule]
         raise exc.retold(f"{config.source}: [schedule] {exc}") from None
@@ -162,6 +175,7 @@ def scheduled(config: MotorConfig, identified: Motor | None = None) -> ScheduleR
         speeds=config.schedule.speeds,
         motor=motor,
         designed_on="the model" if identified is None else "the identified motor",
+        covered=covered,
     )
 
 
@@ -326,6 +340,7 @@ def schedule_document(run: ScheduleRun, config: MotorConfig) -> dict[str, Any]:
             "designed_on": run.designed_on,
             "motor": run.motor,
             run.key: list(run.speeds),
+            **({} if run.covered is None else {"covered": list(run.covered)}),
             "added": list(design.added),
             "excess_limit": check.limit,
             "check": check_document(design, run.single_excess),

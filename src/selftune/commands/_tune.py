@@ -13,7 +13,7 @@ from ..config import MotorConfig
 from ..core import finite_or_null, to_jsonable
 from ..core._atomic import check_output_directory
 from ..errors import DataFileError, InputError
-from ..model import IPMSM
+from ..model import IPMSM, SPMSM
 from ._output import (
     STANDARD_OUTPUT,
     _check_json_target,
@@ -42,20 +42,8 @@ def _tune_interior(
     from ..report import evaluate_interior, interior_document, interior_lines
     from ..tuning import commission_interior, tuning_settings
 
-    for given, wanted, what in (
-        (algorithm, "offpolicy", "--algorithm"),
-        (target, "digital", "--target"),
-    ):
-        if given not in (None, wanted):
-            raise InputError(
-                f"{what}: an interior PM motor is commissioned by identify-then-design of the"
-                f" digital target; {given} is for a surface motor (leave {what} out)"
-            )
-    if config.drive is None:
-        raise InputError(
-            f"{config.source}: an interior PM motor is commissioned on a realistic drive:"
-            " add a [drive] table (e.g. switching_frequency = 10000.0, input_delay = 1)"
-        )
+    _identify_only(config, algorithm, target, "an interior PM motor is", "a surface motor")
+    assert config.drive is not None
     settings = tuning_settings(config, seed, "digital")
     with _numerics(config.source) as caught:
         result = commission_interior(motor, settings, config.drive, seed=seed)
@@ -84,6 +72,77 @@ def _tune_interior(
     return 0
 
 
+def _identify_only(
+    config: MotorConfig, algorithm: str, target: str | None, subject: str, other: str
+) -> None:
+    """Refuse what an identify-then-design commissioning cannot take: another algorithm or
+    target than the default (they are ``other``'s), or no realistic drive."""
+    for given, wanted, what in (
+        (algorithm, "offpolicy", "--algorithm"),
+        (target, "digital", "--target"),
+    ):
+        if given not in (None, wanted):
+            raise InputError(
+                f"{what}: {subject} commissioned by identify-then-design of the digital"
+                f" target; {given} is for {other} (leave {what} out)"
+            )
+    if config.drive is None:
+        raise InputError(
+            f"{config.source}: {subject} commissioned on a realistic drive: add a [drive]"
+            " table (e.g. switching_frequency = 10000.0, input_delay = 1)"
+        )
+
+
+def _tune_ramp(
+    config: MotorConfig,
+    motor: SPMSM,
+    seed: int,
+    json_path: str | None,
+    algorithm: str,
+    target: str | None,
+    report_dir: str | None,
+) -> int:
+    """``selftune tune`` of a surface motor with a ``[schedule]``: the staircase of speeds
+    over the schedule's range on the file's realistic drive, the motor identified held
+    speed by held speed (:func:`selftune.tuning.commission_ramp`), and the schedule
+    designed on it within the speeds the data cover."""
+    from ..report import evaluate_ramp, ramp_document, ramp_lines
+    from ..tuning import commission_ramp, tuning_settings
+
+    _identify_only(
+        config, algorithm, target, "a surface motor with a [schedule] table is",
+        "a surface motor's single-speed law, without [schedule]",
+    )  # fmt: skip
+    assert config.schedule is not None and config.drive is not None
+    settings = tuning_settings(config, seed, "digital")
+    speeds = config.schedule.speeds
+    with _numerics(config.source) as caught:
+        result = commission_ramp(
+            motor, settings, config.drive, (min(speeds), max(speeds)), seed=seed
+        )
+        run = scheduled(config, result.motor, result.covered)
+        assert run is not None
+        evaluation = evaluate_ramp(
+            result, motor, settings, config.drive, speeds, run.design, run.single_law
+        )
+    _check_numerics(config.source, caught, run.design.schedule.table("K"))
+    lines = [
+        *ramp_lines(config.source, result, evaluation, config.drive),
+        *schedule_lines(run, config.speed),
+    ]
+    if json_path is not None:
+        document = ramp_document(motor, settings, result, evaluation, config.drive)
+        _write_json(json_path, {**document, **schedule_document(run, config)})
+    # the report's law: the one learned at the highest held speed, with its evidence
+    top = max(result.segments, key=lambda part: abs(part[0]))[1]
+    figure = run.figure(config.speed) if report_dir is not None else None
+    title = f"selftune tune: {config.source}"
+    _write_report(top, title, lines, report_dir, schedule=figure)
+    _print_report(lines, json_path)
+    _say_report_written(report_dir, json_path, scheduled=True)
+    return 0
+
+
 def tune_command(
     config: MotorConfig,
     algorithm: str,
@@ -100,7 +159,9 @@ def tune_command(
     commissioned by identify-then-design (:func:`_tune_interior`); with a ``[schedule]``
     table its identified motor's optimum is scheduled over speed too (:mod:`._schedule`: a
     table in the report, ``schedule`` and ``schedule_design`` in the JSON). A surface
-    motor's session identifies no R_s and L_s, and refuses a ``[schedule]`` table.
+    motor with a ``[schedule]`` table is commissioned over a staircase of the schedule's
+    speeds and identified there, and the schedule designed on it (:func:`_tune_ramp`);
+    without one, the session runs ``algorithm``.
 
     Parameters
     ----------
@@ -127,12 +188,7 @@ def tune_command(
         return _tune_interior(config, config.motor, seed, json_path, algorithm, target, report_dir)
     motor = config.surface_motor()
     if config.schedule is not None:
-        raise InputError(
-            f"{config.source}: [schedule]: selftune tune learns a surface motor's law at one"
-            " speed and identifies no R_s and L_s to schedule it over speed; selftune solve"
-            " designs the model's schedule (an interior motor's tune schedules the motor it"
-            " identifies)"
-        )
+        return _tune_ramp(config, motor, seed, json_path, algorithm, target, report_dir)
     settings = tuning_settings(config, seed, target)
     with _numerics(config.source) as caught:
         result = run_algorithm(algorithm, motor, settings, drive=config.drive)  # type: ignore[arg-type]

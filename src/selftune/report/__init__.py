@@ -15,7 +15,10 @@
 - :func:`write_learn_report` (:mod:`._html_report`, figures :mod:`._learn_figures`): a
   learned controller's report, one HTML page and its figures (``--report DIR``);
 - :func:`figure_schedule` (:mod:`._schedule_figure`): a speed schedule's gains,
-  bandwidth and excess cost against speed, with the single-speed controller's.
+  bandwidth and excess cost against speed, with the single-speed controller's;
+- :func:`evaluate_ramp`, :func:`ramp_lines`, :func:`ramp_document` (:mod:`._ramp_report`):
+  a motor commissioned over a speed ramp and its schedule against the true motor's
+  pointwise optimum, and what ``selftune tune`` prints and writes of it.
 """
 
 from __future__ import annotations
@@ -64,6 +67,7 @@ from ._online_report import (
     steps_detected,
     write_online_report,
 )
+from ._ramp_report import RampEvaluation, evaluate_ramp, ramp_document, ramp_lines
 from ._reproduce import (
     ALGORITHM_LABELS,
     Reproduction,
@@ -99,6 +103,7 @@ __all__ = [
     "InteriorEvaluation",
     "LearnFigureData",
     "OnlineEvaluation",
+    "RampEvaluation",
     "Reproduction",
     "TorqueCheck",
     "TuningEvaluation",
@@ -110,6 +115,7 @@ __all__ = [
     "evaluate_digital",
     "evaluate_interior",
     "evaluate_online",
+    "evaluate_ramp",
     "feedback_excess_cost",
     "feedback_value",
     "figure_schedule",
@@ -122,6 +128,8 @@ __all__ = [
     "online_document",
     "online_lines",
     "online_summary",
+    "ramp_document",
+    "ramp_lines",
     "regulator_document",
     "report",
     "report_files",
