@@ -401,3 +401,18 @@ def test_a_surface_schedule_tune_without_its_drive_or_with_an_algorithm_is_one_l
     assert main(["tune", "--motor", str(path), *extra]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and said in err[0]
+
+
+def test_a_refused_part_names_the_speeds_the_others_cover() -> None:
+    """A refusal of one held speed says where the others were learned; when the refused
+    ones are the lowest, from which speed a schedule is covered without them."""
+    from selftune.errors import Refusal
+    from selftune.learn._speeds import _others
+
+    refusal = Refusal("the model cannot explain the data")
+    low = _others([300.0, 600.0], [(30.0, refusal)])
+    assert low.endswith("(300, 600 rad/s): a schedule from 300 rad/s (electrical) up is covered"
+                        " without it")  # fmt: skip
+    middle = _others([30.0, 600.0], [(300.0, refusal), (400.0, refusal)])
+    assert middle == " (and at 1 more); learned at 30, 600 rad/s (electrical)"
+    assert _others([], [(30.0, refusal)]) == ""

@@ -185,6 +185,22 @@ class SpeedsLearned:
         return max(self.parts, key=lambda part: abs(part[0]))
 
 
+def _others(learned: list[float], refused: list[tuple[float, SelftuneError]]) -> str:
+    """What the held speeds learned beside the refused ones would cover (a refusal's
+    end): the speeds above every refused one, if those are the lowest."""
+    if not learned:
+        return ""
+    named = ", ".join(f"{speed:g}" for speed in learned)
+    others = "" if len(refused) == 1 else f" (and at {len(refused) - 1} more)"
+    low = min(abs(speed) for speed in learned)
+    if max(abs(speed) for speed, _ in refused) < low:
+        return (
+            f"{others}; the held speeds above it were learned ({named} rad/s): a schedule "
+            f"from {low:g} rad/s (electrical) up is covered without it"
+        )
+    return f"{others}; learned at {named} rad/s (electrical)"
+
+
 def learn_over_speeds(
     log: Trajectory, problem: LearningProblem, K0: Array, options: LearningOptions
 ) -> SpeedsLearned:
@@ -209,7 +225,8 @@ def learn_over_speeds(
         If the options have no motor structure, or :func:`speed_segments` refuses the log.
     SelftuneError
         The learner's refusal of a part, naming its speed (of a part below the top speed,
-        not for its own law's precision alone).
+        not for its own law's precision alone), and the speeds the other parts were
+        learned at: every part is tried first.
     """
     if options.structure == "none" or options.method != "identify":
         raise InputError(
@@ -217,7 +234,8 @@ def learn_over_speeds(
             'motor\'s structure ("spmsm" or "ipmsm"), whose parameters do not depend on '
             "the speed"
         )
-    parts = []
+    parts: list[tuple[float, LearnedController]] = []
+    refused: list[tuple[float, SelftuneError]] = []
     segments = speed_segments(log)
     top = max(abs(speed) for _, _, speed in segments)
     for first, last, speed in segments:
@@ -229,9 +247,14 @@ def learn_over_speeds(
                 if abs(speed) == top:
                     raise
                 learned = _imprecise_part(part, problem, K0, own, imprecise)
-        except SelftuneError as error:  # said at the part's speed
-            raise error.retold(f"at {speed:g} rad/s (electrical): {error}") from None
+        except SelftuneError as error:  # every part is tried, so the refusal can say
+            refused.append((speed, error))  # which speeds the others would cover
+            continue
         parts.append((speed, learned))
+    if refused:
+        speed, refusal = refused[0]
+        others = _others([learned_speed for learned_speed, _ in parts], refused)
+        raise refusal.retold(f"at {speed:g} rad/s (electrical): {refusal}{others}") from None
     estimates = []
     for _, learned in parts:
         assert learned.quality is not None and learned.quality.motor is not None
