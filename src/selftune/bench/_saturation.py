@@ -30,18 +30,10 @@ import numpy as np
 
 from ..config import MotorConfig
 from ..errors import SelftuneError
-from ..learn import IncrementalStructure
-from ..model import (
-    IPMSM,
-    ModelBasedSolution,
-    RegulationProblem,
-    excess_over,
-    solve_digital_regulation,
-)
+from ..model import IPMSM
+from ..report._saturation_report import CURRENTS, evaluate_current_schedule, judged_references
 from ..sim import DriveSettings, SaturationModel
 from ..tuning import commission_over_current, tuning_settings
-from ..tuning._interior import CURRENT_REFERENCE_F
-from ..tuning._saturation import incremental_theta
 from ._common import table, with_progress
 from ._interior import LOW_VOLTAGE_DEAD_TIME
 
@@ -63,9 +55,6 @@ SATURATING_MOTORS: tuple[tuple[IPMSM, float, float, float, float, float], ...] =
     (IPMSM(R_s=0.5, L_d=4e-3, L_q=4e-3, phi_pm=0.1, p=4), 100.0, 4.0, 540.0, 0.6, 0.35),
     (IPMSM(R_s=0.05, L_d=1e-4, L_q=3e-4, phi_pm=0.01, p=7), 50.0, 1.0, 48.0, 0.6, 0.3),
 )
-
-#: The currents judged between 10 % and 100 % of rated torque.
-CURRENTS = 24
 
 #: Cross-saturation of every motor.
 CROSS = 0.1
@@ -132,29 +121,6 @@ class SaturationStudy:
     wall_seconds: float
 
 
-def _true_optima(
-    motor: IPMSM, saturation: SaturationModel, speed: float, h: float,
-    currents: np.ndarray, weights: tuple[np.ndarray, np.ndarray, np.ndarray | None],
-    input_delay: int,
-) -> list[ModelBasedSolution]:  # fmt: skip
-    """The true pointwise digital optimum at each current reference (the motor's
-    steady current there, the integrator holding it)."""
-    structure = IncrementalStructure(motor.p * speed, h)
-    optima = []
-    for current in currents:
-        theta = incremental_theta(saturation, motor.R_s, current, motor.phi_pm)
-        A, B, D = structure.continuous(theta)
-        problem = RegulationProblem(
-            A=A, B=B, C=np.eye(2), D=D, E=np.zeros((3, 3)), F=CURRENT_REFERENCE_F
-        )
-        optimum = solve_digital_regulation(
-            problem, weights[0], weights[1], h, input_delay=input_delay,
-            integral_weight=weights[2], plant=structure(theta),
-        )  # fmt: skip
-        optima.append(optimum)
-    return optima
-
-
 def _case(index: int, seed: int) -> SaturationCase:
     motor, speed, torque, bus, share, drop = SATURATING_MOTORS[index]
     drive = replace(DriveSettings.hardware_like(dc_voltage=bus), pwm="average")
@@ -167,8 +133,7 @@ def _case(index: int, seed: int) -> SaturationCase:
     settings = tuning_settings(config, seed)
     rated = float(motor.current_reference(torque)[1])
     saturation = SaturationModel.of(motor, i_sat=share * rated, drop=drop, cross=CROSS)
-    shares = np.linspace(0.1, 1.0, CURRENTS)
-    references = np.array([motor.current_reference(s * torque) for s in shares])
+    references = judged_references(motor, torque)
     low, high = (saturation.incremental(*references[k])[1, 1] for k in (0, -1))
     fall = 100.0 * (1.0 - high / low)
     label = f"{index + 1}: {type(motor).__name__} {motor.L_d * 1e3:g}/{motor.L_q * 1e3:g} mH"
@@ -181,19 +146,13 @@ def _case(index: int, seed: int) -> SaturationCase:
             label, seed, str(error)[:90], fall, 0, 0, nan, nan, nan, (), (),
             time.perf_counter() - started,
         )  # fmt: skip
-    first = result.levels[0].learned.law
-    weights = (settings.Q, settings.R, result.integral_weight)
-    optima = _true_optima(motor, saturation, speed, settings.h, references, weights, first.history)
-    schedule = [result.design.schedule.law_at(float(q)) for q in references[:, 1]]
+    evaluation = evaluate_current_schedule(result, motor, saturation, settings)
     excess = [
-        float(np.max(excess_over(optima, law)))
-        for law in (schedule, result.levels[-1].learned.law, first)
+        float(np.max(values))
+        for values in (evaluation.schedule_excess, evaluation.rated_excess, evaluation.low_excess)
     ]
-    z, errors = [], []
-    for level in result.levels:
-        truth = incremental_theta(saturation, motor.R_s, level.mean_current, motor.phi_pm)
-        z.extend(((level.theta - truth) / level.standard_errors)[1:4].tolist())
-        errors.extend((100.0 * (level.theta - truth)[1:4] / truth[2]).tolist())
+    z = evaluation.z.ravel().tolist()
+    errors = (100.0 * evaluation.errors).ravel().tolist()
     return SaturationCase(
         label, seed, "", fall, len(result.levels), len(result.refusals), 100.0 * excess[0],
         100.0 * excess[1],

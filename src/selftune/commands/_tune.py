@@ -143,6 +143,58 @@ def _tune_ramp(
     return 0
 
 
+def _tune_saturating(
+    config: MotorConfig,
+    seed: int,
+    json_path: str | None,
+    algorithm: str,
+    target: str | None,
+    report_dir: str | None,
+) -> int:
+    """``selftune tune`` of a saturating motor (a ``[saturation]`` table): its incremental
+    model learned at several current levels on the file's realistic drive, the law
+    scheduled over ``i_q*`` (:func:`selftune.tuning.commission_over_current`), judged
+    against the true motor's pointwise optimum."""
+    from tqdm import tqdm
+
+    from ..report import current_document, current_lines, evaluate_current_schedule
+    from ..tuning import commission_over_current, tuning_settings
+    from ..tuning._saturation import MAX_LEVELS
+
+    _identify_only(
+        config, algorithm, target, "a saturating motor is", "a surface motor's unsaturated law"
+    )
+    assert config.drive is not None and config.saturation is not None
+    motor = config.motor
+    if isinstance(motor, SPMSM):  # the interior form of a surface motor: L_d = L_q
+        motor = IPMSM(R_s=motor.R_s, L_d=motor.L_s, L_q=motor.L_s, phi_pm=motor.phi_pm, p=motor.p)
+    settings = tuning_settings(config, seed, "digital")
+    with (
+        tqdm(
+            total=MAX_LEVELS, desc="current levels", file=sys.stderr, disable=None, leave=False,
+            bar_format="{desc}: {n} learned (at most {total}) {elapsed}",
+        ) as bar,
+        _numerics(config.source) as caught,
+    ):  # fmt: skip
+        result = commission_over_current(
+            motor, config.saturation, settings, config.drive, seed=seed,
+            progress=lambda count: bar.update(count - bar.n),
+        )  # fmt: skip
+        evaluation = evaluate_current_schedule(result, motor, config.saturation, settings)
+    _check_numerics(config.source, caught, result.design.schedule.table("K"))
+    lines = current_lines(config.source, result, evaluation, config.drive)
+    if json_path is not None:
+        document = current_document(
+            motor, config.saturation, settings, result, evaluation, config.drive
+        )
+        _write_json(json_path, document)
+    title = f"selftune tune: {config.source}"  # the report: the law learned at rated current
+    _write_report(result.levels[-1].learned, title, lines, report_dir)
+    _print_report(lines, json_path)
+    _say_report_written(report_dir, json_path)
+    return 0
+
+
 def tune_command(
     config: MotorConfig,
     algorithm: str,
@@ -161,7 +213,9 @@ def tune_command(
     table in the report, ``schedule`` and ``schedule_design`` in the JSON). A surface
     motor with a ``[schedule]`` table is commissioned over a staircase of the schedule's
     speeds and identified there, and the schedule designed on it (:func:`_tune_ramp`);
-    without one, the session runs ``algorithm``.
+    without one, the session runs ``algorithm``. With a ``[saturation]`` table the motor
+    is learned at several current levels and its law scheduled over ``i_q*``
+    (:func:`_tune_saturating`).
 
     Parameters
     ----------
@@ -184,6 +238,8 @@ def tune_command(
 
     _check_json_target(json_path)
     _check_report_target(report_dir)
+    if config.saturation is not None:
+        return _tune_saturating(config, seed, json_path, algorithm, target, report_dir)
     if isinstance(config.motor, IPMSM):
         return _tune_interior(config, config.motor, seed, json_path, algorithm, target, report_dir)
     motor = config.surface_motor()

@@ -18,6 +18,7 @@
     [drive]            # optional: tune on a realistic drive (see ._drive_table)
     input_delay = 1
     [schedule]         # optional: speeds = [...] or speed_range = [min, max] (._schedule_file)
+    [saturation]       # optional: the simulated motor saturates (._saturation_table)
 
 A ``[learning]`` table (``selftune tune``'s settings) is also allowed; its keys and each
 value's type and range are checked here, and the table is kept in
@@ -62,11 +63,12 @@ from ..core._validation import (
 )
 from ..errors import DataFileError, InputError
 from ..model import IPMSM, SPMSM, Motor, RegulationProblem
+from ._saturation_table import SATURATION_KEYS, saturation_model
 from ._schedule_file import SCHEDULE_KEYS, ScheduleConfig, schedule_config
 from ._toml import ConfigFile, ConfigTable
 
 if TYPE_CHECKING:
-    from ..sim import DriveSettings
+    from ..sim import DriveSettings, SaturationModel
 
 __all__ = [
     "LEARNING_KEYS",
@@ -124,6 +126,7 @@ MOTOR_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
             "voltage_hold",
         ),
         "schedule": SCHEDULE_KEYS,
+        "saturation": SATURATION_KEYS,
     }
 )
 
@@ -158,6 +161,9 @@ class MotorConfig:
         messages.
     schedule : ScheduleConfig or None
         The speeds of the ``[schedule]`` table; None without one.
+    saturation : SaturationModel or None
+        The simulated motor's saturation (the ``[saturation]`` table, on ``motor``'s
+        inductances and flux); None without one.
 
     Raises
     ------
@@ -180,6 +186,7 @@ class MotorConfig:
     drive_h: float | None = None
     Q_i: Array | None = None
     schedule: ScheduleConfig | None = None  # [schedule]: the speeds (._schedule_file)
+    saturation: SaturationModel | None = None  # [saturation] (._saturation_table)
 
     def __post_init__(self) -> None:
         for name in ("speed", "torque"):
@@ -298,10 +305,26 @@ def load_motor_config(path: str | os.PathLike[str]) -> MotorConfig:
 
         drive, drive_h = drive_settings(config.table("drive"))
     schedule = schedule_config(config.table("schedule"), motor) if "schedule" in config else None
+    saturation = None
+    if "saturation" in config:
+        saturation = saturation_model(
+            config.table("saturation"), motor, drive, "schedule" in config
+        )
     try:
         raw = config.data.get("learning", {})  # as written: read with its names by the tuner
         return MotorConfig(
-            motor, speed, torque, Q, R, raw, config.file, drive, drive_h, Q_i, schedule=schedule
+            motor,
+            speed,
+            torque,
+            Q,
+            R,
+            raw,
+            config.file,
+            drive,
+            drive_h,
+            Q_i,
+            schedule=schedule,
+            saturation=saturation,
         )
     except InputError as exc:  # a rule across tables (the speed for the motor)
         key, _, reason = str(exc).partition(": ")

@@ -77,6 +77,8 @@ class GainSchedule:
     #: The unit, and what follows the covered range in the refusal.
     unit: ClassVar[str] = ""
     frame: ClassVar[str] = ""
+    #: The variable in the equations' text.
+    symbol: ClassVar[str] = "the grid's variable"
 
     def __init__(self, grid: ArrayLike, laws: Sequence[ControlLaw]) -> None:
         values = np.asarray(grid, dtype=float)
@@ -103,6 +105,28 @@ class GainSchedule:
     def covered(self) -> tuple[float, float]:
         """The range the schedule covers: its first and last grid point."""
         return float(self.grid[0]), float(self.grid[-1])
+
+    def document(self) -> dict[str, object]:
+        """The schedule for a JSON result: the grid under :attr:`variable`'s name
+        (``electrical_speed``, rad/s; ``current``, A) and, per grid point, ``K``, ``K_i``
+        (null without integral action), ``U``, ``X`` in the convention of
+        :meth:`~selftune.core.ControlLaw.document`, with what every entry shares:
+        ``history``, ``C``, ``F``, ``h``, ``state``, ``equations``."""
+        first = self.laws[0]
+        return {
+            self.variable: self.grid,
+            "K": self._tables["K"],
+            "K_i": self._tables.get("K_i"),
+            "U": self._tables["U"],
+            "X": self._tables["X"],
+            "history": first.history,
+            "C": first.C,
+            "F": first.F,
+            "h": first.h,
+            "state": list(first.state),
+            "equations": first.equations() + f"; each matrix linear in {self.symbol} between "
+            f"neighbouring {self.points} of {self.variable}",
+        }
 
     def table(self, name: str) -> Array:
         """One matrix over the grid, shape ``(g, rows, columns)``.
@@ -184,6 +208,7 @@ class SpeedSchedule(GainSchedule):
     points: ClassVar[str] = "speeds"
     unit: ClassVar[str] = "rad/s"
     frame: ClassVar[str] = " (electrical)"
+    symbol: ClassVar[str] = "omega_e"
 
     def __init__(self, electrical_speed: ArrayLike, laws: Sequence[ControlLaw]) -> None:
         super().__init__(electrical_speed, laws)
@@ -207,27 +232,6 @@ class SpeedSchedule(GainSchedule):
             If the speed is outside the grid (naming it and the covered range).
         """
         return super().law_at(electrical_speed)
-
-    def document(self) -> dict[str, object]:
-        """The schedule for a JSON result: ``electrical_speed`` (rad/s) and, per speed,
-        ``K``, ``K_i`` (null without integral action), ``U``, ``X`` in the convention of
-        :meth:`~selftune.core.ControlLaw.document`, with what every entry shares:
-        ``history``, ``C``, ``F``, ``h``, ``state``, ``equations``."""
-        first = self.laws[0]
-        return {
-            "electrical_speed": self.grid,
-            "K": self._tables["K"],
-            "K_i": self._tables.get("K_i"),
-            "U": self._tables["U"],
-            "X": self._tables["X"],
-            "history": first.history,
-            "C": first.C,
-            "F": first.F,
-            "h": first.h,
-            "state": list(first.state),
-            "equations": first.equations() + "; each matrix linear in omega_e between "
-            "neighbouring speeds of electrical_speed",
-        }
 
 
 @dataclass(frozen=True, init=False, eq=False)
@@ -255,6 +259,7 @@ class CurrentSchedule(GainSchedule):
     points: ClassVar[str] = "currents"
     unit: ClassVar[str] = "A"
     frame: ClassVar[str] = " (i_q*)"
+    symbol: ClassVar[str] = "i_q*"
 
     def __init__(self, current: ArrayLike, laws: Sequence[ControlLaw]) -> None:
         super().__init__(current, laws)

@@ -18,6 +18,9 @@
   bandwidth and excess cost against speed, with the single-speed controller's;
 - :func:`evaluate_ramp`, :func:`ramp_lines`, :func:`ramp_document` (:mod:`._ramp_report`):
   a motor commissioned over a speed ramp and its schedule against the true motor's
+  pointwise optimum, and what ``selftune tune`` prints and writes of it;
+- :func:`evaluate_current_schedule`, :func:`current_lines`, :func:`current_document`
+  (:mod:`._saturation_report`): a saturating motor's current schedule against the true
   pointwise optimum, and what ``selftune tune`` prints and writes of it.
 """
 
@@ -76,6 +79,12 @@ from ._reproduce import (
     results_document,
     write_outputs,
 )
+from ._saturation_report import (
+    CurrentEvaluation,
+    current_document,
+    current_lines,
+    evaluate_current_schedule,
+)
 from ._schedule_figure import figure_schedule
 from ._tune_report import (
     HOT_RESISTANCE,
@@ -99,6 +108,7 @@ __all__ = [
     "SCHEDULE_FILES",
     "STEADY_SECONDS",
     "TIMELINE_POINTS",
+    "CurrentEvaluation",
     "Firmware",
     "InteriorEvaluation",
     "LearnFigureData",
@@ -108,10 +118,13 @@ __all__ = [
     "TorqueCheck",
     "TuningEvaluation",
     "closed_loop_response",
+    "current_document",
+    "current_lines",
     "digital_step_cost",
     "drive_text",
     "error_bars",
     "evaluate",
+    "evaluate_current_schedule",
     "evaluate_digital",
     "evaluate_interior",
     "evaluate_online",

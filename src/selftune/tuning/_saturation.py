@@ -28,7 +28,7 @@ against the pointwise optimum of the identified models interpolated linearly in 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from itertools import pairwise
 
@@ -304,6 +304,7 @@ def commission_over_current(
     shares: Sequence[float] = (0.1, 0.4, 0.7, 1.0),
     seconds: float = 0.4,
     seed: int = 0,
+    progress: Callable[[int], None] | None = None,
 ) -> CurrentCommissioning:
     """The levels learned, refined where the inductance moves, and the schedule over
     ``i_q*`` designed on them (see the module docstring).
@@ -324,6 +325,9 @@ def commission_over_current(
         Each level's learned log, s.
     seed : int
         Seed of the first level's log (the others' follow it).
+    progress : callable, optional
+        Called with the number of levels learned so far, after each (at most
+        :data:`MAX_LEVELS`).
 
     Raises
     ------
@@ -334,7 +338,7 @@ def commission_over_current(
     refusals: list[tuple[float, str]] = []
     logs = iter(range(seed, seed + MAX_LEVELS * LEVEL_ATTEMPTS))
 
-    def learned(share: float) -> CurrentLevel:
+    def attempted(share: float) -> CurrentLevel:
         for _ in range(LEVEL_ATTEMPTS - 1):
             try:
                 return learn_level(
@@ -346,6 +350,14 @@ def commission_over_current(
             motor, saturation, settings, drive, share, seconds=seconds, seed=next(logs)
         )
 
+    def learned(share: float) -> CurrentLevel:
+        level = attempted(share)
+        count[0] += 1
+        if progress is not None:
+            progress(count[0])
+        return level
+
+    count = [0]
     levels = {share: learned(share) for share in shares}
     while len(levels) < MAX_LEVELS:
         moving = [(a, b) for a, b in pairwise(sorted(levels)) if _moves(levels[a], levels[b])]

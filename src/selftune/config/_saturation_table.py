@@ -1,0 +1,88 @@
+"""MOTOR.toml's optional ``[saturation]`` table: the simulated drive's motor saturates.
+
+::
+
+    [saturation]
+    i_sat = 3.2     # A: the current scale of the knee
+    drop = 0.4      # the share of L_q that saturates, in [0, 1)
+    cross = 0.1     # optional, >= 0: how much i_d loads the saturating path (default 0)
+
+The analytic model :class:`selftune.sim.SaturationModel` (docs/saturation.md) on the
+``[motor]`` table's inductances and flux, which become the unsaturated ones. It is the
+truth the simulated drive runs, never the learner's knowledge: ``selftune tune`` then
+commissions the motor over its current (:func:`selftune.tuning.commission_over_current`)
+and writes the law scheduled over the q-axis current reference. It needs a ``[drive]``
+table without ``temperature_rise`` (a heated saturating motor is not modelled: the flux
+linkages are given at the operating temperature) and no ``[schedule]`` table (a schedule
+over speed and current together is not done).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ..errors import InputError
+from ..model import Motor
+from ._toml import ConfigTable
+
+if TYPE_CHECKING:  # selftune solve loads no simulator
+    from ..sim import DriveSettings, SaturationModel
+
+__all__ = ["SATURATION_KEYS", "saturation_model"]
+
+#: The keys of MOTOR.toml's [saturation] table.
+SATURATION_KEYS = ("i_sat", "drop", "cross")
+
+
+def saturation_model(
+    table: ConfigTable, motor: Motor, drive: DriveSettings | None, scheduled: bool
+) -> SaturationModel:
+    """The saturation of a ``[saturation]`` table, on ``motor``'s inductances and flux.
+
+    Parameters
+    ----------
+    table : ConfigTable
+        The table.
+    motor : SPMSM or IPMSM
+        The unsaturated motor of the ``[motor]`` table.
+    drive : DriveSettings or None
+        The ``[drive]`` table's drive (required).
+    scheduled : bool
+        Whether the file has a ``[schedule]`` table (refused beside this one).
+
+    Raises
+    ------
+    DataFileError
+        Naming the file, the table and the key: a missing or bad value, no ``[drive]``
+        table, a ``[drive] temperature_rise``, or a ``[schedule]`` table beside it.
+    """
+    from ..sim import SaturationModel  # a saturating drive's file loads the simulator
+
+    if drive is None:
+        raise table.error(
+            None,
+            "a saturating motor runs on a realistic drive: add a [drive] table (e.g. "
+            "switching_frequency = 10000.0, input_delay = 1, dc_voltage = 540.0)",
+        )
+    if drive.temperature_rise != 0.0:
+        raise table.error(
+            None,
+            f"[drive] temperature_rise = {drive.temperature_rise:g} K: a heated saturating "
+            "motor is not modelled; give the motor at its operating temperature and leave "
+            "temperature_rise out",
+        )
+    if scheduled:
+        raise table.error(
+            None,
+            "with [schedule]: a schedule over speed and current together is not done; "
+            "leave out one of the two tables",
+        )
+    i_sat = table.positive("i_sat")
+    values = {
+        name: table.number(name, 0.0 if name == "cross" else None) for name in ("drop", "cross")
+    }
+    try:
+        return SaturationModel.of(motor, i_sat=i_sat, **values)
+    except InputError as exc:
+        key, _, reason = str(exc).partition(": ")
+        raise table.error(key if key in SATURATION_KEYS else None, reason or str(exc)) from None

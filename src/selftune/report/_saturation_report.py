@@ -1,0 +1,305 @@
+"""A saturating motor commissioned over its load against the truth (evaluation only), and
+what ``selftune tune`` prints and writes of it (a ``[saturation]`` table).
+
+The reference is the TRUE pointwise digital optimum at each q-axis current reference from
+10 % to 100 % of rated torque's (the nameplate MTPA path, :data:`CURRENTS` of them),
+designed on the true incremental plant there (``saturation.incremental`` and the flux
+offset, :func:`~selftune.tuning._saturation.incremental_theta`). Against it: the excess
+cost (worst initial state, :func:`~selftune.model.excess_over`) of the current schedule,
+of the one law learned at rated current and of the one learned at the lowest level; and,
+per level, the identified incremental inductances against the truth at the level's mean
+current, in standard errors. The saturation study (:mod:`selftune.bench._saturation`)
+calls the same functions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..core import Array, cost_document
+from ..learn import IncrementalStructure
+from ..model import (
+    IPMSM,
+    ModelBasedSolution,
+    RegulationProblem,
+    excess_over,
+    solve_digital_regulation,
+)
+from ..sim import DriveSettings, SaturationModel
+from ..tuning import TuningSettings
+from ..tuning._interior import CURRENT_REFERENCE_F
+from ..tuning._saturation import CurrentCommissioning, incremental_theta
+from ._tune_report import drive_text
+
+__all__ = [
+    "CURRENTS",
+    "CurrentEvaluation",
+    "current_document",
+    "current_lines",
+    "evaluate_current_schedule",
+    "judged_references",
+    "true_current_optima",
+]
+
+#: The currents judged between 10 % and 100 % of rated torque.
+CURRENTS = 24
+
+#: The identified incremental inductances' names (``theta[1:4]``).
+INDUCTANCES = ("L_dd", "L_qq", "L_dq")
+
+
+def judged_references(motor: IPMSM, torque: float) -> Array:
+    """The :data:`CURRENTS` current references judged, ``[i_d*, i_q*]`` (A, shape (N, 2)):
+    the nameplate MTPA from 10 % to 100 % of ``torque`` (rated, N m).
+
+    Parameters
+    ----------
+    motor : IPMSM
+        The nameplate motor.
+    torque : float
+        Rated torque, N m.
+    """
+    shares = np.linspace(0.1, 1.0, CURRENTS)
+    return np.array([motor.current_reference(share * torque) for share in shares])
+
+
+def true_current_optima(
+    motor: IPMSM, saturation: SaturationModel, speed: float, h: float,
+    references: Array, weights: tuple[Array, Array, Array | None], input_delay: int,
+) -> list[ModelBasedSolution]:  # fmt: skip
+    """The true pointwise digital optimum at each current reference (the motor's steady
+    current there, the integrator holding it).
+
+    Parameters
+    ----------
+    motor : IPMSM
+        The nameplate motor (its R_s, flux and pole pairs).
+    saturation : SaturationModel or FluxMap
+        The true flux linkages.
+    speed : float
+        Mechanical speed, rad/s.
+    h : float
+        Sampling period, s.
+    references : ndarray, shape (N, 2)
+        ``[i_d*, i_q*]`` at each current, A.
+    weights : (ndarray, ndarray, ndarray or None)
+        ``Q``, ``R`` and the integral weight.
+    input_delay : int
+        The loop's delay, samples.
+    """
+    structure = IncrementalStructure(motor.p * speed, h)
+    optima = []
+    for current in references:
+        theta = incremental_theta(saturation, motor.R_s, current, motor.phi_pm)
+        A, B, D = structure.continuous(theta)
+        problem = RegulationProblem(
+            A=A, B=B, C=np.eye(2), D=D, E=np.zeros((3, 3)), F=CURRENT_REFERENCE_F
+        )
+        optimum = solve_digital_regulation(
+            problem, weights[0], weights[1], h, input_delay=input_delay,
+            integral_weight=weights[2], plant=structure(theta),
+        )  # fmt: skip
+        optima.append(optimum)
+    return optima
+
+
+@dataclass(frozen=True)
+class CurrentEvaluation:
+    """A current schedule against the true pointwise optimum (evaluation only).
+
+    Attributes
+    ----------
+    references : ndarray, shape (N, 2)
+        The judged ``[i_d*, i_q*]``, A: the nameplate MTPA from 10 % to 100 % of rated.
+    schedule_excess, rated_excess, low_excess : ndarray, shape (N,)
+        The excess cost over the true optimum at each (dimensionless, worst initial
+        state) of the schedule, of the law learned at the highest level and of the one
+        learned at the lowest.
+    z : ndarray, shape (levels, 3)
+        Each level's identified ``L_dd``, ``L_qq``, ``L_dq`` against the truth at its
+        mean current, in standard errors.
+    errors : ndarray, shape (levels, 3)
+        The same errors relative to the true ``L_qq`` there.
+    """
+
+    references: Array
+    schedule_excess: Array
+    rated_excess: Array
+    low_excess: Array
+    z: Array
+    errors: Array
+
+
+def evaluate_current_schedule(
+    result: CurrentCommissioning,
+    motor: IPMSM,
+    saturation: SaturationModel,
+    settings: TuningSettings,
+) -> CurrentEvaluation:
+    """``result`` against the true motor (see the module docstring).
+
+    Parameters
+    ----------
+    result : CurrentCommissioning
+        The commissioning.
+    motor : IPMSM
+        The nameplate motor.
+    saturation : SaturationModel or FluxMap
+        The true flux linkages.
+    settings : TuningSettings
+        Operating point (speed; rated torque ``torque``), cost, sampling period.
+    """
+    references = judged_references(motor, settings.torque)
+    first = result.levels[0].learned.law
+    weights = (settings.Q, settings.R, result.integral_weight)
+    optima = true_current_optima(
+        motor, saturation, settings.speed, settings.h, references, weights, first.history
+    )
+    schedule = [result.design.schedule.law_at(float(q)) for q in references[:, 1]]
+    schedule_excess, rated_excess, low_excess = (
+        np.asarray(excess_over(optima, law), dtype=float)
+        for law in (schedule, result.levels[-1].learned.law, first)
+    )
+    z, errors = [], []
+    for level in result.levels:
+        truth = incremental_theta(saturation, motor.R_s, level.mean_current, motor.phi_pm)
+        z.append(((level.theta - truth) / level.standard_errors)[1:4])
+        errors.append((level.theta - truth)[1:4] / truth[2])
+    return CurrentEvaluation(
+        references, schedule_excess, rated_excess, low_excess, np.array(z), np.array(errors)
+    )
+
+
+def current_lines(
+    source: str,
+    result: CurrentCommissioning,
+    evaluation: CurrentEvaluation,
+    drive: DriveSettings,
+) -> list[str]:
+    """The report ``selftune tune`` prints for a saturating motor.
+
+    Parameters
+    ----------
+    source : str
+        The motor file's name.
+    result : CurrentCommissioning
+        The commissioning.
+    evaluation : CurrentEvaluation
+        Its comparison with the truth.
+    drive : DriveSettings
+        The drive it ran on.
+    """
+    schedule, check = result.design.schedule, result.design.check
+    lines = [
+        f"Saturating PM motor commissioned over its load on {source}, {drive_text(drive)}: "
+        f"{len(result.levels)} current levels learned with the incremental structure"
+        + (f" ({len(result.refusals)} logs refused and logged again)" if result.refusals else ""),
+        "",
+        "  share of rated  i_d* (A)  i_q* (A)"
+        + "".join(f"{name + ' (H) +- se':>22}" for name in INDUCTANCES),
+    ]
+    for level in result.levels:
+        values = "".join(
+            f"{level.theta[k]:12.4g} +-{level.standard_errors[k]:7.1g}" for k in (1, 2, 3)
+        )
+        lines.append(
+            f"  {level.share:14.0%}  {level.reference[0]:8.4g}  {level.reference[1]:8.4g}"
+            + values
+        )
+    worst = int(np.argmax(check.excess))
+    lines += [
+        "",
+        f"Current schedule: the digital optimum at {schedule.current.size} currents i_q* = "
+        + ", ".join(f"{current:.4g}" for current in schedule.current)
+        + " A",
+        f"  worst excess cost {check.excess[worst]:.3g} at i_q* = {check.points[worst]:.4g} A "
+        f"over the identified models' pointwise optimum (limit {check.limit:g})",
+    ]
+    rated, low = evaluation.rated_excess, evaluation.low_excess
+    lines += [
+        f"  against the true motor's pointwise optimum from 10% to 100% of rated (only to "
+        f"compare): largest excess {float(np.max(evaluation.schedule_excess)):.3g}; one law "
+        f"learned at rated current {float(np.max(rated)):.3g}, at the lowest level "
+        f"{float(np.max(low)):.3g}",
+        f"  the identified inductances against the truth at each level's mean current: "
+        f"{np.mean(np.abs(evaluation.z) <= 1.0):.0%} of {evaluation.z.size} within one "
+        f"standard error, the largest {float(np.max(np.abs(evaluation.errors))):.2%} of L_qq",
+    ]
+    return lines
+
+
+def current_document(
+    motor: IPMSM,
+    saturation: SaturationModel,
+    settings: TuningSettings,
+    result: CurrentCommissioning,
+    evaluation: CurrentEvaluation,
+    drive: DriveSettings,
+) -> dict[str, Any]:
+    """The JSON ``selftune tune --json`` writes for a saturating motor: the schedule over
+    ``i_q*`` (``current_schedule``, in :meth:`~selftune.model.CurrentSchedule.document`'s
+    form) with every level's identified incremental model, the law at rated current
+    (``control_law``), the whole cost, h and the delay, and the comparison with the truth.
+
+    Parameters
+    ----------
+    motor : IPMSM
+        The nameplate motor.
+    saturation : SaturationModel or FluxMap
+        The true flux linkages (stated, for the comparison).
+    settings : TuningSettings
+        The settings.
+    result : CurrentCommissioning
+        The commissioning.
+    evaluation : CurrentEvaluation
+        Its comparison with the truth.
+    drive : DriveSettings
+        The drive.
+    """
+    schedule, check = result.design.schedule, result.design.check
+    rated = result.levels[-1]
+    return {
+        "method": "identify",
+        "structure": "incremental",
+        "target": "digital",
+        "control_law": schedule.law_at(float(rated.reference[1])).document(),
+        "current_schedule": schedule.document(),
+        "current_schedule_design": {
+            "levels": [
+                {
+                    "share": level.share,
+                    "i_d": float(level.reference[0]),
+                    "i_q": float(level.reference[1]),
+                    "mean_current": level.mean_current,
+                    "theta": level.theta,
+                    "theta_se": level.standard_errors,
+                    "theta_names": ["R_s", *INDUCTANCES, "kappa", "kappa_q"],
+                    "quality": level.learned.verdict,
+                }
+                for level in result.levels
+            ],
+            "refusals": [{"share": share, "error": text} for share, text in result.refusals],
+            "check": {"i_q": check.points, "excess": check.excess, "limit": check.limit},
+        },
+        "true_excess": {
+            "i_q": evaluation.references[:, 1],
+            "schedule": evaluation.schedule_excess,
+            "rated_law": evaluation.rated_excess,
+            "low_law": evaluation.low_excess,
+        },
+        "inductance_z": evaluation.z,
+        "motor": motor,
+        "saturation": {
+            "i_sat": saturation.i_sat,
+            "drop": saturation.drop,
+            "cross": saturation.cross,
+        },
+        "drive": {"settings": drive},
+        "settings": settings,
+        "cost": cost_document(settings.Q, settings.R, result.integral_weight),
+        "h": settings.h,
+        "input_delay": rated.learned.law.history,
+    }
