@@ -2,9 +2,9 @@
 error bars (:mod:`selftune.learn.evidence._pulses`).
 
 On carrier PWM with dead time every pulse comes half the dead time late, which the
-dead-time model's ``-v sign(i)`` does not carry: the flux of motors drawn across the
-issue's range came out 0.005-0.02% low at 4-6 standard errors (docs/schedule.md), within
-3 on average PWM with the same dead time. With the drive's DC bus the reported standard
+dead-time model's ``-v sign(i)`` does not carry: the flux of the three motors drawn here
+came out 0.007-0.02% low at 4.6-6.4 standard errors (docs/schedule.md), within 0.3-2.7 on
+average PWM with the same dead time. With the drive's DC bus the reported standard
 errors hold the shift; the decisions (the law, its verdict) and the values do not move.
 """
 

@@ -18,9 +18,11 @@ motor's standard errors hold it (:func:`with_pulse_shift`); no decision of the v
 reads them. It needs the DC bus (``t_d = v h / V_dc`` from the fitted dead-time voltage
 ``v``, one carrier period a sample) and the stationary hold of a PWM inverter.
 
-On carrier PWM with dead time (docs/schedule.md, docs/interior.md) the flux came out
-0.004-0.02% low at 4-6 standard errors on motors far from the modulation's limit, within
-0.2-2.7 on average PWM with the same dead time: the pulses' delay.
+On carrier PWM with dead time (the ramp and interior draws, docs/schedule.md and
+docs/interior.md) the flux (once L_q) came out 0.004-0.02% low at 3.2-8.0 standard errors
+on motors whose voltages reached 31-79% of the modulation's limit (no short pulses),
+within 0.2-2.7 on average PWM with the same dead time; the delay's shift predicted those
+errors in sign and size (-0.003% to -0.026% of the flux against -0.0045% to -0.020%).
 """
 
 from __future__ import annotations
