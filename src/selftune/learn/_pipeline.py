@@ -51,6 +51,7 @@ from .data._trajectory import Trajectory, as_trajectories
 from .evidence._alignment import applied_inputs
 from .evidence._evidence import Evidence, gather_evidence, reduced_problem
 from .evidence._output_error import simulated_trajectories
+from .evidence._pulses import with_pulse_shift
 from .learners._continuous import lqr_from_moments, regulator_from_moments
 from .learners._digital import (
     DigitalTransitions,
@@ -67,6 +68,7 @@ from .verdict._verdict import (
     ModelErrors,
     design_target,
     model_errors,
+    motor_estimate,
     verdict,
     without_extra,
 )
@@ -409,6 +411,14 @@ def _judged(
         servo=law.K_i is not None,
         optimum_radius=errors.optimum_radius,
     )
+    if evidence.pulse_shift is not None and evidence.fit is not None:  # reported, not judged
+        widened = replace(evidence, fit=with_pulse_shift(evidence.fit, evidence.pulse_shift))
+        note = (
+            "the motor's standard errors include the shift the dead time's pulses leave, "
+            "which its model does not carry (every pulse half the dead time late; a pulse "
+            "shorter than the dead time losing only its length), from the DC bus"
+        )
+        quality = replace(quality, motor=motor_estimate(widened), notes=(*quality.notes, note))
     return LearnedController(
         law=law,
         P=P,

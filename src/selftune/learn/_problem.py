@@ -331,6 +331,13 @@ class LearningOptions:
         the data are too short for their noise and the learner says how much longer they
         must be. With integral action U may reach 25% (it only shapes the transient:
         the integrator removes its steady error).
+    dc_voltage : float, optional
+        The inverter's DC bus, V, if known (a carrier PWM inverter, one carrier period a
+        sample): with ``dead_time``, a surface or interior structure and the
+        ``"stationary"`` hold, the reported motor's standard errors (``quality.motor``)
+        then hold the shift the dead time's pulses leave in its parameters, which the
+        dead-time model does not carry (:mod:`selftune.learn.evidence._pulses`). No
+        decision reads it.
     """
 
     target: Target = "continuous"
@@ -346,6 +353,7 @@ class LearningOptions:
     dead_time: bool = False
     noise: Literal["smoothed", "instruments", "none"] = "smoothed"
     max_relative_error: float = 0.05
+    dc_voltage: float | None = None
 
     def __post_init__(self) -> None:
         if self.target not in ("continuous", "digital"):
@@ -374,6 +382,8 @@ class LearningOptions:
         if not isinstance(self.dead_time, bool):
             raise InputError(f"dead_time: must be true or false, got {self.dead_time!r}")
         positive_finite(self.max_relative_error, "max_relative_error")
+        if self.dc_voltage is not None:
+            positive_finite(self.dc_voltage, "dc_voltage")
         if self.electrical_speed is not None:
             finite_float(self.electrical_speed, "electrical_speed")
         if self.structure != "none":

@@ -34,6 +34,7 @@ from ._problem import LearningOptions, LearningProblem
 from ._result import LearnedController
 from .data._trajectory import Trajectory
 from .verdict._quality import MotorEstimate
+from .verdict._verdict import motor_estimate
 
 __all__ = [
     "MIN_SEGMENT",
@@ -255,9 +256,36 @@ def learn_over_speeds(
         speed, refusal = refused[0]
         others = _others([learned_speed for learned_speed, _ in parts], refused)
         raise refusal.retold(f"at {speed:g} rad/s (electrical): {refusal}{others}") from None
-    estimates = []
-    for _, learned in parts:
-        assert learned.quality is not None and learned.quality.motor is not None
-        estimates.append(learned.quality.motor)
     speeds = [speed for speed, _ in parts]
-    return SpeedsLearned(tuple(parts), combined_estimate(estimates), (min(speeds), max(speeds)))
+    return SpeedsLearned(
+        tuple(parts), _combined([learned for _, learned in parts]), (min(speeds), max(speeds))
+    )
+
+
+def _combined(parts: list[LearnedController]) -> MotorEstimate:
+    """The parts' motors combined (:func:`combined_estimate`) by the fits' own variances;
+    where a part's reported standard errors hold more (the dead time's pulses' shift,
+    :mod:`.evidence._pulses`), that excess is a bias of one sign at every speed, not
+    noise that averages out: the parts' excesses are combined with the same weights as
+    the values and added to the combined standard error."""
+    fitted, reported = [], []
+    for learned in parts:
+        assert learned.quality is not None and learned.quality.motor is not None
+        assert learned.evidence is not None
+        own = motor_estimate(learned.evidence)
+        assert own is not None  # the reported motor is this one's
+        fitted.append(own)
+        reported.append(learned.quality.motor)
+    combined = combined_estimate(fitted)
+    widened: dict[str, float] = {}
+    for item in fields(MotorEstimate):
+        name = item.name
+        if not name.endswith("_se") or getattr(combined, name) is None:
+            continue
+        errors = np.array([getattr(e, name) for e in fitted], dtype=float)
+        total = np.array([getattr(e, name) for e in reported], dtype=float)
+        weights = 1.0 / np.maximum(errors, 1e-300) ** 2
+        excess = np.sqrt(np.maximum(total**2 - errors**2, 0.0))
+        shift = float(np.sum(weights * excess) / np.sum(weights))
+        widened[name] = float(np.hypot(getattr(combined, name), shift))
+    return replace(combined, **widened)

@@ -206,8 +206,7 @@ def current_lines(
             f"{level.theta[k]:12.4g} +-{level.standard_errors[k]:7.1g}" for k in (1, 2, 3)
         )
         lines.append(
-            f"  {level.share:14.0%}  {level.reference[0]:8.4g}  {level.reference[1]:8.4g}"
-            + values
+            f"  {level.share:14.0%}  {level.reference[0]:8.4g}  {level.reference[1]:8.4g}" + values
         )
     worst = int(np.argmax(check.excess))
     lines += [

@@ -30,7 +30,7 @@ from ..learn import LearnedController, LearningProblem, MotorEstimate, learn_con
 from ..model import IPMSM, SPMSM, Motor
 from ..sim import DriveRecord, DriveSettings, RealisticDrive, constant, held, uniform
 from ._knowledge import STEP_DWELL, STEP_LEVELS
-from ._learning import learning_options
+from ._learning import learning_options, pulse_bus
 from ._settings import TuningSettings
 
 __all__ = [
@@ -288,7 +288,10 @@ def commission_interior(
         settings.Q, settings.R, C=np.eye(2), F=CURRENT_REFERENCE_F,
         integral_action=settings.integral_action, integral_weight=settings.Q_i,
     )  # fmt: skip
-    options = replace(learning_options(plant, settings), method="identify", structure="ipmsm")
+    options = replace(
+        learning_options(plant, settings), method="identify", structure="ipmsm",
+        dc_voltage=pulse_bus(drive),
+    )  # fmt: skip
     learned = learn_controller(log, problem, settings.K0, options)
     assert learned.quality is not None and learned.quality.motor is not None  # the verdict
     found, errors = motor_of(learned.quality.motor, motor.p)

@@ -27,6 +27,7 @@ from ..learn import (
     feedforward,
     stated_shift,
 )
+from ..sim import DriveSettings
 from ._drive import Drive
 from ._episodes import iteration_record
 from ._knowledge import known_flux_form
@@ -39,6 +40,7 @@ __all__ = [
     "from_learned",
     "learning_options",
     "learning_problem",
+    "pulse_bus",
 ]
 
 #: The relative agreement of the drive's sampling period with the settings' required.
@@ -113,6 +115,20 @@ def learning_options(
         electrical_speed=drive.pole_pairs * settings.speed,
         voltage_hold=drive.loop.hold,
     )
+
+
+def pulse_bus(drive: DriveSettings) -> float | None:
+    """The DC bus, V, that the learner reads the dead time's pulses from
+    (:attr:`~selftune.learn.LearningOptions.dc_voltage`): the drive's where its carrier
+    PWM has a dead time, else None (an average PWM's voltage is not late, and without
+    dead time no pulse is short).
+
+    Parameters
+    ----------
+    drive : DriveSettings
+        The drive.
+    """
+    return drive.dc_voltage if drive.pwm == "carrier" and drive.dead_time > 0.0 else None
 
 
 def aligned(episode: Trajectory, drive: Drive) -> Trajectory:

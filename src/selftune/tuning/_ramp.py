@@ -32,7 +32,7 @@ from ..model import IPMSM, Motor
 from ..sim import DriveSettings, RealisticDrive, held, ramp_speeds, run_speed_profile, uniform
 from ._interior import check_current_range, current_steps, decoupling_feedforward, motor_of
 from ._knowledge import STEP_DWELL, STEP_LEVELS
-from ._learning import learning_options
+from ._learning import learning_options, pulse_bus
 from ._settings import TuningSettings
 
 __all__ = [
@@ -146,7 +146,7 @@ def commission_ramp(
     plant = RealisticDrive(motor, float(profile[-1]), h, drive)
     base = replace(
         learning_options(plant, settings), method="identify",
-        structure="ipmsm" if interior else "spmsm",
+        structure="ipmsm" if interior else "spmsm", dc_voltage=pulse_bus(drive),
     )  # fmt: skip
     learned = learn_over_speeds(log, problem, settings.K0, base)
     combined = motor_of(learned.motor, motor.p)

@@ -270,14 +270,16 @@ def pulse_delay_gain(R_s: float, L_s: float, dead_time: float) -> float:
     2`` later has decayed by ``exp(-R_s t_d / (2 L_s))`` less at the sample's end: the
     voltage's effect on the next sample, ``Bd`` per volt, is ``exp(R_s t_d / (2 L_s))``
     times the held model's. A centred pulse (no dead time) is not late, and its
-    volt-seconds' spread about the middle is second order in ``R_s T / L_s``.
+    volt-seconds' spread about the middle is second order in ``R_s T / L_s``. In an
+    interior motor's rotor frame the rotation cancels the same way to first order in
+    ``t_d``: its d and q voltages each take the factor of their own axis's inductance.
 
     Parameters
     ----------
     R_s : float
         Stator resistance, ohm.
     L_s : float
-        Inductance, H.
+        Inductance, H (an interior motor's ``L_d`` or ``L_q``).
     dead_time : float
         ``t_d``, s.
 

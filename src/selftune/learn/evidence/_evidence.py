@@ -73,6 +73,7 @@ from ._output_error import (
     SpmsmStructure,
     fit_output_error,
 )
+from ._pulses import pulse_shift
 from ._rounding import resolution_floor
 from ._sign_bias import without_sign_bias
 
@@ -178,6 +179,10 @@ class Evidence:
     adc_noise : float or None
         The noise before that ADC on each phase, A (standard deviation; with
         ``adc_step``).
+    pulse_shift : ndarray or None
+        The shift of the structured fit's parameters that the dead time's short and
+        late pulses leave (:func:`~._pulses.pulse_shift`), with the options' DC bus;
+        None without it.
     """
 
     episodes: list[Trajectory] = field(repr=False)
@@ -191,6 +196,7 @@ class Evidence:
     switching: Switching | None = None
     adc_step: float | None = None
     adc_noise: float | None = None
+    pulse_shift: Array | None = field(default=None, repr=False)
 
     @property
     def model(self) -> DiscreteModel:
@@ -368,9 +374,12 @@ def gather_evidence(
         if corrected is not None:
             fit, correction, adc = corrected
     extra = problem.n if options.dead_time else 0
+    moved, bus = None, options.dc_voltage
+    if bus is not None and isinstance(channels, DeadTimeChannels) and fit is not None:
+        moved = pulse_shift(fit, channels, alignment.shift, bus)
     return Evidence(
         fitted, alignment, fit, test, extra, precision, channels.model, correction,
-        channels.switching, *adc,
+        channels.switching, *adc, pulse_shift=moved,
     )  # fmt: skip
 
 
