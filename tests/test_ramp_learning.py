@@ -416,3 +416,36 @@ def test_a_refused_part_names_the_speeds_the_others_cover() -> None:
     middle = _others([30.0, 600.0], [(300.0, refusal), (400.0, refusal)])
     assert middle == " (and at 1 more); learned at 30, 600 rad/s (electrical)"
     assert _others([], [(30.0, refusal)]) == ""
+
+
+def test_a_learn_files_dc_voltage_widens_only_the_reported_bars(tmp_path: Path) -> None:
+    """A carrier-PWM log with dead time: ``[learning] dc_voltage`` adds the late pulses'
+    shift to the reported motor's standard errors (and says so in a note); the law, the
+    schedule and the identified values are the same without it."""
+    drive = DriveSettings.hardware_like(dc_voltage=540.0)
+    config = MotorConfig(
+        motor=MOTOR, speed=100.0, torque=5.0, drive=drive, drive_h=H,
+        learning={"integral_action": True}, source="motor",
+    )  # fmt: skip
+    tuning = tuning_settings(config, 0)
+    result = commission_ramp(MOTOR, tuning, drive, (5.0, 100.0), seed=0, levels=2)
+    log = tmp_path / "ramp.npz"
+    save_trajectory(result.log, log)
+    schedule = "[schedule]\npole_pairs = 4\nspeed_range = [5.0, 100.0]\n"
+    documents = []
+    for name, bus in (("bare", ""), ("bus", "dc_voltage = 540.0\n")):
+        toml = learn_config(tmp_path / f"{name}.toml", tuning, f"dead_time = true\n{bus}{schedule}")
+        out = tmp_path / f"{name}.json"
+        assert main(["learn", str(log), "--config", str(toml), "--json", str(out)]) == 0
+        documents.append(json.loads(out.read_text()))
+    bare, bus = documents
+    assert bare["K"] == bus["K"] and bare["schedule"] == bus["schedule"]
+    widened = 0
+    for key, value in bare["quality"]["motor"].items():
+        if key.endswith("_se") and value is not None:
+            assert bus["quality"]["motor"][key] >= value, key
+            widened += bus["quality"]["motor"][key] > value
+        elif not key.endswith("_se"):
+            assert bus["quality"]["motor"][key] == value, key
+    assert widened >= 1
+    assert len(bus["quality"]["notes"]) == len(bare["quality"]["notes"]) + 1

@@ -38,6 +38,7 @@ LEARN_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
             "electrical_speed",
             "voltage_hold",
             "max_relative_error",
+            "dc_voltage",
         ),
         "log": LOG_KEYS,
         "schedule": (*SCHEDULE_KEYS, "pole_pairs"),
@@ -70,7 +71,7 @@ class LearnConfig:
         :class:`selftune.learn.LearningOptions`: target, method, input_delay,
         logged_input, dead_time, noise, structure (``"incremental"``: a saturating
         motor's :class:`selftune.learn.IncrementalStructure`), electrical_speed,
-        voltage_hold, max_relative_error.
+        voltage_hold, max_relative_error, dc_voltage.
     integral_action : bool
         Learn the optimal servo controller (integral action on ``e = C x + F w``).
     Q_i : ndarray, shape (r, r), or None
@@ -149,6 +150,9 @@ def load_learn_config(
                               # held speed's own; dead time without angle)
         voltage_hold = "stationary"  # or "rotor": what the drive holds over a sample
         max_relative_error = 0.05    # refuse results with larger standard errors
+        dc_voltage = 540.0    # optional, V: a carrier PWM inverter's DC bus; with
+                              # dead_time and a surface or interior structure, the
+                              # reported motor's standard errors hold its pulses' shift
         [log]                 # optional: the log's own columns, units and frame
                               # (selftune.config._log_table); then n = m = 2 and q is
                               # the number of references w1..wq it names
@@ -306,6 +310,8 @@ def _options(
         values["input_delay"] = int(delay)
     if "electrical_speed" in learning:
         values["electrical_speed"] = learning.number("electrical_speed")
+    if "dc_voltage" in learning:
+        values["dc_voltage"] = learning.ranged("dc_voltage")
     own = {"electrical_speed": 1.0} if over_speeds and "electrical_speed" not in values else {}
     try:
         LearningOptions(
