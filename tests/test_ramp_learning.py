@@ -29,7 +29,13 @@ from selftune.cli import main
 from selftune.config import MotorConfig, load_learn_config, load_motor_config
 from selftune.core import ControlLaw
 from selftune.errors import DataFileError, InputError
-from selftune.learn import Trajectory, save_trajectory
+from selftune.learn import (
+    LearningOptions,
+    LearningProblem,
+    Trajectory,
+    learn_over_speeds,
+    save_trajectory,
+)
 from selftune.learn._speeds import MIN_SEGMENT, speed_segments
 from selftune.model import EXCESS, IPMSM, SPMSM, Motor, design_schedule
 from selftune.report import report_files
@@ -449,3 +455,31 @@ def test_a_learn_files_dc_voltage_widens_only_the_reported_bars(tmp_path: Path) 
             assert bus["quality"]["motor"][key] == value, key
     assert widened >= 1
     assert len(bus["quality"]["notes"]) == len(bare["quality"]["notes"]) + 1
+
+
+def test_a_ramp_from_standstill_covers_it_without_learning_it(tmp_path: Path) -> None:
+    """A staircase from standstill: the part at zero speed has no back-EMF (its w_1 is
+    zero, and the data's rank refused it before 2026-11-26), so it is not learned; the
+    motor learned at the other speeds (within 4 standard errors of the heated truth) is
+    the plant there too, and the schedule covers standstill. A log at standstill only is
+    refused, saying why."""
+    drive = DriveSettings.hardware_like(dc_voltage=540.0)
+    config = MotorConfig(
+        motor=MOTOR, speed=100.0, torque=5.0, drive=drive, drive_h=H,
+        learning={"integral_action": True}, source="motor",
+    )  # fmt: skip
+    tuning = tuning_settings(config, 1)
+    result = commission_ramp(MOTOR, tuning, drive, (0.0, 100.0), seed=1, levels=3)
+    assert result.standstill and result.covered[0] == 0.0 and len(result.segments) == 2
+    truth = true_motor(MOTOR, drive)
+    for name, se in result.standard_errors.items():
+        assert abs(getattr(result.motor, name) - getattr(truth, name)) <= 4.0 * se, name
+    design = design_schedule(
+        result.motor, [0.0, 100.0], tuning.Q, tuning.R, H, covered=result.covered,
+        integral_weight=result.integral_weight, hold=drive.voltage_hold,
+    )  # fmt: skip
+    assert design.schedule.electrical_speed[0] == 0.0
+    standing = staircase_log(np.zeros(600))
+    with pytest.raises(InputError, match="standstill only"):
+        options = LearningOptions(method="identify", structure="ipmsm", electrical_speed=1.0)
+        learn_over_speeds(standing, LearningProblem(tuning.Q, tuning.R), tuning.K0, options)

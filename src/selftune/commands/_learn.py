@@ -91,13 +91,16 @@ def learn_command(
 
 def _schedule_lines(speeds: SpeedsLearned, motor: Motor, design: ScheduleDesign) -> list[str]:
     """The held speeds learned, the motor combined and the schedule designed on it."""
+    from ..report._ramp_report import STANDSTILL  # here: selftune solve loads no learner
+
     check = design.check
     low, high = speeds.covered
     worst = check.worst
     return [
         "",
-        f"learned at {len(speeds.parts)} held speeds, {low:g} to {high:g} rad/s (electrical); "
-        "the law above is the one at the highest",
+        f"learned at {len(speeds.parts)} held speeds, covering {low:g} to {high:g} rad/s "
+        "(electrical); the law above is the one at the highest",
+        *([STANDSTILL] if speeds.standstill else []),
         f"  the motor combined: {speeds.motor.text()}",
         f"Speed schedule on it ({type(motor).__name__}): {design.schedule.electrical_speed.size}"
         " electrical speeds, "

@@ -11,7 +11,10 @@ parameters are combined by their inverse variances (:func:`combined_estimate`). 
 cover the parts' lowest to highest speed. The top speed's part passes the whole verdict;
 a part below it refused only because its own law is too imprecise (``TooLittleData``) is
 learned again with that gate open, every other check kept, and counts by its variance
-(:func:`_imprecise_part`).
+(:func:`_imprecise_part`). A part at standstill is not learned (its back-EMF channel
+``w_1`` is zero: the structure's flux is not in it, and the data's rank says so) but
+counts as covered: R_s and the inductances do not depend on the speed, and the plant at
+standstill is the one learned at the others with ``omega = 0``.
 
 Not done: one fit over a log whose speed changes every sample (a linear ramp). The
 output-error fit simulates one time-invariant sampled plant over a log; a speed per
@@ -173,11 +176,16 @@ class SpeedsLearned:
         The parts' motors combined (:func:`combined_estimate`).
     covered : (float, float)
         The lowest and highest electrical speed of the data, rad/s.
+    standstill : bool
+        Whether the log has a part at standstill, not learned (its back-EMF channel is
+        zero, so the flux is not in it) but covered: the motor learned at the other
+        speeds is the plant there too.
     """
 
     parts: tuple[tuple[float, LearnedController], ...]
     motor: MotorEstimate
     covered: tuple[float, float]
+    standstill: bool = False
 
     @property
     def top(self) -> tuple[float, LearnedController]:
@@ -239,7 +247,16 @@ def learn_over_speeds(
     refused: list[tuple[float, SelftuneError]] = []
     segments = speed_segments(log)
     top = max(abs(speed) for _, _, speed in segments)
+    if top == 0.0:
+        raise InputError(
+            "angle: the log holds the rotor at standstill only; the flux is learned from "
+            "the back-EMF of a turning rotor: log held speeds above zero"
+        )
+    standstill = False
     for first, last, speed in segments:
+        if abs(speed) <= SPEED_STEP * top:  # no back-EMF: nothing of the flux to learn
+            standstill = True
+            continue
         part, own = _part(log, first, last), replace(options, electrical_speed=speed)
         try:
             try:
@@ -256,9 +273,12 @@ def learn_over_speeds(
         speed, refusal = refused[0]
         others = _others([learned_speed for learned_speed, _ in parts], refused)
         raise refusal.retold(f"at {speed:g} rad/s (electrical): {refusal}{others}") from None
-    speeds = [speed for speed, _ in parts]
+    speeds = [speed for speed, _ in parts] + ([0.0] if standstill else [])
     return SpeedsLearned(
-        tuple(parts), _combined([learned for _, learned in parts]), (min(speeds), max(speeds))
+        tuple(parts),
+        _combined([learned for _, learned in parts]),
+        (min(speeds), max(speeds)),
+        standstill,
     )
 
 

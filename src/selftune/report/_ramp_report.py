@@ -26,7 +26,13 @@ from ..tuning._ramp import RampCommissioning
 from ._digital_evaluation import true_motor
 from ._tune_report import drive_text
 
-__all__ = ["RampEvaluation", "evaluate_ramp", "ramp_document", "ramp_lines"]
+__all__ = ["STANDSTILL", "RampEvaluation", "evaluate_ramp", "ramp_document", "ramp_lines"]
+
+#: What a report says of a held speed at standstill.
+STANDSTILL = (
+    "  and standstill, covered but not learned: its back-EMF is zero, so the flux is not in"
+    " it; the motor learned at the others is the plant there too"
+)
 
 
 @dataclass(frozen=True)
@@ -142,9 +148,12 @@ def ramp_lines(
     lines = [
         f"Surface PM motor commissioned over a speed ramp on {source}, {drive_text(drive)}: "
         f"identify-then-design from {result.data_seconds * 1e3:.4g} ms of motor data, "
-        f"{len(result.segments)} held speeds from {low:.6g} to {high:.6g} rad/s (electrical)",
+        f"{len(result.segments)} held speeds learned, covering {low:.6g} to {high:.6g} rad/s "
+        "(electrical)",
         "",
     ]
+    if result.standstill:
+        lines[-1:-1] = [STANDSTILL]
     for speed, learned in result.segments:
         lines += [f"at {speed:.6g} rad/s (electrical):", *learned.verdict.lines()]
     identified = ", ".join(
@@ -202,6 +211,7 @@ def ramp_document(
         "target": "digital",
         "experiment": "speed ramp",
         "covered": list(result.covered),
+        "standstill": result.standstill,
         "segments": [
             {"electrical_speed": speed, "quality": learned.verdict}
             for speed, learned in result.segments

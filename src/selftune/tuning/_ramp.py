@@ -64,6 +64,9 @@ class RampCommissioning:
         The mechanical speed held over each sample of the experiment, rad/s.
     log : Trajectory
         The experiment's log (with its angle column).
+    standstill : bool
+        Whether a held speed was standstill: covered, not learned
+        (:class:`~selftune.learn.SpeedsLearned`).
     """
 
     motor: Motor
@@ -74,6 +77,7 @@ class RampCommissioning:
     integral_weight: Array | None
     record_speeds: Array
     log: Trajectory
+    standstill: bool = False
 
 
 def commission_ramp(
@@ -155,5 +159,5 @@ def commission_ramp(
         covered=learned.covered, segments=learned.parts,
         data_seconds=count * h,
         integral_weight=problem.integral_weight if settings.integral_action else None,
-        record_speeds=profile, log=log,
+        record_speeds=profile, log=log, standstill=learned.standstill,
     )  # fmt: skip
