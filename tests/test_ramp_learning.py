@@ -424,16 +424,22 @@ def test_a_refused_part_names_the_speeds_the_others_cover() -> None:
     assert _others([], [(30.0, refusal)]) == ""
 
 
-def test_a_learn_files_dc_voltage_widens_only_the_reported_bars(tmp_path: Path) -> None:
-    """A carrier-PWM log with dead time: ``[learning] dc_voltage`` adds the late pulses'
-    shift to the reported motor's standard errors (and says so in a note); the law, the
-    schedule and the identified values are the same without it."""
+def _hardware_like(seed: int) -> tuple[DriveSettings, TuningSettings]:
+    """The hardware-like drive (carrier PWM, dead time) on 540 V, and the settings of the
+    test motor at 100 rad/s, 5 N m, with integral action."""
     drive = DriveSettings.hardware_like(dc_voltage=540.0)
     config = MotorConfig(
         motor=MOTOR, speed=100.0, torque=5.0, drive=drive, drive_h=H,
         learning={"integral_action": True}, source="motor",
     )  # fmt: skip
-    tuning = tuning_settings(config, 0)
+    return drive, tuning_settings(config, seed)
+
+
+def test_a_learn_files_dc_voltage_widens_only_the_reported_bars(tmp_path: Path) -> None:
+    """A carrier-PWM log with dead time: ``[learning] dc_voltage`` adds the late pulses'
+    shift to the reported motor's standard errors (and says so in a note); the law, the
+    schedule and the identified values are the same without it."""
+    drive, tuning = _hardware_like(0)
     result = commission_ramp(MOTOR, tuning, drive, (5.0, 100.0), seed=0, levels=2)
     log = tmp_path / "ramp.npz"
     save_trajectory(result.log, log)
@@ -463,12 +469,7 @@ def test_a_ramp_from_standstill_covers_it_without_learning_it(tmp_path: Path) ->
     motor learned at the other speeds (within 4 standard errors of the heated truth) is
     the plant there too, and the schedule covers standstill. A log at standstill only is
     refused, saying why."""
-    drive = DriveSettings.hardware_like(dc_voltage=540.0)
-    config = MotorConfig(
-        motor=MOTOR, speed=100.0, torque=5.0, drive=drive, drive_h=H,
-        learning={"integral_action": True}, source="motor",
-    )  # fmt: skip
-    tuning = tuning_settings(config, 1)
+    drive, tuning = _hardware_like(1)
     result = commission_ramp(MOTOR, tuning, drive, (0.0, 100.0), seed=1, levels=3)
     assert result.standstill and result.covered[0] == 0.0 and len(result.segments) == 2
     truth = true_motor(MOTOR, drive)
