@@ -5,7 +5,8 @@
   recomputed with nothing but the file (the motor, the loop, the cost, the speeds);
 - ``selftune export`` of that JSON compiles to C that runs the scheduled law as
   :meth:`selftune.model.SpeedSchedule.law_at` does, on grid speeds, between them, and
-  clamped outside them (compared with the drives' stepper, to float32 rounding).
+  clamped outside them (compared with the drives' stepper, to float32 rounding); and a
+  ``current_schedule`` the same over ``i_q*``.
 """
 
 from __future__ import annotations
@@ -18,9 +19,15 @@ import pytest
 
 from selftune.cli import main
 from selftune.config import load_law_result, load_motor_config
-from selftune.core import ControlLaw
+from selftune.core import ControlLaw, to_jsonable
 from selftune.errors import DataFileError
-from selftune.model import SPMSM, solve_digital_regulation
+from selftune.model import (
+    IPMSM,
+    SPMSM,
+    CurrentSchedule,
+    SpeedSchedule,
+    solve_digital_regulation,
+)
 from test_export import CompiledLaw, needs_compiler, rounding_bound, stepper_commands
 
 MOTOR = """
@@ -114,10 +121,14 @@ def test_the_json_states_the_schedule_and_its_whole_problem(solved: Path) -> Non
     for index, electrical in enumerate(schedule["electrical_speed"]):
         speed = electrical / motor.p
         law = solve_digital_regulation(
-            motor.regulation_problem(speed), cost["Q"], cost["R"], h,
-            input_delay=design["input_delay"], integral_weight=cost["Q_i"],
+            motor.regulation_problem(speed),
+            cost["Q"],
+            cost["R"],
+            h,
+            input_delay=design["input_delay"],
+            integral_weight=cost["Q_i"],
             plant=motor.sampled_plant(speed, h, design["hold"]),
-        ).law  # fmt: skip
+        ).law
         for name in ("K", "K_i", "U", "X"):
             np.testing.assert_allclose(schedule[name][index], getattr(law, name), rtol=1e-12)
     check = design["check"]
@@ -141,13 +152,21 @@ def test_a_broken_schedule_in_a_json_is_refused_in_one_line(
     solved: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     document = json.loads(solved.read_text())
-    for change, message in [
-        (lambda s: s.pop("K"), "schedule.K: missing"),
-        (lambda s: s["U"].pop(), "schedule.U: must list one matrix per speed (3)"),
-        (lambda s: s.update(electrical_speed=[1.0, 0.5, 2.0]), "must increase strictly"),
+    over_current = {"control_law": document["control_law"]}  # the same tables over i_q*
+    over_current["current_schedule"] = dict(document["schedule"])
+    over_current["current_schedule"]["current"] = over_current["current_schedule"].pop(
+        "electrical_speed"
+    )
+    for key, change, message in [
+        ("schedule", lambda s: s.pop("K"), "schedule.K: missing"),
+        ("schedule", lambda s: s["U"].pop(), "schedule.U: must list one matrix per speed (3)"),
+        ("schedule", lambda s: s.update(electrical_speed=[1.0, 0.5, 2.0]), "increase strictly"),
+        ("current_schedule", lambda s: s.pop("current"), "current_schedule.current: missing"),
+        ("current_schedule", lambda s: s["X"].pop(), "X: must list one matrix per current (3)"),
+        ("current_schedule", lambda s: None, "looks i_q* up in w[2] of the current references"),
     ]:
-        broken = json.loads(json.dumps(document))
-        change(broken["schedule"])
+        broken = json.loads(json.dumps(over_current if key == "current_schedule" else document))
+        change(broken[key])
         path = tmp_path / "broken.json"
         path.write_text(json.dumps(broken))
         assert main(["export", str(path), "--out", str(tmp_path / "out"), "--u-max", "100"]) == 2
@@ -168,6 +187,25 @@ def envelope(first: ControlLaw, second: ControlLaw) -> ControlLaw:
     )
 
 
+def _agrees(
+    schedule: SpeedSchedule | CurrentSchedule, inside: float, compiled: CompiledLaw,
+    x: np.ndarray, w: np.ndarray, omega: np.ndarray, u_max: float,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Assert that the C law fed ``x``, ``w``, ``omega`` returns the stepper's commands of
+    ``law_at(inside)`` within the float32 rounding bound of the neighbours' envelope;
+    those commands and the bound."""
+    expected = stepper_commands(schedule.law_at(inside), x, w, u_max)
+    u = compiled.run(x, w, omega)
+    grid = schedule.grid
+    index = min(int(np.searchsorted(grid, inside, side="right")) - 1, grid.size - 2)
+    bound = rounding_bound(
+        envelope(schedule.laws[index], schedule.laws[index + 1]), x, w, expected, u_max
+    )
+    error = np.hypot(*(u - expected).T)
+    assert np.all(error <= bound), (inside, float(np.max(error / bound)))
+    return expected, bound
+
+
 @needs_compiler
 def test_the_exported_tables_run_the_law_at_every_speed(solved: Path, tmp_path: Path) -> None:
     """On grid speeds, between them and outside them (clamped), the C law returns what
@@ -186,18 +224,10 @@ def test_the_exported_tables_run_the_law_at_every_speed(solved: Path, tmp_path: 
     for speed in speeds:
         omega = float(np.float32(speed))
         inside = float(np.clip(omega, grid[0], grid[-1]))
-        law = schedule.law_at(inside)
         w = np.repeat(np.c_[np.full(count // 500, 0.35 * omega), rng.normal(0, 5.0, count // 500)],
                       500, axis=0)  # fmt: skip
         x = w @ law0.X.T + rng.normal(0, 1.0, (count, 2))
-        expected = stepper_commands(law, x, w, u_max)
-        u = compiled.run(x, w, np.full(count, omega))
-        index = min(int(np.searchsorted(grid, inside, side="right")) - 1, grid.size - 2)
-        bound = rounding_bound(
-            envelope(schedule.laws[index], schedule.laws[index + 1]), x, w, expected, u_max
-        )
-        error = np.hypot(*(u - expected).T)
-        assert np.all(error <= bound), (speed, float(np.max(error / bound)))
+        expected, bound = _agrees(schedule, inside, compiled, x, w, np.full(count, omega), u_max)
     # a law away from the speed it runs at differs by far more than the rounding
     wrong = stepper_commands(schedule.laws[0], x, w, u_max)
     assert np.max(np.hypot(*(wrong - expected).T)) > 1e3 * np.max(bound)
@@ -221,3 +251,48 @@ def test_solve_writes_the_schedules_figure_as_one_set(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--report: the figure is a speed schedule's" in err[0]
     assert not other.exists()
+
+
+@needs_compiler
+def test_a_current_schedule_runs_in_c_at_the_reference_current(tmp_path: Path) -> None:
+    """A JSON's ``current_schedule`` (``tune`` with ``[saturation]``) exports as tables over
+    ``IQ_REF`` looked up at ``i_q* = w[2]``: on grid currents, between them and clamped
+    outside, the C law returns what the stepper computes with ``law_at`` of the float32
+    current, within float32 rounding; ``omega_e`` is unused."""
+    motor = IPMSM(R_s=0.3, L_d=3e-3, L_q=7e-3, phi_pm=0.12, p=3)
+    Q_i = np.diag([4e6, 4e6])
+    laws = [  # four different laws of the current-reference form, one per grid current
+        solve_digital_regulation(
+            motor.regulation_problem(speed),
+            1e3 * np.eye(2),
+            np.eye(2),
+            1e-4,
+            input_delay=1,
+            integral_weight=Q_i,
+            plant=motor.sampled_plant(speed, 1e-4, "stationary"),
+        ).law
+        for speed in (20.0, 60.0, 120.0, 200.0)
+    ]
+    schedule = CurrentSchedule([1.0, 3.0, 6.0, 10.0], laws)
+    path = tmp_path / "saturating.json"
+    document = {"control_law": laws[-1].document(), "current_schedule": schedule.document(),
+                "h": 1e-4, "input_delay": 1}  # fmt: skip
+    path.write_text(json.dumps(to_jsonable(document)))
+    result = load_law_result(path)
+    assert isinstance(result.schedule, CurrentSchedule) and result.scheduled
+    u_max = 150.0
+    compiled = CompiledLaw(path, u_max, tmp_path)
+    assert "IQ_REF[SELFTUNE_CURRENTS]" in compiled.files.source
+    grid = schedule.current
+    rng = np.random.default_rng(3)
+    count = 2000
+    for current in [*grid, 2.0, 4.7, 0.2, 14.0]:
+        i_q = float(np.float32(current))
+        inside = float(np.clip(i_q, grid[0], grid[-1]))
+        law = schedule.law_at(inside)
+        w = np.c_[np.full(count, 36.0), np.full(count, -0.2 * i_q), np.full(count, i_q)]
+        x = w @ law.X.T + rng.normal(0, 0.5, (count, 2))
+        omega = rng.uniform(-500.0, 500.0, count)  # unused
+        expected, bound = _agrees(schedule, inside, compiled, x, w, omega, u_max)
+    wrong = stepper_commands(schedule.laws[0], x, w, u_max)
+    assert np.max(np.hypot(*(wrong - expected).T)) > 1e3 * np.max(bound)

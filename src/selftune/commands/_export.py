@@ -60,9 +60,10 @@ def export_command(result_path: str, out: str, u_max: float | None) -> int:
     what = f"the law of {result_path} ({result.key})"
     if result.schedule is not None:
         low, high = result.schedule.covered
+        schedule = result.schedule
         what = (
-            f"the schedule of {result_path}: {result.schedule.electrical_speed.size} speeds, "
-            f"omega_e {low:g} to {high:g} rad/s (clamped outside)"
+            f"the schedule of {result_path}: {schedule.grid.size} {schedule.points}, "
+            f"{schedule.symbol} {low:g} to {high:g} {schedule.unit} (clamped outside)"
         )
     print(
         f"{what}: d = {law.history} past voltage(s), {law.r} integrator(s), h = "

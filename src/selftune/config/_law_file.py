@@ -5,9 +5,11 @@ Every selftune JSON that carries a controller names it ``control_law`` with ever
 --json``. :func:`load_control_law` reads it back; an online run's JSON
 (``selftune tune --online --json``) gives its last switch's law, or the cold law if it
 switched none. :func:`load_law_result` adds what the file says of the drive the law was
-made for (:class:`LawResult`), and the law's schedule over speed where the file has one
+made for (:class:`LawResult`), and the law's schedule where the file has one: over speed
 (``schedule``, :meth:`selftune.model.SpeedSchedule.document`: ``selftune solve`` and
-``tune`` with a ``[schedule]`` table). Every error is one line naming the file and the key.
+``tune`` with a ``[schedule]`` table) or over the q-axis current reference
+(``current_schedule``: ``tune`` with a ``[saturation]`` table). Every error is one line
+naming the file and the key.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from typing import Any
 from ..core import ControlLaw
 from ..core._atomic import read_regular_file
 from ..errors import DataFileError, InputError
-from ..model import SpeedSchedule
+from ..model import CurrentSchedule, SpeedSchedule
 
 __all__ = ["LawResult", "load_control_law", "load_law_result"]
 
@@ -67,9 +69,9 @@ class LawResult:
     dc_voltage : float or None
         The drive's DC bus, V (``tune --online``); None where the file does not say.
     scheduled : bool
-        Whether the file schedules the law over speed (a ``schedule`` key beside the
-        law or at the top).
-    schedule : SpeedSchedule or None
+        Whether the file schedules the law (a ``schedule`` key over speed, or a
+        ``current_schedule`` over ``i_q*``, beside the law or at the top).
+    schedule : SpeedSchedule or CurrentSchedule or None
         That schedule (its laws in the convention of ``law``); None without one.
     """
 
@@ -80,7 +82,7 @@ class LawResult:
     motor: dict[str, float] | None
     dc_voltage: float | None
     scheduled: bool
-    schedule: SpeedSchedule | None = None
+    schedule: SpeedSchedule | CurrentSchedule | None = None
 
 
 def _read_document(path: str | os.PathLike[str]) -> Any:
@@ -164,8 +166,9 @@ def load_law_result(path: str | os.PathLike[str]) -> LawResult:
     law, mapping, key = _law_of(document, os.fspath(path))
     drive = document.get("drive")
     drive_settings = drive.get("settings", drive) if isinstance(drive, Mapping) else None
-    schedule = _schedule(mapping.get("schedule", document.get("schedule")), os.fspath(path))
-    design = document.get("schedule_design") if schedule is not None else None
+    kind = "current_schedule" if _given(mapping, document, "current_schedule") else "schedule"
+    schedule = _schedule(mapping.get(kind, document.get(kind)), os.fspath(path), kind)
+    design = document.get(f"{kind}_design") if schedule is not None else None
     h = law.h
     for table in (design, document, document.get("settings")):
         h = h if h is not None else _number(table, "h")
@@ -180,35 +183,52 @@ def load_law_result(path: str | os.PathLike[str]) -> LawResult:
         input_delay=None if delay is None else int(delay),
         motor=_motor(document),
         dc_voltage=_number(drive_settings, "dc_voltage"),
-        scheduled="schedule" in mapping or "schedule" in document,
+        scheduled=_given(mapping, document, kind),
         schedule=schedule,
     )
 
 
-def _schedule(table: Any, name: str) -> SpeedSchedule | None:
-    """The schedule a JSON result's ``schedule`` states (None if it has none)."""
+def _given(mapping: Mapping[str, Any], document: Any, key: str) -> bool:
+    """Whether ``key`` is beside the law or at the document's top."""
+    return key in mapping or key in document
+
+
+#: The schedules a JSON result may state, by key (each class names its grid).
+_SCHEDULES: dict[str, type[SpeedSchedule] | type[CurrentSchedule]] = {
+    "schedule": SpeedSchedule,
+    "current_schedule": CurrentSchedule,
+}
+
+
+def _schedule(
+    table: Any, name: str, key: str = "schedule"
+) -> SpeedSchedule | CurrentSchedule | None:
+    """The schedule a JSON result's ``key`` states (None if it has none): ``schedule``
+    over ``electrical_speed``, ``current_schedule`` over ``current``."""
     if table is None:
         return None
+    kind = _SCHEDULES[key]
+    grid_key, points = kind.variable, kind.points
     if not isinstance(table, Mapping):
-        raise DataFileError(f"{name}: schedule: must be an object, got {type(table).__name__}")
-    for field in ("electrical_speed", "K", "U", "X", "history"):
+        raise DataFileError(f"{name}: {key}: must be an object, got {type(table).__name__}")
+    for field in (grid_key, "K", "U", "X", "history"):
         if field not in table:
-            raise DataFileError(f"{name}: schedule.{field}: missing")
-    speeds = table["electrical_speed"]
-    if not isinstance(speeds, list):
-        raise DataFileError(f"{name}: schedule.electrical_speed: must be a list of speeds")
+            raise DataFileError(f"{name}: {key}.{field}: missing")
+    grid = table[grid_key]
+    if not isinstance(grid, list):
+        raise DataFileError(f"{name}: {key}.{grid_key}: must be a list of {points}")
     laws = []
     for field in ("K", "U", "X", "K_i"):
         entries = table.get(field)
         if (field != "K_i" or entries is not None) and (
-            not isinstance(entries, list) or len(entries) != len(speeds)
+            not isinstance(entries, list) or len(entries) != len(grid)
         ):
             raise DataFileError(
-                f"{name}: schedule.{field}: must list one matrix per speed ({len(speeds)})"
+                f"{name}: {key}.{field}: must list one matrix per {kind.point} ({len(grid)})"
             )
     K_i = table.get("K_i")
     try:
-        for index in range(len(speeds)):
+        for index in range(len(grid)):
             gains = (table["K"][index], table["X"][index], table["U"][index])
             integral = None if K_i is None else K_i[index]
             laws.append(
@@ -221,6 +241,6 @@ def _schedule(table: Any, name: str) -> SpeedSchedule | None:
                     table.get("h"),
                 )
             )
-        return SpeedSchedule(speeds, laws)
+        return kind(grid, laws)
     except (InputError, TypeError, ValueError) as exc:
-        raise DataFileError(f"{name}: schedule: {exc}") from None
+        raise DataFileError(f"{name}: {key}: {exc}") from None

@@ -46,7 +46,7 @@ from ..config import LawResult
 from ..core import Array, ControlLaw, positive_finite
 from ..core._atomic import output_directory, write_text
 from ..errors import InputError
-from ..model import SpeedSchedule, motor_from_parameters
+from ..model import CurrentSchedule, SpeedSchedule, motor_from_parameters
 
 __all__ = ["ANTI_WINDUP", "FIRMWARE_FILES", "Firmware", "firmware", "write_firmware"]
 
@@ -103,6 +103,25 @@ def _c_matrix(name: str, matrix: Array, key: str, comment: str) -> str:
     )
 
 
+@dataclass(frozen=True)
+class _Argument:
+    """What selects a scheduled law in C: the grid's table and size macro, the C value
+    looked up in it, and how the banner names them."""
+
+    grid: str
+    count: str
+    value: str
+    points: str
+    unit: str
+
+
+#: A schedule over speed reads omega_e; one over the q-axis current reads i_q* = w[2].
+_ARGUMENTS = {
+    SpeedSchedule: _Argument("OMEGA_E", "SELFTUNE_SPEEDS", "omega_e", "speeds", "rad/s"),
+    CurrentSchedule: _Argument("IQ_REF", "SELFTUNE_CURRENTS", "w[2]", "currents", "A"),
+}
+
+
 def _law(result: LawResult) -> ControlLaw:
     """The law whose structure the firmware runs: the schedule's where there is one."""
     return result.law if result.schedule is None else result.schedule.laws[0]
@@ -110,7 +129,9 @@ def _law(result: LawResult) -> ControlLaw:
 
 def _key(result: LawResult) -> str:
     """Where the file holds the law exported."""
-    return result.key if result.schedule is None else "schedule"
+    if result.schedule is None:
+        return result.key
+    return "current_schedule" if isinstance(result.schedule, CurrentSchedule) else "schedule"
 
 
 def _check(result: LawResult, source: str) -> ControlLaw:
@@ -118,6 +139,11 @@ def _check(result: LawResult, source: str) -> ControlLaw:
     law = _law(result)
     if result.scheduled and result.schedule is None:
         raise InputError(f"{source}: schedule: the file names a schedule but states none")
+    if isinstance(result.schedule, CurrentSchedule) and law.q != 3:
+        raise InputError(
+            f"{source}: current_schedule: the firmware looks i_q* up in w[2] of the current "
+            f"references [p speed phi_pm, i_d*, i_q*]; this law has {law.q} reference channels"
+        )
     if (law.n, law.m) != (2, 2):
         raise InputError(
             f"{source}: {_key(result)}: the firmware takes i_dq (2 currents) and gives u_dq (2"
@@ -200,16 +226,27 @@ def _dot(matrix: str, vector: str, q: int) -> str:
 
 
 def _omega_text(result: LawResult) -> str:
-    """What the banner says of omega_e."""
-    if result.schedule is None:
+    """What the banner says of omega_e (and of a schedule over the current)."""
+    schedule = result.schedule
+    if schedule is None:
         return "omega_e, the electrical speed, rad/s, is unused (no schedule over speed)."
-    low, high = result.schedule.covered
+    low, high = schedule.covered
+    clamped = (
+        "each entry interpolated linearly between the two neighbours; below the first "
+        "the first law, above the last the last (clamped: the schedule was designed and "
+        "checked within that range only)."
+    )
+    if isinstance(schedule, CurrentSchedule):
+        return (
+            "omega_e, the electrical speed, rad/s, is unused (no schedule over speed); "
+            f"i_q* = w[2], A, selects the law: K, K_i, U and X are tables over "
+            f"{schedule.grid.size} q-axis current references from {low:.9g} to {high:.9g} A "
+            f"(IQ_REF), {clamped}"
+        )
     return (
         f"omega_e, the electrical speed, rad/s, selects the law: K, K_i, U and X are "
-        f"tables over {result.schedule.electrical_speed.size} speeds from {low:.9g} to "
-        f"{high:.9g} rad/s (OMEGA_E), each entry interpolated linearly between the two "
-        "neighbours of omega_e; below the first speed the first law, above the last the "
-        "last (clamped: the schedule was designed and checked within that range only)."
+        f"tables over {schedule.grid.size} speeds from {low:.9g} to {high:.9g} rad/s "
+        f"(OMEGA_E), {clamped}"
     )
 
 
@@ -247,8 +284,9 @@ def _header(result: LawResult, u_max: float, source: str, version: str, date: st
         + (
             ""
             if result.schedule is None
-            else f"#define SELFTUNE_SPEEDS {result.schedule.electrical_speed.size} "
-            "/* grid speeds of the schedule over omega_e */\n"
+            else f"#define {_ARGUMENTS[type(result.schedule)].count} "
+            f"{result.schedule.grid.size} /* grid {_ARGUMENTS[type(result.schedule)].points}"
+            f" of the schedule over {_ARGUMENTS[type(result.schedule)].value} */\n"
         )
         + "\n/* Everything the law remembers between samples; set by selftune_init. */\n"
         + "struct selftune_state {\n"
@@ -286,18 +324,25 @@ def _init_body(law: ControlLaw) -> list[str]:
     return body
 
 
-def _step_body(law: ControlLaw, scheduled: bool) -> list[str]:
+def _step_body(law: ControlLaw, argument: _Argument | None) -> list[str]:
     columns = law.K.shape[1]
-    if scheduled:
+    if argument is not None:
         tables = f"U[2][{law.q}], X[2][{law.q}], K[2][{columns}]" + (
             "" if law.K_i is None else ", K_I[2][SELFTUNE_INTEGRATORS]"
+        )
+        unused = (
+            []
+            if argument.value == "omega_e"
+            else ["    (void)omega_e; /* no schedule over speed */"]
         )
         speed = [
             f"    float {tables};",
             "    int i, j;",
             "",
-            "    /* the law at omega_e: the tables interpolated (clamped at their ends) */",
-            "    selftune_schedule(omega_e, U, X, K" + (", K_I);" if law.K_i is not None else ");"),
+            *unused,
+            f"    /* the law at {argument.value}: the tables interpolated (clamped at the ends) */",
+            f"    selftune_schedule({argument.value}, U, X, K"
+            + (", K_I);" if law.K_i is not None else ");"),
         ]
     else:
         speed = ["    int i, j;", "", "    (void)omega_e; /* no schedule over speed */"]
@@ -367,8 +412,9 @@ def _step_body(law: ControlLaw, scheduled: bool) -> list[str]:
     return body
 
 
-def _c_tables(name: str, tables: Array, key: str, comment: str) -> str:
-    """``static const float NAME[SELFTUNE_SPEEDS][rows][columns]``: one matrix per speed."""
+def _c_tables(name: str, tables: Array, key: str, comment: str, count: str) -> str:
+    """``static const float NAME[count][rows][columns]``: one matrix per grid point
+    (``count``: the grid's size macro)."""
     blocks = [
         "    {\n" + ",\n".join(
             "        {" + ", ".join(_c_float(value, key) for value in row) + "}" for row in matrix
@@ -378,59 +424,57 @@ def _c_tables(name: str, tables: Array, key: str, comment: str) -> str:
     rows, columns = tables.shape[1:]
     return (
         f"/* {comment} */\n"
-        f"static const float {name}[SELFTUNE_SPEEDS][{rows}][{columns}] = {{\n"
+        f"static const float {name}[{count}][{rows}][{columns}] = {{\n"
         + ",\n".join(blocks)
         + "\n};\n"
     )
 
 
-def _schedule_tables(schedule: SpeedSchedule, state: str) -> list[str]:
-    """The tables over omega_e and the function that interpolates them."""
+def _schedule_tables(schedule: SpeedSchedule | CurrentSchedule, state: str) -> list[str]:
+    """The tables over the schedule's grid and the function that interpolates them."""
+    arg = _ARGUMENTS[type(schedule)]
+    grid, count, point = arg.grid, arg.count, schedule.point
+    v = "omega_e" if isinstance(schedule, SpeedSchedule) else "i_q"  # the C parameter
+    key = "current_schedule" if isinstance(schedule, CurrentSchedule) else "schedule"
     columns = schedule.table("K").shape[2]
     integral = schedule.laws[0].K_i is not None
-    speeds = ", ".join(
-        _c_float(value, "schedule.electrical_speed") for value in schedule.electrical_speed
-    )
+    values = ", ".join(_c_float(value, f"{key}.{schedule.variable}") for value in schedule.grid)
+
+    def tables(name: str, table: str, comment: str) -> str:
+        return _c_tables(name, schedule.table(table), f"{key}.{table}", comment, count)
+
     parts = [
-        "/* OMEGA_E: the schedule's electrical speeds, rad/s, increasing */\n",
-        f"static const float OMEGA_E[SELFTUNE_SPEEDS] = {{{speeds}}};\n\n",
-        _c_tables("U_TABLE", schedule.table("U"), "schedule.U", "U at each speed: u_e = U w"),
+        f"/* {grid}: the schedule's {arg.points}, {arg.unit}, increasing */\n",
+        f"static const float {grid}[{count}] = {{{values}}};\n\n",
+        tables("U_TABLE", "U", f"U at each {point}: u_e = U w"),
         "\n",
-        _c_tables("X_TABLE", schedule.table("X"), "schedule.X", "X at each speed: x_e = X w"),
+        tables("X_TABLE", "X", f"X at each {point}: x_e = X w"),
         "\n",
-        _c_tables(
-            "K_TABLE",
-            schedule.table("K"),
-            "schedule.K",
-            f"K at each speed: feedback on the deviations of [{state}]",
-        ),
+        tables("K_TABLE", "K", f"K at each {point}: feedback on the deviations of [{state}]"),
     ]
     q = schedule.table("U").shape[2]
     entries = [("U", str(q)), ("X", str(q)), ("K", str(columns))]
     if integral:
-        parts += [
-            "\n",
-            _c_tables("K_I_TABLE", schedule.table("K_i"), "schedule.K_i", "K_i at each speed"),
-        ]
+        parts += ["\n", tables("K_I_TABLE", "K_i", f"K_i at each {point}")]
         entries.append(("K_I", "SELFTUNE_INTEGRATORS"))
     arguments = ", ".join(f"float {name}[2][{size}]" for name, size in entries)
     body = [
-        "\n/* The law at omega_e: each entry (1 - s) T[g] + s T[g + 1] between the neighbours",
-        "   OMEGA_E[g] <= omega_e < OMEGA_E[g + 1]; the first law below (and for a NaN), the",
+        f"\n/* The law at {v}: each entry (1 - s) T[g] + s T[g + 1] between the neighbours",
+        f"   {grid}[g] <= {v} < {grid}[g + 1]; the first law below (and for a NaN), the",
         "   last above. */",
-        f"static void selftune_schedule(float omega_e, {arguments})",
+        f"static void selftune_schedule(float {v}, {arguments})",
         "{",
         "    int g = 0, i, j;",
         "    float share = 0.0f;",
         "",
-        "    if (omega_e >= OMEGA_E[SELFTUNE_SPEEDS - 1]) {",
-        "        g = SELFTUNE_SPEEDS - 2;",
+        f"    if ({v} >= {grid}[{count} - 1]) {{",
+        f"        g = {count} - 2;",
         "        share = 1.0f;",
-        "    } else if (omega_e > OMEGA_E[0]) {",
-        "        while (omega_e >= OMEGA_E[g + 1]) {",
+        f"    }} else if ({v} > {grid}[0]) {{",
+        f"        while ({v} >= {grid}[g + 1]) {{",
         "            ++g;",
         "        }",
-        "        share = (omega_e - OMEGA_E[g]) / (OMEGA_E[g + 1] - OMEGA_E[g]);",
+        f"        share = ({v} - {grid}[g]) / ({grid}[g + 1] - {grid}[g]);",
         "    }",
         "    for (i = 0; i < 2; ++i) {",
     ]
@@ -445,7 +489,7 @@ def _schedule_tables(schedule: SpeedSchedule, state: str) -> list[str]:
     return [*parts, "\n".join(body)]
 
 
-def _source(law: ControlLaw, key: str, schedule: SpeedSchedule | None) -> str:
+def _source(law: ControlLaw, key: str, schedule: SpeedSchedule | CurrentSchedule | None) -> str:
     state = ", ".join(law.state[: law.K.shape[1]])
     parts = [
         "/* selftune_law.c: the control law of selftune_law.h (generated; see there). */\n",
@@ -479,7 +523,7 @@ def _source(law: ControlLaw, key: str, schedule: SpeedSchedule | None) -> str:
         "\n}\n\n",
         f"void selftune_step(selftune_state *s, const float i_dq[2], const float w[{law.q}],\n",
         "                   float omega_e, float u_dq[2])\n{\n",
-        "\n".join(_step_body(law, schedule is not None)),
+        "\n".join(_step_body(law, None if schedule is None else _ARGUMENTS[type(schedule)])),
         "\n}\n",
     ]
     return "".join(parts)
