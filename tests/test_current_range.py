@@ -44,12 +44,16 @@ def test_a_ramp_beyond_the_adc_range_is_refused_naming_it() -> None:
     """With each held speed's feedforward the ramp's currents follow their references (up
     to 8.3 A of q current and half of it in d), in range at +-50 A and learned; an ADC of
     +-10 A clips the steps' transients."""
-    learned = commission_ramp(MOTOR, _settings(DRIVE), DRIVE, (10.0, SPEED), seconds=1.0, seed=1)
+    learned = commission_ramp(
+        MOTOR, _settings(DRIVE), DRIVE, (10.0, SPEED), seconds=1.0, levels=4, seed=1
+    )
     for name in ("L_d", "L_q", "phi_pm"):
         assert getattr(learned.motor, name) == pytest.approx(getattr(MOTOR, name), rel=5e-3)
     small = replace(DRIVE, adc_range=10.0)
     with pytest.raises(CurrentOverrange, match=r"the ramp from 10 to 200 rad/s drove") as caught:
-        commission_ramp(MOTOR, _settings(small), small, (10.0, SPEED), seconds=1.0, seed=1)
+        commission_ramp(
+            MOTOR, _settings(small), small, (10.0, SPEED), seconds=1.0, levels=4, seed=1
+        )
     assert caught.value.peak > 1.05 * caught.value.full_scale
     message = str(caught.value)
     assert "adc_range = 10 A" in message and "[learning] exploration" in message

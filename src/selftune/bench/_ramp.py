@@ -34,7 +34,7 @@ from ..errors import SelftuneError
 from ..model import SPMSM, Motor, design_schedule
 from ..report import RampEvaluation, evaluate_ramp
 from ..tuning import tuning_settings
-from ..tuning._ramp import commission_ramp
+from ..tuning._ramp import RAMP_LEVELS, RAMP_SECONDS, commission_ramp
 from ._common import table, with_progress
 from ._interior import (
     BOTTOM_SPEED_SHARE,
@@ -59,10 +59,6 @@ RAMP_MOTORS: tuple[tuple[Motor, float, float, float], ...] = (
     (SPMSM(R_s=1.0, L_s=0.01, phi_pm=0.2, p=5), 60.0, 5.0, 540.0),
     (SPMSM.paper(), 100.0, 4.0, 540.0),
 )
-
-#: The experiment's length, s, and its held speeds.
-RAMP_SECONDS = 1.0
-RAMP_LEVELS = 2
 
 #: Where the single-speed controller is designed, a share of the rated speed.
 SINGLE_SPEED_SHARE = 0.5
