@@ -30,6 +30,7 @@ from selftune.learn.evidence._sign_bias import measurement_noise
 from selftune.model import IPMSM, ModelBasedSolution, solve_digital_regulation
 from selftune.sim import DriveSettings, RealisticDrive, held, uniform
 from selftune.tuning import commission_interior, tuning_settings
+from selftune.tuning._saturation import learn_level
 
 MOTOR = selftune.SPMSM(R_s=0.6, L_s=8e-3, phi_pm=0.35, p=3)
 SPEED, TORQUE, H = 50.0, 5.0, 1e-4
@@ -180,3 +181,31 @@ def test_a_fit_carried_by_the_measured_signs_is_refused_not_returned(seed: int) 
     settings = tuning_settings(config, seed)
     with pytest.raises(selftune.ModelMissesEffect, match="only through the measured currents'"):
         commission_interior(motor, settings, drive, seed=seed)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="the measured signs' bias is left unmeasured where the fit's own simulation departs "
+    "from the currents by 1/3-1 of their spread (0.47 here), and no check tells this log from "
+    "good ones in that band (docs/saturation.md)",
+)
+def test_a_level_whose_measured_signs_bias_it_is_refused_or_within_its_errors() -> None:
+    """A 0.6/1.2 mH interior motor at 10% of rated torque, ``w_e h`` = 0.125, on 300 V with
+    2 us of dead time (6 V): the dead time moves the current about 0.9 A a sample against
+    1.2 A rms of phase current and chatters it about zero (the true phase currents change
+    sign in 37% of the samples), and the noise and the ADC make 1.2% of the samples' measured
+    signs wrong, each a 12 V error for a sample. The level is returned with R_s 0.53 ohm
+    against 0.1 (7.9 standard errors) and L_d 2.2% low (5.0), its consistency statistic
+    88.9 under the threshold 97.65; on the true signs the same log gives R_s 0.1003 ohm."""
+    motor = IPMSM(R_s=0.1, L_d=0.6e-3, L_q=1.2e-3, phi_pm=0.04, p=5)
+    drive = replace(DriveSettings.hardware_like(dc_voltage=300.0), pwm="average", dead_time=2e-6)
+    config = MotorConfig(
+        motor=motor, speed=250.0, torque=3.0, drive=drive, drive_h=H,
+        learning={"integral_action": True}, source="test",
+    )  # fmt: skip
+    try:
+        level = learn_level(motor, None, tuning_settings(config, 3), drive, 0.1, seed=3)
+    except selftune.Refusal:
+        return  # refused: the answer is not wrong
+    truth = np.array([motor.R_s, motor.L_d, motor.L_q])
+    assert np.all(np.abs(level.theta[:3] - truth) <= 3.0 * level.standard_errors[:3])
