@@ -18,6 +18,7 @@ from selftune.cli import main
 from selftune.config import load_motor_config
 from selftune.learn import IncrementalStructure
 from selftune.model import RegulationProblem, design_current_schedule
+from selftune.report import report_files
 from selftune.tuning._saturation import incremental_theta
 
 MOTOR = """[motor]
@@ -57,12 +58,15 @@ def test_tune_schedules_a_saturating_motor_over_its_current(
 ) -> None:
     """The schedule within the issue's 2% of the true pointwise optimum from 10% to 100% of
     rated current; every level's identified L_dd, L_qq within 4 standard errors of the
-    truth at its mean current; the tables recomputed from the JSON."""
+    truth at its mean current; the tables recomputed from the JSON; the report draws the
+    schedule over the current."""
     path = tmp_path / "motor.toml"
     path.write_text(MOTOR + DRIVE + SATURATION)
-    out = tmp_path / "out.json"
-    assert main(["tune", "--motor", str(path), "--json", str(out)]) == 0
+    out, report = tmp_path / "out.json", tmp_path / "report"
+    assert main(["tune", "--motor", str(path), "--json", str(out), "--report", str(report)]) == 0
     assert "Saturating PM motor commissioned over its load" in capsys.readouterr().out
+    assert sorted(p.name for p in report.iterdir()) == sorted(report_files(scheduled=True))
+    assert '<figure id="schedule">' in (report / "report.html").read_text()
     document = json.loads(out.read_text())
     assert float(np.max(document["true_excess"]["schedule"])) <= 0.02
     config = load_motor_config(str(path))

@@ -188,10 +188,17 @@ def _tune_saturating(
             motor, config.saturation, settings, result, evaluation, config.drive
         )
         _write_json(json_path, document)
-    title = f"selftune tune: {config.source}"  # the report: the law learned at rated current
-    _write_report(result.levels[-1].learned, title, lines, report_dir)
+    rated, figure = result.levels[-1], None  # the report: the law learned at rated current
+    if report_dir is not None:  # and the schedule beside that one law
+        from ..model import excess_over
+        from ..report import figure_schedule
+
+        single = excess_over(result.design.check.optima, rated.learned.law)
+        figure = figure_schedule(result.design, single, float(rated.reference[1]))
+    title = f"selftune tune: {config.source}"
+    _write_report(rated.learned, title, lines, report_dir, schedule=figure)
     _print_report(lines, json_path)
-    _say_report_written(report_dir, json_path)
+    _say_report_written(report_dir, json_path, scheduled=True)
     return 0
 
 

@@ -1,7 +1,9 @@
-"""The speed schedule's figure: gains, bandwidth and excess cost against electrical speed.
+"""A schedule's figure: gains, bandwidth and excess cost against its variable.
 
 :func:`figure_schedule` draws a :class:`~selftune.model.ScheduleDesign` in four panels
-over the electrical speed ``omega_e`` (rad/s):
+over the electrical speed ``omega_e`` (rad/s), or a saturating motor's
+:class:`~selftune.model.CurrentScheduleDesign` over the q-axis current reference ``i_q*``
+(A), the single law beside it then the one learned at rated current:
 
 - the state feedback ``K`` (its entries on ``i_d``, ``i_q``, V/A), the grid's laws as
   markers and the interpolated schedule (:meth:`~selftune.model.SpeedSchedule.law_at`)
@@ -23,7 +25,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..core import Array
-from ..model import ScheduleDesign, bandwidth
+from ..model import CurrentScheduleDesign, ScheduleDesign, bandwidth
 
 __all__ = ["figure_schedule"]
 
@@ -36,27 +38,34 @@ _SCHEDULE, _OPTIMUM, _SINGLE = "#1f77b4", "#2ca02c", "#ff7f0e"
 
 
 def figure_schedule(
-    design: ScheduleDesign, single_excess: Array, single_speed: float | None = None
+    design: ScheduleDesign | CurrentScheduleDesign,
+    single_excess: Array,
+    single_speed: float | None = None,
 ) -> Figure:
-    """The schedule's gains, bandwidth and excess cost against electrical speed.
+    """The schedule's gains, bandwidth and excess cost against its variable: electrical
+    speed (a :class:`~selftune.model.ScheduleDesign`) or the q-axis current reference (a
+    :class:`~selftune.model.CurrentScheduleDesign`).
 
     Parameters
     ----------
-    design : ScheduleDesign
+    design : ScheduleDesign or CurrentScheduleDesign
         The designed schedule and its check.
     single_excess : ndarray
-        The single-speed controller's excess cost at the check's fine speeds
-        (:meth:`~selftune.model.ScheduleDesign.excess_of`).
+        The single law's excess cost at the check's fine points
+        (:meth:`~selftune.model.ScheduleDesign.excess_of`, or
+        :func:`~selftune.model.excess_over` of the check's optima).
     single_speed : float, optional
-        The electrical speed it was designed at, rad/s (marked where inside the range).
+        Where the single law was designed (rad/s electrical, or A of ``i_q*``; marked
+        where inside the range).
 
     Returns
     -------
     Figure
     """
     schedule, check = design.schedule, design.check
-    grid = schedule.electrical_speed
-    speeds = np.unique(np.concatenate([grid, check.electrical_speed]))
+    over_speed = isinstance(design, ScheduleDesign)
+    grid = schedule.grid
+    speeds = np.unique(np.concatenate([grid, check.points]))
     laws = [schedule.law_at(float(speed)) for speed in speeds]
     figure = Figure(figsize=(7.0, 9.0), layout="constrained")
     FigureCanvasAgg(figure)
@@ -80,30 +89,41 @@ def figure_schedule(
                       ha="center", va="center")  # fmt: skip
     else:
         integral.legend(loc="best", fontsize="small")
-    h = design.loop.h
-    rate.plot(check.electrical_speed, bandwidth(check.radius, h), color=_SCHEDULE,
+    h = design.loop.h if isinstance(design, ScheduleDesign) else schedule.laws[0].h
+    assert h is not None  # a current schedule's laws are servo laws, with their h
+    rate.plot(check.points, bandwidth(check.radius, h), color=_SCHEDULE,
               label="interpolated schedule")  # fmt: skip
-    rate.plot(check.electrical_speed, bandwidth(check.optimal_radius, h), "--",
+    rate.plot(check.points, bandwidth(check.optimal_radius, h), "--",
               color=_OPTIMUM, label="pointwise optimum")  # fmt: skip
     rate.set_ylabel("bandwidth $-\\ln\\rho/h$ (rad/s)")
     rate.legend(loc="best", fontsize="small")
     floor = 1e-12
-    excess.semilogy(check.electrical_speed, np.maximum(check.excess, floor), color=_SCHEDULE,
+    single = "single-speed controller" if over_speed else "one law (rated current)"
+    excess.semilogy(check.points, np.maximum(check.excess, floor), color=_SCHEDULE,
                     label="interpolated schedule")  # fmt: skip
-    excess.semilogy(check.electrical_speed, np.maximum(single_excess, floor), color=_SINGLE,
-                    label="single-speed controller")  # fmt: skip
+    excess.semilogy(check.points, np.maximum(single_excess, floor), color=_SINGLE,
+                    label=single)  # fmt: skip
     excess.axhline(check.limit, color="black", linewidth=0.9, label=f"limit {check.limit:g}")
     if single_speed is not None and grid[0] <= single_speed <= grid[-1]:
         excess.axvline(single_speed, color=_SINGLE, linestyle=":", linewidth=0.9)
     excess.set_ylabel("excess cost (worst state)")
-    excess.set_xlabel("electrical speed $\\omega_e$ (rad/s)")
+    excess.set_xlabel(
+        "electrical speed $\\omega_e$ (rad/s)"
+        if over_speed
+        else "q-axis current reference $i_q^*$ (A)"
+    )
     excess.legend(loc="best", fontsize="small")
-    for speed in grid:
+    for point in grid:
         for panel in axes:
-            panel.axvline(speed, color="grey", linewidth=0.5, alpha=0.5)
+            panel.axvline(point, color="grey", linewidth=0.5, alpha=0.5)
+    loop = (
+        f"delay {design.loop.input_delay}, {design.hold} hold"
+        if isinstance(design, ScheduleDesign)
+        else f"{schedule.laws[0].history} past voltage(s) fed back"
+    )
     figure.suptitle(
-        f"Speed schedule: {grid.size} grid speeds, h = {h:g} s, delay "
-        f"{design.loop.input_delay}, {design.hold} hold",
+        f"{'Speed' if over_speed else 'Current'} schedule: {grid.size} grid {schedule.points}, "
+        f"h = {h:g} s, {loop}",
         fontsize="medium",
     )
     return figure
