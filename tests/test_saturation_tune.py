@@ -133,3 +133,16 @@ def test_a_bad_saturation_table_is_one_line_naming_the_key(
     captured = capsys.readouterr()
     err = captured.err.strip().splitlines()
     assert captured.out == "" and len(err) == 1 and said in err[0], err
+
+
+def test_the_online_tuner_refuses_a_saturating_motor_and_solve_says_whose_optimum(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path, profile = tmp_path / "motor.toml", tmp_path / "profile.toml"
+    path.write_text(MOTOR.replace("L_d = 3e-3\nL_q = 7e-3", "L_s = 5e-3") + DRIVE + SATURATION)
+    profile.write_text("[online]\nduration = 1.0\n")
+    assert main(["tune", "--motor", str(path), "--online", str(profile)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "[saturation]: the online tuner follows a surface motor's" in err[0]
+    assert main(["solve", "--motor", str(path)]) == 0
+    assert "this is the optimum of the unsaturated [motor]" in capsys.readouterr().out

@@ -166,6 +166,11 @@ def solve_command(config: MotorConfig, json_path: str | None, report_dir: str | 
     with _numerics(config.source) as caught:
         run = scheduled(config)
     lines = [solve_report(config, solution)]
+    if config.saturation is not None:
+        lines.append(
+            "note: [saturation] is the simulated drive's; this is the optimum of the unsaturated"
+            " [motor] (selftune tune schedules the saturating motor's over its current)"
+        )
     if run is not None:
         _check_numerics(config.source, caught, run.design.schedule.table("K"))
         lines += schedule_lines(run, config.speed)

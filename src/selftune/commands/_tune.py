@@ -323,6 +323,12 @@ def online_command(
     _check_json_target(json_path)
     if report_dir is not None:
         check_output_directory(report_dir, ONLINE_REPORT_FILES, "online report")
+    if config.saturation is not None:
+        raise InputError(
+            f"{config.source}: [saturation]: the online tuner follows a surface motor's R_s, "
+            "L_s and flux, not a saturating motor's current-dependent inductances; leave out "
+            "--online (tune schedules it over the current) or the [saturation] table"
+        )
     online = load_online_config(profile_path)
     settings, drive = _online_drive(config, seed)
     with (
