@@ -26,10 +26,10 @@ error of ``2 v`` on that phase for a sample, which the model's simulation carrie
 time constant of the plant. Output errors correlated so, and with the inputs the
 controller computed from the currents they moved, are not an effect the model misses:
 before refusing, the tests judge the model refitted on the signs of its own noise-free
-currents (:func:`~._model_signs.on_model_signs`), where those explain the data better, and refuse
-only if it fails them too. The parameters reported stay the measured signs' fit's, with
-their bias removed (:mod:`._sign_bias`); the refit's own standard errors would be too
-small (its signs follow its parameters).
+currents, then on those the next sample shows (:func:`~._model_signs.sign_refits`), where
+those explain the data better, and refuse only if both fail them. The parameters reported
+stay the measured signs' fit's, with their bias removed (:mod:`._sign_bias`); a refit's
+own standard errors would be too small (its signs follow its parameters).
 
 A structured fit (``structure = "spmsm"``: three or four physical parameters instead of
 every entry of ``[Ad, Bd, Ed]``) is also compared with the unstructured fit of the same
@@ -65,7 +65,7 @@ from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
 from ._dead_time import DeadTimeChannels, DeadTimeModel, Switching, with_dead_time
 from ._discrete_model import DiscreteModel, lack_of_rank, regressor_names
 from ._incremental_structure import IncrementalStructure
-from ._model_signs import on_model_signs
+from ._model_signs import sign_refits
 from ._output_error import (
     IpmsmStructure,
     MotorStructure,
@@ -351,20 +351,20 @@ def gather_evidence(
     try:
         _check_fit(fitted, alignment, (fit, test), structure, relative, options.dead_time)
     except (ModelMissesEffect, ConfigurationMismatch) as error:
-        refit = None
-        if isinstance(channels, DeadTimeChannels) and channels.angles is not None:
-            assert fit is not None
-            refit = on_model_signs(channels, alignment.shift, fit, relative)
-        if refit is None:
+        if not isinstance(channels, DeadTimeChannels) or channels.angles is None:
             raise
-        judged, judged_fit = refit
-        test = _consistency(judged.episodes, alignment.shift, judged_fit)
-        try:
-            _check_fit(
-                judged.episodes, alignment, (judged_fit, test), structure, relative,
-                options.dead_time,
-            )  # fmt: skip
-        except ConsistencyError:
+        assert fit is not None
+        for judged, judged_fit in sign_refits(channels, alignment.shift, fit, relative):
+            test = _consistency(judged.episodes, alignment.shift, judged_fit)
+            try:
+                _check_fit(
+                    judged.episodes, alignment, (judged_fit, test), structure, relative,
+                    options.dead_time,
+                )  # fmt: skip
+                break
+            except ConsistencyError:
+                continue
+        else:
             raise error from None
     correction = None
     adc: tuple[float | None, float | None] = (None, None)  # the ADC's step, noise (A)
