@@ -71,20 +71,25 @@ SPEEDS = [
     pytest.param(MIDDLE, 1000.0, 540.0, id="middle-1000"),
     pytest.param(MIDDLE, 2500.0, 540.0, id="middle-2500"),
     pytest.param(LOW_INDUCTANCE, 2500.0, 150.0, id="low-inductance-2500"),
+    # K0 (1.25% of L_s/h) against w_e L_s = 20-40 K0, and 3 V of exploration against
+    # 4.5 ohm, leave the currents at 0.2-0.3 A, where the dead-time model's phase signs are
+    # the noise's: refused (consistency 413 against 97.65) until the model was judged on
+    # the signs the next sample shows; now learned, 0.085% low at 1.0 standard error
+    pytest.param(LOW_INDUCTANCE, 5000.0, 150.0, id="low-inductance-5000"),
+]
+
+#: At 20 kHz the 5,000 rad/s log is still refused (consistency 565 against 97.65).
+SPEEDS_20_KHZ = [
+    *SPEEDS[:-1],
     pytest.param(
-        LOW_INDUCTANCE,
-        5000.0,
-        150.0,
-        id="low-inductance-5000",
+        LOW_INDUCTANCE, 5000.0, 150.0, id="low-inductance-5000",
         marks=pytest.mark.xfail(
-            raises=ModelMissesEffect,
-            strict=True,
-            reason="K0 (1.25% of L_s/h) against w_e L_s = 20-40 K0, and 3 V of exploration "
-            "against 4.5 ohm, leave the currents at 0.2-0.3 A, where the dead-time model's "
-            "phase signs are the noise's (at 10 kHz 6 V of exploration, or 10 K0, pass)",
+            raises=ModelMissesEffect, strict=True,
+            reason="the currents of 0.2-0.3 A leave the phase signs to the noise, and neither "
+            "the model's own signs nor the next sample's explain the log at 20 kHz",
         ),
     ),
-]
+]  # fmt: skip
 
 
 @pytest.mark.parametrize(("motor", "electrical_speed", "dc_voltage"), SPEEDS)
@@ -95,7 +100,7 @@ def test_the_flux_step_finds_the_flux_within_its_errors_at_10_kHz(
 
 
 @pytest.mark.slow  # the same at twice the samples; the 10 kHz cases cover the mechanism
-@pytest.mark.parametrize(("motor", "electrical_speed", "dc_voltage"), SPEEDS)
+@pytest.mark.parametrize(("motor", "electrical_speed", "dc_voltage"), SPEEDS_20_KHZ)
 def test_the_flux_step_finds_the_flux_within_its_errors_at_20_kHz(
     motor: SPMSM, electrical_speed: float, dc_voltage: float
 ) -> None:

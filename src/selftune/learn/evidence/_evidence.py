@@ -28,8 +28,11 @@ controller computed from the currents they moved, are not an effect the model mi
 before refusing, the tests judge the model refitted on the signs of its own noise-free
 currents, then on those the next sample shows (:func:`~._model_signs.sign_refits`), where
 those explain the data better, and refuse only if both fail them. The parameters reported
-stay the measured signs' fit's, with their bias removed (:mod:`._sign_bias`); a refit's
-own standard errors would be too small (its signs follow its parameters).
+are the measured signs' fit's, with their bias removed (:mod:`._sign_bias`), except a
+structured fit's on the next sample's signs where the tests accept that one
+(:func:`~._model_signs.on_other_signs`, :func:`~._model_signs.adopted_next_signs`); a
+refit on the model's own signs would have too small standard errors (its signs follow
+its parameters).
 
 A structured fit (``structure = "spmsm"``: three or four physical parameters instead of
 every entry of ``[Ad, Bd, Ed]``) is also compared with the unstructured fit of the same
@@ -54,7 +57,6 @@ import scipy.special
 from ...core import Array
 from ...errors import (
     ConfigurationMismatch,
-    ConsistencyError,
     InputError,
     ModelMissesEffect,
     NotExciting,
@@ -65,7 +67,7 @@ from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
 from ._dead_time import DeadTimeChannels, DeadTimeModel, Switching, with_dead_time
 from ._discrete_model import DiscreteModel, lack_of_rank, regressor_names
 from ._incremental_structure import IncrementalStructure
-from ._model_signs import sign_refits
+from ._model_signs import adopted_next_signs, changed_signs, on_other_signs
 from ._output_error import (
     IpmsmStructure,
     MotorStructure,
@@ -75,7 +77,8 @@ from ._output_error import (
 )
 from ._pulses import pulse_shift
 from ._rounding import resolution_floor
-from ._sign_bias import without_sign_bias
+from ._sign_bias import WORLD_FIDELITY, OwnSimulation, without_sign_bias
+from ._structure_check import check_structure, structure_statistic
 
 __all__ = [
     "INFLATION_LIMIT",
@@ -183,6 +186,10 @@ class Evidence:
         The shift of the structured fit's parameters that the dead time's short and
         late pulses leave (:func:`~._pulses.pulse_shift`), with the options' DC bus;
         None without it.
+    next_sample_signs : int
+        The samples whose phase signs the fit took from the next sample instead of the
+        measured currents (:func:`~._model_signs.next_sample_signs`): nonzero where the
+        measured signs' fit did not explain the data and this one did.
     """
 
     episodes: list[Trajectory] = field(repr=False)
@@ -197,6 +204,7 @@ class Evidence:
     adc_step: float | None = None
     adc_noise: float | None = None
     pulse_shift: Array | None = field(default=None, repr=False)
+    next_sample_signs: int = 0
 
     @property
     def model(self) -> DiscreteModel:
@@ -348,31 +356,36 @@ def gather_evidence(
         if fit is None
         else _consistency(fitted, alignment.shift, fit)
     )
+    judge = _Judge(alignment, structure, relative, options.dead_time)
+    measured = channels
     try:
-        _check_fit(fitted, alignment, (fit, test), structure, relative, options.dead_time)
+        judge.check(fitted, fit, test)
     except (ModelMissesEffect, ConfigurationMismatch) as error:
         if not isinstance(channels, DeadTimeChannels) or channels.angles is None:
             raise
         assert fit is not None
-        for judged, judged_fit in sign_refits(channels, alignment.shift, fit, relative):
-            test = _consistency(judged.episodes, alignment.shift, judged_fit)
-            try:
-                _check_fit(
-                    judged.episodes, alignment, (judged_fit, test), structure, relative,
-                    options.dead_time,
-                )  # fmt: skip
-                break
-            except ConsistencyError:
-                continue
-        else:
+        rescued = on_other_signs(channels, alignment.shift, fit, relative, judge)
+        if rescued is None:
             raise error from None
+        channels, fit, test = rescued
     correction = None
     adc: tuple[float | None, float | None] = (None, None)  # the ADC's step, noise (A)
-    if channels.angles is not None and fit is not None and not test.exact:
-        floor = resolution_floor(np.concatenate([e.x for e in episodes]), relative)
-        corrected = without_sign_bias(fit, channels, alignment.shift, floor)
-        if corrected is not None:
-            fit, correction, adc = corrected
+    if (
+        isinstance(channels, DeadTimeChannels) and channels is measured
+        and channels.angles is not None and fit is not None and not test.exact
+    ):  # fmt: skip
+        own = OwnSimulation.of(fit, channels, alignment.shift)
+        adopted = None
+        if own.departure > WORLD_FIDELITY and fit.structure is not None:
+            adopted = adopted_next_signs(channels, alignment.shift, fit, relative, judge)
+        if adopted is not None:
+            channels, fit, test = adopted
+        else:
+            floor = resolution_floor(np.concatenate([e.x for e in episodes]), relative)
+            corrected = without_sign_bias(fit, channels, alignment.shift, floor, own)
+            if corrected is not None:
+                fit, correction, adc = corrected
+    fitted = channels.episodes
     extra = problem.n if options.dead_time else 0
     moved, bus = None, options.dc_voltage
     if bus is not None and isinstance(channels, DeadTimeChannels) and fit is not None:
@@ -380,7 +393,34 @@ def gather_evidence(
     return Evidence(
         fitted, alignment, fit, test, extra, precision, channels.model, correction,
         channels.switching, *adc, pulse_shift=moved,
+        next_sample_signs=changed_signs(measured, channels),
     )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class _Judge:
+    """The tests a fit of the logs must pass (:func:`_check_fit`), with what they need."""
+
+    alignment: Alignment
+    structure: MotorStructure | None
+    resolution: float
+    dead_time: bool
+
+    def check(
+        self, episodes: list[Trajectory], fit: OutputErrorFit | None, test: ConsistencyTest
+    ) -> None:
+        """Raise unless ``fit`` with its consistency ``test`` explains ``episodes``."""
+        _check_fit(
+            episodes, self.alignment, (fit, test), self.structure, self.resolution,
+            self.dead_time,
+        )  # fmt: skip
+
+    def __call__(self, episodes: list[Trajectory], fit: OutputErrorFit) -> ConsistencyTest:
+        """The consistency of ``fit`` on ``episodes``, which the tests accept (else a
+        :class:`~selftune.errors.ConsistencyError`)."""
+        test = _consistency(episodes, self.alignment.shift, fit)
+        self.check(episodes, fit, test)
+        return test
 
 
 def _check_fit(
@@ -412,7 +452,7 @@ def _check_fit(
             causes=causes,
         )
     if structure is not None and (fit is None or not test.exact):  # exact: nothing to miss
-        _check_structure(episodes, alignment, fit, resolution, dead_time)
+        check_structure(episodes, alignment, fit, (resolution, TEST_LEVEL), dead_time)
     inflated = fit is not None and fit.correlation_inflation > INFLATION_LIMIT
     if inflated and not test.exact and not dead_time:  # exact: rounding only
         assert fit is not None
@@ -470,73 +510,6 @@ def _untied_dead_time(
 def _listed(causes: tuple[str, ...]) -> str:
     """The likely causes as a message lists them: "a, b, or c"."""
     return ", or ".join([", ".join(causes[:-1]), causes[-1]]) if len(causes) > 1 else causes[0]
-
-
-def structure_statistic(fit: OutputErrorFit, free: OutputErrorFit) -> tuple[float, int]:
-    """The likelihood-ratio statistic of a structured output-error fit against the
-    unstructured one of the same logs, and its degrees of freedom.
-
-    ``N (log det Sigma_structured - log det Sigma_free)`` over the ``N`` output errors: a
-    chi-square variable with as many degrees of freedom as the structure removes when it
-    holds (the structured model is one of the free ones) and the noise is Gaussian;
-    large when the structure misses what the data show, or its fit stopped in a wrong
-    minimum.
-
-    Parameters
-    ----------
-    fit : OutputErrorFit
-        The structured fit.
-    free : OutputErrorFit
-        Every entry of ``[Ad, Bd, Ed]`` fitted to the same logs.
-    """
-    count = sum(residual.shape[0] for residual in fit.residuals)
-    ratio = np.linalg.slogdet(fit.noise_covariance)[1] - np.linalg.slogdet(free.noise_covariance)[1]
-    return count * float(ratio), int(free.parameters.size - fit.parameters.size)
-
-
-def _check_structure(
-    episodes: list[Trajectory],
-    alignment: Alignment,
-    fit: OutputErrorFit | None,
-    resolution: float,
-    dead_time: bool,
-) -> None:
-    """Refuse a structured fit that explains the logs worse than the unstructured model
-    (:func:`structure_statistic` beyond the chi-square quantile at :data:`TEST_LEVEL`), or
-    that cannot be compared with one.
-
-    With ``dead_time`` the output errors are correlated in time by the dead-time model's
-    own approximation near zero current (tolerated, see :data:`INFLATION_LIMIT`), which
-    the unstructured model absorbs more of: the statistic is divided by the fit's
-    correlation inflation, as a likelihood ratio under correlated errors is (measured on
-    hardware-like logs of 0.5 s: 38-87 for 12 degrees of freedom, inflation 4-7, where the
-    results were within 1 standard error)."""
-    free = None
-    title = "structured" if fit is None or fit.structure is None else fit.structure.title
-    if fit is not None:
-        free = fit_output_error(
-            episodes, alignment.shift, alignment.model, None, resolution=resolution, stable=False
-        )
-    if fit is None or free is None:
-        raise ConsistencyError(
-            f"structure: the {title} fit cannot be checked against an unstructured model of "
-            "these data (an output-error fit that is not finite, or an unstable structured "
-            "one: too few or too noisy samples); structure = 'none' does not need the check"
-        )
-    statistic, freedom = structure_statistic(fit, free)
-    if dead_time:
-        statistic /= max(fit.correlation_inflation, 1.0)
-    threshold = float(scipy.special.chdtri(freedom, TEST_LEVEL))
-    if statistic > threshold:
-        raise ConfigurationMismatch(
-            f"structure: the {title} model explains the data worse than an unstructured one "
-            f"(likelihood-ratio statistic {statistic:.4g}, threshold {threshold:.4g} for "
-            f"{freedom} degrees of freedom); likely causes: its fit stopped in a wrong "
-            "minimum (too few or too noisy samples), or the drive is not what the structure "
-            "assumes (electrical_speed, voltage_hold, dead_time); structure = 'none' "
-            "assumes none of it",
-            key="structure",
-        )
 
 
 @dataclass(frozen=True)

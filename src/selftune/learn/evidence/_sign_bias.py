@@ -23,9 +23,13 @@ last round) and the draws' noise in the rounds' means.
 The simulation must describe the data. Where the fitted model's noise-free currents,
 its dead time switched on their own signs, are off the measured ones by more than
 :data:`WORLD_FIDELITY` of their spread, the refits would measure the bias of another
-drive, and the fit is left as it was. Where they are off by more than the spread itself
-(:data:`OWN_SIGNS_LIMIT`), the fit explains the data only through the measured signs,
-which near zero current are the noise's, and the data are refused
+drive: a structured fit is then refitted on the signs the next sample shows, and that
+fit is reported where it explains the data better, passes the tests and its own
+simulation describes them (:func:`~._model_signs.adopted_next_signs`); else the fit is
+left as it was. Where they are off by more than the spread itself
+(:data:`OWN_SIGNS_LIMIT`) and the next sample's signs do not help, the fit explains the
+data only through the measured signs, which near zero current are the noise's, and the
+data are refused
 (:class:`~selftune.errors.ModelMissesEffect`): a 25 uH, 0.02 ohm motor on 48 V with 2 V of
 dead time, 1.1-1.2 times the spread, was returned with R_s 61-71% high and L_d 3-5% low at
 4-6 standard errors before this check. Where the corrected model's currents leave the
@@ -49,7 +53,7 @@ errors, with Gaussian noise simulated, to at most 2.9).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -61,7 +65,15 @@ from ._bootstrap import refits, with_spread
 from ._dead_time import SWITCHING_SIGNS, DeadTimeChannels, Switching, path_vector, sign_vector
 from ._output_error import OutputErrorFit, _finish, _Log, _logs
 
-__all__ = ["BIAS_DRAWS", "measurement_noise", "model_currents", "without_sign_bias"]
+__all__ = [
+    "BIAS_DRAWS",
+    "OWN_SIGNS_LIMIT",
+    "WORLD_FIDELITY",
+    "OwnSimulation",
+    "measurement_noise",
+    "model_currents",
+    "without_sign_bias",
+]
 
 #: Refits that measure the bias, per round.
 BIAS_DRAWS = 6
@@ -266,8 +278,63 @@ def _stable(fit: OutputErrorFit, parameters: Array) -> bool:
     return bool(np.all(np.isfinite(Ad))) and float(np.max(np.abs(np.linalg.eigvals(Ad)))) < 1.0
 
 
+@dataclass(frozen=True)
+class OwnSimulation:
+    """A fit's own currents, its dead time switched on their own signs, beside the logs'
+    first :data:`BIAS_SAMPLES` transitions they simulate (:meth:`of`); their
+    :attr:`departure` from the measured currents says whether the simulation describes
+    the data (see the module)."""
+
+    switching: Switching
+    whole: list[_Log]  # every log, in the fit's alignment
+    starts: list[Array]  # the fit's initial state of each log
+    logs: list[_Log]
+    rows: list[Array]  # the logs' angles
+    x0s: list[Array]
+    truths: list[Array]  # the simulated currents
+
+    @classmethod
+    def of(cls, fit: OutputErrorFit, channels: DeadTimeChannels, shift: int) -> OwnSimulation:
+        """The simulation of ``fit`` on the logs of ``channels`` aligned by ``shift``.
+
+        Parameters
+        ----------
+        fit : OutputErrorFit
+            The output-error fit with sign channels as the last two exogenous channels.
+        channels : DeadTimeChannels
+            The logs as fitted, their angles and the way of switching.
+        shift : int
+            The alignment of the logged inputs.
+        """
+        episodes, angles, switching = channels.episodes, channels.angles, channels.switching
+        assert angles is not None and switching is not None
+        whole = _logs(episodes, shift)  # the fit's own alignment of the logs
+        rows = [
+            angle[first : first + log.x.shape[0]]
+            for angle, log, (_, first) in zip(
+                angles, whole, (applied_inputs(e, shift) for e in episodes), strict=True
+            )
+        ]
+        starts = [simulated[0] for simulated in fit.simulated]
+        logs, rows, x0s = _first_samples(whole, rows, starts)
+        truths = _own_currents(fit.matrices(fit.parameters), logs, rows, x0s, switching)
+        return cls(switching, whole, starts, logs, rows, x0s, truths)
+
+    @property
+    def departure(self) -> float:
+        """The rms of the simulated currents' departure from the measured ones as a
+        fraction of their spread, the larger state's: up to :data:`WORLD_FIDELITY` the
+        simulation describes the data, beyond :data:`OWN_SIGNS_LIMIT` the fit explains
+        them only through the measured signs."""
+        return float(np.max(_departure(self.truths, self.logs)))
+
+
 def without_sign_bias(
-    fit: OutputErrorFit, channels: DeadTimeChannels, shift: int, floor: Array
+    fit: OutputErrorFit,
+    channels: DeadTimeChannels,
+    shift: int,
+    floor: Array,
+    own: OwnSimulation | None = None,
 ) -> tuple[OutputErrorFit, Array, tuple[float | None, float | None]] | None:
     """``fit`` corrected for the signs' bias, the correction, and the ADC's step and the
     noise before it that the simulations used, A (None, None: Gaussian noise; see the
@@ -285,6 +352,8 @@ def without_sign_bias(
         The alignment of the logged inputs.
     floor : ndarray, shape (2,)
         The states' rounding floor.
+    own : OwnSimulation, optional
+        The fit's own simulation on the channels, where it was made already.
 
     Raises
     ------
@@ -292,26 +361,16 @@ def without_sign_bias(
         When the fit's own simulation, its dead time on its own currents' signs, does not
         describe the measured currents (see the module).
     """
-    episodes, angles, switching = channels.episodes, channels.angles, channels.switching
-    assert angles is not None and switching is not None
+    own = OwnSimulation.of(fit, channels, shift) if own is None else own
+    switching, whole, starts = own.switching, own.whole, own.starts
+    logs, rows, x0s, truths = own.logs, own.rows, own.x0s, own.truths
     signs = SWITCHING_SIGNS[switching]
-    whole = _logs(episodes, shift)  # the fit's own alignment of the logs
-    matrices = fit.matrices(fit.parameters)
-    rows = [
-        angle[first : first + log.x.shape[0]]
-        for angle, log, (_, first) in zip(
-            angles, whole, (applied_inputs(e, shift) for e in episodes), strict=True
-        )
-    ]
-    starts = [simulated[0] for simulated in fit.simulated]
-    logs, rows, x0s = _first_samples(whole, rows, starts)
-    truths = _own_currents(matrices, logs, rows, x0s, switching)
-    departure = float(np.max(_departure(truths, logs)))
+    departure = own.departure
     if departure > OWN_SIGNS_LIMIT:  # the fit itself: the measured signs carry it
         raise _own_signs_refusal(departure)
     if departure > WORLD_FIDELITY:
         return None
-    R = measurement_noise(whole, matrices)
+    R = measurement_noise(whole, fit.matrices(fit.parameters))
     if R is None:
         return None
     R = R + np.diag(np.maximum(floor**2 - np.diag(R), 0.0))

@@ -155,7 +155,17 @@ def verdict(
             f"decides them) was measured on simulations of the fitted model{steps} and "
             "removed; the standard errors include the correction's own size"
         )
-    elif fit is not None and fit.correlation_inflation > INFLATION_LIMIT and not exact:
+    elif evidence.next_sample_signs:
+        notes.append(
+            "the currents' signs measured near zero current (where the noise decides them) "
+            "did not explain the data; the dead-time model took the phase signs of "
+            f"{evidence.next_sample_signs} samples as the next sample shows them, and the "
+            "parameters are that fit's"
+        )
+    if (
+        evidence.sign_correction is None and fit is not None
+        and fit.correlation_inflation > INFLATION_LIMIT and not exact
+    ):  # fmt: skip
         notes.append(
             f"the model misses part of the data: its output errors are correlated in time "
             f"({fit.correlation_inflation:.3g} times the variance white noise "
