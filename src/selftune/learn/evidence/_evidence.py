@@ -371,20 +371,23 @@ def gather_evidence(
     correction = None
     adc: tuple[float | None, float | None] = (None, None)  # the ADC's step, noise (A)
     if (
-        isinstance(channels, DeadTimeChannels) and channels is measured
-        and channels.angles is not None and fit is not None and not test.exact
+        isinstance(channels, DeadTimeChannels) and channels.angles is not None
+        and fit is not None and not test.exact
     ):  # fmt: skip
-        own = OwnSimulation.of(fit, channels, alignment.shift)
-        adopted = None
-        if own.departure > WORLD_FIDELITY and fit.structure is not None:
-            adopted = adopted_next_signs(channels, alignment.shift, fit, relative, judge)
-        if adopted is not None:
-            channels, fit, test = adopted
-        else:
-            floor = resolution_floor(np.concatenate([e.x for e in episodes]), relative)
-            corrected = without_sign_bias(fit, channels, alignment.shift, floor, own)
-            if corrected is not None:
-                fit, correction, adc = corrected
+        own = None
+        if channels is measured:
+            own = OwnSimulation.of(fit, channels, alignment.shift)
+            adopted = None
+            if own.departure > WORLD_FIDELITY and fit.structure is not None:
+                adopted = adopted_next_signs(channels, alignment.shift, fit, relative, judge)
+            if adopted is not None:
+                (channels, fit, test), own = adopted, None
+        floor = resolution_floor(np.concatenate([e.x for e in episodes]), relative)
+        corrected = without_sign_bias(
+            fit, channels, alignment.shift, floor, own, next_sample=channels is not measured
+        )
+        if corrected is not None:
+            fit, correction, adc = corrected
     fitted = channels.episodes
     extra = problem.n if options.dead_time else 0
     moved, bus = None, options.dc_voltage

@@ -63,6 +63,7 @@ from ._adc import current_lattice
 from ._alignment import applied_inputs
 from ._bootstrap import refits, with_spread
 from ._dead_time import SWITCHING_SIGNS, DeadTimeChannels, Switching, path_vector, sign_vector
+from ._next_signs import next_signs
 from ._output_error import OutputErrorFit, _finish, _Log, _logs
 
 __all__ = [
@@ -335,6 +336,7 @@ def without_sign_bias(
     shift: int,
     floor: Array,
     own: OwnSimulation | None = None,
+    next_sample: bool = False,
 ) -> tuple[OutputErrorFit, Array, tuple[float | None, float | None]] | None:
     """``fit`` corrected for the signs' bias, the correction, and the ADC's step and the
     noise before it that the simulations used, A (None, None: Gaussian noise; see the
@@ -354,6 +356,10 @@ def without_sign_bias(
         The states' rounding floor.
     own : OwnSimulation, optional
         The fit's own simulation on the channels, where it was made already.
+    next_sample : bool
+        Whether the channels' signs are those the next sample shows
+        (:func:`~._next_signs.next_signs`): the simulations' signs are then taken so too,
+        by the simulated model and the measured noise.
 
     Raises
     ------
@@ -390,7 +396,11 @@ def without_sign_bias(
             if not _describes(truths, logs):
                 return None
 
-        def world(rng: np.random.Generator, truths: list[Array] = truths) -> list[_Log]:
+        def world(
+            rng: np.random.Generator,
+            truths: list[Array] = truths,
+            model: tuple[Array, Array, Array] = fit.matrices(corrected),  # the next signs' reader
+        ) -> list[_Log]:
             drawn = []
             for truth, log, angle in zip(truths, logs, rows, strict=True):
                 if lattice is None:
@@ -398,8 +408,12 @@ def without_sign_bias(
                 else:
                     noise = analog * rng.standard_normal((truth.shape[0], 3))
                     x = lattice.measure(truth, angle, noise)
-                w = np.hstack([log.w[:, :q], signs(x, angle)[: log.w.shape[0]]])
-                drawn.append(_Log(x=x, a=log.a, w=w))
+                count = log.w.shape[0]
+                if next_sample:  # the signs as the log's fit took them
+                    held = next_signs(x, log.a, log.w[:, :q], angle[:count], model, R)
+                else:
+                    held = signs(x, angle)[:count]
+                drawn.append(_Log(x=x, a=log.a, w=np.hstack([log.w[:, :q], held])))
             return drawn
 
         refitted = refits(

@@ -155,7 +155,7 @@ def verdict(
             f"decides them) was measured on simulations of the fitted model{steps} and "
             "removed; the standard errors include the correction's own size"
         )
-    elif evidence.next_sample_signs:
+    if evidence.next_sample_signs:
         notes.append(
             "the currents' signs measured near zero current (where the noise decides them) "
             "did not explain the data; the dead-time model took the phase signs of "
