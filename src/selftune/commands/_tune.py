@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -26,6 +26,12 @@ from ._output import (
     _write_report,
 )
 from ._schedule import schedule_document, schedule_lines, scheduled
+
+if TYPE_CHECKING:  # matplotlib is loaded only to draw
+    from matplotlib.figure import Figure
+
+    from ..core import Array
+    from ..learn import LearnedController
 
 
 def _tune_interior(
@@ -65,10 +71,25 @@ def _tune_interior(
     back_emf = motor.p * settings.speed * motor.phi_pm
     step = (np.array([back_emf, 0.0, 0.0]), np.concatenate([[back_emf], result.references]))
     figure = run.figure(config.speed) if run is not None and report_dir is not None else None
+    return _reported(config, result.learned, lines, (report_dir, json_path), step, figure)
+
+
+def _reported(
+    config: MotorConfig,
+    learned: LearnedController | None,
+    lines: list[str],
+    targets: tuple[str | None, str | None],
+    step: tuple[Array, Array] | None = None,
+    schedule: Figure | None = None,
+) -> int:
+    """The end of every ``tune``: the report of ``learned`` (its step response's ``step``
+    and a schedule's figure) into the report directory, the lines printed, and where
+    each went said; ``targets`` is ``(report_dir, json_path)``. Returns the exit code 0."""
+    report_dir, json_path = targets
     title = f"selftune tune: {config.source}"
-    _write_report(result.learned, title, lines, report_dir, step, schedule=figure)
+    _write_report(learned, title, lines, report_dir, step, schedule=schedule)
     _print_report(lines, json_path)
-    _say_report_written(report_dir, json_path, scheduled=run is not None)
+    _say_report_written(report_dir, json_path, scheduled=schedule is not None)
     return 0
 
 
@@ -134,13 +155,8 @@ def _tune_ramp(
         document = ramp_document(motor, settings, result, evaluation, config.drive)
         _write_json(json_path, {**document, **schedule_document(run, config)})
     # the report's law: the one learned at the highest held speed, with its evidence
-    top = max(result.segments, key=lambda part: abs(part[0]))[1]
     figure = run.figure(config.speed) if report_dir is not None else None
-    title = f"selftune tune: {config.source}"
-    _write_report(top, title, lines, report_dir, schedule=figure)
-    _print_report(lines, json_path)
-    _say_report_written(report_dir, json_path, scheduled=True)
-    return 0
+    return _reported(config, result.top[1], lines, (report_dir, json_path), schedule=figure)
 
 
 def _tune_saturating(
@@ -195,11 +211,7 @@ def _tune_saturating(
 
         single = excess_over(result.design.check.optima, rated.learned.law)
         figure = figure_schedule(result.design, single, float(rated.reference[1]))
-    title = f"selftune tune: {config.source}"
-    _write_report(rated.learned, title, lines, report_dir, schedule=figure)
-    _print_report(lines, json_path)
-    _say_report_written(report_dir, json_path, scheduled=True)
-    return 0
+    return _reported(config, rated.learned, lines, (report_dir, json_path), schedule=figure)
 
 
 def tune_command(
@@ -264,10 +276,7 @@ def tune_command(
         _write_json(json_path, tune_document(motor, settings, result, evaluation, torque, pi[0]))
     # the step response's step: the torque reference from 0 at the operating point's speed
     step = (result.w * np.array([1.0, 0.0]), result.w)
-    _write_report(result.learned, f"selftune tune: {config.source}", lines, report_dir, step)
-    _print_report(lines, json_path)
-    _say_report_written(report_dir, json_path)
-    return 0
+    return _reported(config, result.learned, lines, (report_dir, json_path), step)
 
 
 def _online_drive(config: MotorConfig, seed: int) -> tuple[Any, Any]:

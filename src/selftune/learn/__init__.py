@@ -36,7 +36,13 @@ from ._pi import PIEquivalent, pi_control_law, pi_equivalent, pi_equivalent_or_r
 from ._pipeline import aligned_trajectory, assess, learn_controller
 from ._problem import LearningOptions, LearningProblem, Method, Target
 from ._result import DiscountStage, Formulation, JudgedPlants, LearnedController
-from ._speeds import SpeedsLearned, combined_estimate, learn_over_speeds, speed_segments
+from ._speeds import (
+    SpeedsLearned,
+    combined_estimate,
+    learn_over_speeds,
+    speed_segments,
+    top_part,
+)
 from .data._frames import LogColumn, LogFormat, load_log
 from .data._io import (
     CsvHeader,
@@ -195,4 +201,5 @@ __all__ = [
     "speed_segments",
     "stated_shift",
     "steady_state_map",
+    "top_part",
 ]

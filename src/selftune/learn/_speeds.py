@@ -25,6 +25,7 @@ the structure's and the verdict's checks. Such a log is refused, saying so.
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass, fields, replace
 from itertools import pairwise
 
@@ -46,6 +47,7 @@ __all__ = [
     "combined_estimate",
     "learn_over_speeds",
     "speed_segments",
+    "top_part",
 ]
 
 #: A change of the angle column's speed between samples larger than this share of the
@@ -189,9 +191,22 @@ class SpeedsLearned:
 
     @property
     def top(self) -> tuple[float, LearnedController]:
-        """The part at the highest speed in magnitude: its electrical speed (rad/s) and
-        its law (the single-speed law a schedule is judged beside)."""
-        return max(self.parts, key=lambda part: abs(part[0]))
+        """The part at the highest speed in magnitude (:func:`top_part`)."""
+        return top_part(self.parts)
+
+
+def top_part(
+    parts: Sequence[tuple[float, LearnedController]],
+) -> tuple[float, LearnedController]:
+    """The part at the highest speed in magnitude: its electrical speed (rad/s) and its
+    law (the single-speed law a schedule is judged beside, and a report's law).
+
+    Parameters
+    ----------
+    parts : sequence of (float, LearnedController)
+        Held speeds (electrical, rad/s) and the laws learned there.
+    """
+    return max(parts, key=lambda part: abs(part[0]))
 
 
 def _others(learned: list[float], refused: list[tuple[float, SelftuneError]]) -> str:

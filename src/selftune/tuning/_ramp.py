@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..learn import LearnedController, LearningProblem, Trajectory, learn_over_speeds
+from ..learn import LearnedController, LearningProblem, Trajectory, learn_over_speeds, top_part
 from ..model import IPMSM, Motor
 from ..sim import DriveSettings, RealisticDrive, held, ramp_speeds, run_speed_profile, uniform
 from ._interior import check_current_range, current_steps, decoupling_feedforward, motor_of
@@ -86,6 +86,12 @@ class RampCommissioning:
     record_speeds: Array
     log: Trajectory
     standstill: bool = False
+
+    @property
+    def top(self) -> tuple[float, LearnedController]:
+        """The segment at the highest speed in magnitude: its electrical speed (rad/s) and
+        its law (:func:`~selftune.learn.top_part`)."""
+        return top_part(self.segments)
 
 
 def commission_ramp(
