@@ -116,3 +116,33 @@ def test_a_fit_whose_errors_are_correlated_is_within_half_a_percent() -> None:
     for name in ("L_d", "L_q", "phi_pm"):
         assert abs(case.error_percent(name)) <= 0.05, name
         assert abs(case.z(name)) <= 3.0, name
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_next_sample_decides_the_signs_on_a_plant_whose_signs_are_known(seed: int) -> None:
+    """A 33 uH, 0.02 ohm surface plant at 10 kHz with 0.24 V of dead time switched on its
+    true currents' signs, driven about zero current, measured with 20 mA of noise: a
+    wrong sign moves the next sample by 1.45 A, 70 noise deviations, so the next sample
+    (:func:`~selftune.learn.evidence._next_signs.next_signs`, with the true model and
+    noise) names the true signs wherever the measurement leaves them undecided."""
+    from selftune.learn.evidence._next_signs import next_signs
+
+    rng = np.random.default_rng(seed)
+    h, L, R, v, noise, count = 1e-4, 33e-6, 0.02, 0.24, 0.02, 4000
+    Ad, Bd = (1.0 - R * h / L) * np.eye(2), (h / L) * np.eye(2)
+    Ed = -v * Bd  # the signs' gain, no other exogenous channel
+    angle = 300.0 * h * np.arange(count + 1)
+    a = 0.05 * rng.standard_normal((count, 2))  # 0.15 A a sample about zero
+    x = np.zeros((count + 1, 2))
+    for k in range(count):
+        held = phase_signs(x[k : k + 1], angle[k : k + 1])[0]
+        x[k + 1] = Ad @ x[k] + Bd @ a[k] + Ed @ held
+    measured = x + noise * rng.standard_normal(x.shape)
+    truth = phase_signs(x[:-1], angle[:-1])
+    wrong_measured = np.any(np.abs(phase_signs(measured[:-1], angle[:-1]) - truth) > 1e-9, axis=1)
+    chosen = next_signs(
+        measured, a, np.zeros((count, 0)), angle[:-1], (Ad, Bd, Ed), noise**2 * np.eye(2)
+    )
+    wrong_next = np.any(np.abs(chosen - truth) > 1e-9, axis=1)
+    assert np.sum(wrong_measured) >= 20, np.sum(wrong_measured)
+    assert np.sum(wrong_next) <= np.sum(wrong_measured) // 10, np.sum(wrong_next)
