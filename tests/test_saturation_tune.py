@@ -9,6 +9,7 @@ simulator's, which the learner never sees. A bad table is one line naming its ke
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -146,3 +147,113 @@ def test_the_online_tuner_refuses_a_saturating_motor_and_solve_says_whose_optimu
     assert len(err) == 1 and "[saturation]: the online tuner follows a surface motor's" in err[0]
     assert main(["solve", "--motor", str(path)]) == 0
     assert "this is the optimum of the unsaturated [motor]" in capsys.readouterr().out
+
+
+def _flux_map_table(i_d: np.ndarray, i_q: np.ndarray) -> str:
+    """A ``[saturation]`` flux map: the analytic table's model sampled on the grid (A)."""
+    from selftune.sim import FluxMap, SaturationModel
+
+    config_motor = load_motor_config_text(MOTOR + DRIVE).motor
+    table = FluxMap.sampled(SaturationModel.of(config_motor, i_sat=6.0, drop=0.15, cross=0.1),
+                            i_d, i_q)  # fmt: skip
+
+    def rows(values: np.ndarray) -> str:
+        return "[" + ", ".join("[" + ", ".join(f"{v!r}" for v in row) + "]" for row in values) + "]"
+
+    return (
+        "[saturation]\n"
+        f"i_d = {[float(v) for v in i_d]}\ni_q = {[float(v) for v in i_q]}\n"
+        f"psi_d = {rows(table.psi_d.tolist())}\npsi_q = {rows(table.psi_q.tolist())}\n"
+    )
+
+
+def load_motor_config_text(text: str):  # type: ignore[no-untyped-def]
+    """The motor file of ``text``."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as directory:
+        path = Path(directory) / "motor.toml"
+        path.write_text(text)
+        return load_motor_config(str(path))
+
+
+#: The flux map's grid, A: the commissioning's currents stay inside it.
+GRID_D = np.linspace(-40.0, 20.0, 9)
+GRID_Q = np.linspace(-40.0, 40.0, 11)
+
+
+def test_a_flux_map_table_is_the_simulated_motors_saturation() -> None:
+    """A flux map in ``[saturation]`` is loaded as that map: its grid, and the incremental
+    inductances of the map built from the same numbers."""
+    from selftune.sim import FluxMap, SaturationModel
+
+    config = load_motor_config_text(MOTOR + DRIVE + _flux_map_table(GRID_D, GRID_Q))
+    assert isinstance(config.saturation, FluxMap)
+    np.testing.assert_array_equal(config.saturation.i_q, GRID_Q)
+    model = SaturationModel.of(config.motor, i_sat=6.0, drop=0.15, cross=0.1)
+    direct = FluxMap.sampled(model, GRID_D, GRID_Q)
+    for current in ([-3.0, 7.5], [0.0, 0.0], [-12.0, 25.0]):
+        np.testing.assert_array_equal(
+            config.saturation.incremental(*current), direct.incremental(*current)
+        )
+
+
+@pytest.mark.parametrize(
+    ("change", "said"),
+    [
+        (lambda text: text + "i_sat = 6.0\n", "[saturation] i_sat: the analytic model's keys"),
+        (
+            lambda text: text.replace("\ni_d = [", "\ni_d = [-50.0, "),
+            "[saturation] psi_d: expected shape (10, 11)",
+        ),
+        (
+            lambda text: text.replace("\ni_q = [", "\ni_q = [50.0, "),
+            "[saturation] i_q: expected finite, strictly increasing",
+        ),
+        (lambda text: text.replace("psi_q", "psi_x"), "[saturation] psi_x"),
+        (
+            lambda text: re.sub(r"\ni_d = \[[^\]]*\]", '\ni_d = "a"', text),
+            "[saturation] i_d: must be a list of numbers",
+        ),
+    ],
+)
+def test_a_bad_flux_map_is_one_line_naming_the_key(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], change: object, said: str
+) -> None:
+    path = tmp_path / "motor.toml"
+    path.write_text(MOTOR + DRIVE + change(_flux_map_table(GRID_D, GRID_Q)))  # type: ignore[operator]
+    assert main(["tune", "--motor", str(path)]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert captured.out == "" and len(err) == 1 and said in err[0], err
+
+
+@pytest.mark.slow
+def test_tune_schedules_a_motor_of_a_flux_map_over_its_current(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The same motor as a flux map: the schedule within the issue's 2% of the map's
+    pointwise optimum, and the JSON states the map."""
+    path = tmp_path / "motor.toml"
+    path.write_text(MOTOR + DRIVE + _flux_map_table(GRID_D, GRID_Q))
+    out = tmp_path / "out.json"
+    assert main(["tune", "--motor", str(path), "--json", str(out)]) == 0
+    assert "Saturating PM motor commissioned over its load" in capsys.readouterr().out
+    document = json.loads(out.read_text())
+    assert float(np.max(document["true_excess"]["schedule"])) <= 0.02
+    np.testing.assert_array_equal(document["saturation"]["i_d"], GRID_D)
+    assert np.array(document["saturation"]["psi_q"]).shape == (GRID_D.size, GRID_Q.size)
+
+
+def test_a_flux_map_the_currents_leave_is_one_line_naming_its_grid(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The commissioning drives the currents beyond a map of +-5 A: one line, exit 2."""
+    small = np.linspace(-5.0, 5.0, 5)
+    path = tmp_path / "motor.toml"
+    path.write_text(MOTOR + DRIVE + _flux_map_table(small, small))
+    assert main(["tune", "--motor", str(path)]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert captured.out == "" and len(err) == 1, err
+    assert "is outside the flux map's grid [-5, 5] x [-5, 5] A" in err[0], err

@@ -68,7 +68,7 @@ from ._schedule_file import SCHEDULE_KEYS, ScheduleConfig, schedule_config
 from ._toml import ConfigFile, ConfigTable
 
 if TYPE_CHECKING:
-    from ..sim import DriveSettings, SaturationModel
+    from ..sim import DriveSettings, Saturation
 
 __all__ = [
     "LEARNING_KEYS",
@@ -161,9 +161,9 @@ class MotorConfig:
         messages.
     schedule : ScheduleConfig or None
         The speeds of the ``[schedule]`` table; None without one.
-    saturation : SaturationModel or None
-        The simulated motor's saturation (the ``[saturation]`` table, on ``motor``'s
-        inductances and flux); None without one.
+    saturation : SaturationModel or FluxMap or None
+        The simulated motor's saturation (the ``[saturation]`` table: the analytic model on
+        ``motor``'s inductances and flux, or a flux map); None without one.
 
     Raises
     ------
@@ -186,7 +186,7 @@ class MotorConfig:
     drive_h: float | None = None
     Q_i: Array | None = None
     schedule: ScheduleConfig | None = None  # [schedule]: the speeds (._schedule_file)
-    saturation: SaturationModel | None = None  # [saturation] (._saturation_table)
+    saturation: Saturation | None = None  # [saturation] (._saturation_table)
 
     def __post_init__(self) -> None:
         for name in ("speed", "torque"):

@@ -15,6 +15,19 @@ and writes the law scheduled over the q-axis current reference. It needs a ``[dr
 table without ``temperature_rise`` (a heated saturating motor is not modelled: the flux
 linkages are given at the operating temperature) and no ``[schedule]`` table (a schedule
 over speed and current together is not done).
+
+A measured motor's saturation is a flux-map table instead (:class:`selftune.sim.FluxMap`)::
+
+    [saturation]
+    i_d = [-8.0, -4.0, 0.0, 4.0]              # A, strictly increasing, at least 4
+    i_q = [-8.0, -4.0, 0.0, 4.0, 8.0]         # A, strictly increasing, at least 4
+    psi_d = [[...], ...]                      # Wb, one row an i_d, one column an i_q
+    psi_q = [[...], ...]                      # Wb, the same shape
+
+``psi_d`` rises strictly along ``i_d``, ``psi_q`` along ``i_q``. The map is then the
+simulated motor's flux linkages (the ``[motor]`` table's R_s and pole pairs beside it);
+its inductances and flux stay the nameplate the commissioning starts from. The keys of
+one form only.
 """
 
 from __future__ import annotations
@@ -26,18 +39,25 @@ from ..model import Motor
 from ._toml import ConfigTable
 
 if TYPE_CHECKING:  # selftune solve loads no simulator
-    from ..sim import DriveSettings, SaturationModel
+    from ..sim import DriveSettings, FluxMap, Saturation
 
 __all__ = ["SATURATION_KEYS", "saturation_model"]
 
-#: The keys of MOTOR.toml's [saturation] table.
-SATURATION_KEYS = ("i_sat", "drop", "cross")
+#: The analytic model's keys of MOTOR.toml's [saturation] table.
+ANALYTIC_KEYS = ("i_sat", "drop", "cross")
+
+#: A flux map's keys of the table.
+FLUX_MAP_KEYS = ("i_d", "i_q", "psi_d", "psi_q")
+
+#: The keys of MOTOR.toml's [saturation] table (one form's).
+SATURATION_KEYS = (*ANALYTIC_KEYS, *FLUX_MAP_KEYS)
 
 
 def saturation_model(
     table: ConfigTable, motor: Motor, drive: DriveSettings | None, scheduled: bool
-) -> SaturationModel:
-    """The saturation of a ``[saturation]`` table, on ``motor``'s inductances and flux.
+) -> Saturation:
+    """The saturation of a ``[saturation]`` table: the analytic model on ``motor``'s
+    inductances and flux, or a flux map.
 
     Parameters
     ----------
@@ -53,8 +73,9 @@ def saturation_model(
     Raises
     ------
     DataFileError
-        Naming the file, the table and the key: a missing or bad value, no ``[drive]``
-        table, a ``[drive] temperature_rise``, or a ``[schedule]`` table beside it.
+        Naming the file, the table and the key: a missing or bad value, both forms' keys,
+        no ``[drive]`` table, a ``[drive] temperature_rise``, or a ``[schedule]`` table
+        beside it.
     """
     from ..sim import SaturationModel  # a saturating drive's file loads the simulator
 
@@ -77,6 +98,16 @@ def saturation_model(
             "with [schedule]: a schedule over speed and current together is not done; "
             "leave out one of the two tables",
         )
+    mapped = [key for key in FLUX_MAP_KEYS if key in table.data]
+    if mapped:
+        analytic = [key for key in ANALYTIC_KEYS if key in table.data]
+        if analytic:
+            raise table.error(
+                analytic[0],
+                f"the analytic model's keys ({', '.join(ANALYTIC_KEYS)}) or a flux map's "
+                f"({', '.join(FLUX_MAP_KEYS)}), not both",
+            )
+        return _flux_map(table)
     i_sat = table.positive("i_sat")
     values = {
         name: table.number(name, 0.0 if name == "cross" else None) for name in ("drop", "cross")
@@ -86,3 +117,16 @@ def saturation_model(
     except InputError as exc:
         key, _, reason = str(exc).partition(": ")
         raise table.error(key if key in SATURATION_KEYS else None, reason or str(exc)) from None
+
+
+def _flux_map(table: ConfigTable) -> FluxMap:
+    """The flux map of the table's ``i_d``, ``i_q``, ``psi_d`` and ``psi_q``."""
+    from ..sim import FluxMap
+
+    i_d, i_q = table.vector("i_d"), table.vector("i_q")
+    psi_d, psi_q = table.matrix("psi_d", (None, None)), table.matrix("psi_q", (None, None))
+    try:  # the map judges its grid, then the flux linkages' shape on it
+        return FluxMap(i_d, i_q, psi_d, psi_q)
+    except InputError as exc:
+        key, _, reason = str(exc).partition(": ")
+        raise table.error(key if key in FLUX_MAP_KEYS else None, reason or str(exc)) from None

@@ -325,11 +325,25 @@ class ConfigTable:
             raise self.error(key, f"must be one of {listing}, got {shown}")
         return value
 
+    def vector(self, key: str) -> Array:
+        """A finite, non-empty list of numbers, e.g. ``[-4.0, 0.0, 4.0]`` (required).
+
+        Parameters
+        ----------
+        key : str
+            The key in this table.
+        """
+        value = self._get(key, None)
+        if not isinstance(value, list) or not value:
+            raise self.error(key, f"must be a list of numbers, got {_type_name(value)}")
+        return self.matrix(key, (1, len(value)), None, rows=[value])[0]
+
     def matrix(
         self,
         key: str,
         shape: tuple[int | None, int | None],
         default: Array | None = None,
+        rows: list[object] | None = None,
     ) -> Array:
         """A finite matrix written as an array of rows, e.g. ``[[1.0, 0.0], [0.0, 1.0]]``.
 
@@ -341,10 +355,12 @@ class ConfigTable:
             The expected shape; None for a free dimension.
         default : ndarray, optional
             Returned (copied) if the key is absent; without it the key is required.
+        rows : list, optional
+            The rows to check instead of the key's value (:meth:`vector`'s one row).
         """
         if key not in self.data and default is not None:
             return np.array(default, dtype=float)
-        value = self._get(key, None)
+        value = self._get(key, None) if rows is None else rows
         expected = "x".join("n" if size is None else str(size) for size in shape)
         if not isinstance(value, list) or not all(isinstance(row, list) for row in value):
             raise self.error(

@@ -28,7 +28,7 @@ from ..model import (
     excess_over,
     solve_digital_regulation,
 )
-from ..sim import DriveSettings, SaturationModel
+from ..sim import DriveSettings, FluxMap, Saturation
 from ..tuning import TuningSettings
 from ..tuning._interior import CURRENT_REFERENCE_F
 from ..tuning._saturation import CurrentCommissioning, incremental_theta
@@ -67,7 +67,7 @@ def judged_references(motor: IPMSM, torque: float) -> Array:
 
 
 def true_current_optima(
-    motor: IPMSM, saturation: SaturationModel, speed: float, h: float,
+    motor: IPMSM, saturation: Saturation, speed: float, h: float,
     references: Array, weights: tuple[Array, Array, Array | None], input_delay: int,
 ) -> list[ModelBasedSolution]:  # fmt: skip
     """The true pointwise digital optimum at each current reference (the motor's steady
@@ -136,7 +136,7 @@ class CurrentEvaluation:
 def evaluate_current_schedule(
     result: CurrentCommissioning,
     motor: IPMSM,
-    saturation: SaturationModel,
+    saturation: Saturation,
     settings: TuningSettings,
 ) -> CurrentEvaluation:
     """``result`` against the true motor (see the module docstring).
@@ -232,7 +232,7 @@ def current_lines(
 
 def current_document(
     motor: IPMSM,
-    saturation: SaturationModel,
+    saturation: Saturation,
     settings: TuningSettings,
     result: CurrentCommissioning,
     evaluation: CurrentEvaluation,
@@ -291,14 +291,20 @@ def current_document(
         },
         "inductance_z": evaluation.z,
         "motor": motor,
-        "saturation": {
-            "i_sat": saturation.i_sat,
-            "drop": saturation.drop,
-            "cross": saturation.cross,
-        },
+        "saturation": _saturation_document(saturation),
         "drive": {"settings": drive},
         "settings": settings,
         "cost": cost_document(settings.Q, settings.R, result.integral_weight),
         "h": settings.h,
         "input_delay": rated.learned.law.history,
     }
+
+
+def _saturation_document(saturation: Saturation) -> dict[str, Any]:
+    """The ``[saturation]`` table's content as the JSON states it: the analytic model's
+    ``i_sat`` (A), ``drop`` and ``cross``, or the flux map's grid (A) and flux linkages (Wb,
+    a row an ``i_d``)."""
+    names: tuple[str, ...] = ("i_sat", "drop", "cross")
+    if isinstance(saturation, FluxMap):
+        names = ("i_d", "i_q", "psi_d", "psi_q")
+    return {name: getattr(saturation, name) for name in names}
