@@ -167,8 +167,11 @@ def solve_command(config: MotorConfig, json_path: str | None, report_dir: str | 
         run = scheduled(config)
     lines = [solve_report(config, solution)]
     if config.saturation is not None:
+        from ..sim import FluxMap
+
+        whose = "nameplate" if isinstance(config.saturation, FluxMap) else "unsaturated"
         lines.append(
-            "note: [saturation] is the simulated drive's; this is the optimum of the unsaturated"
+            f"note: [saturation] is the simulated drive's; this is the optimum of the {whose}"
             " [motor] (selftune tune schedules the saturating motor's over its current)"
         )
     if run is not None:
