@@ -362,7 +362,8 @@ class FluxMap(_Magnetics):
             raise InputError(
                 f"{where}: the current (i_d, i_q) = ({d.flat[index]:.6g}, {q.flat[index]:.6g}) "
                 f"A is outside the flux map's grid [{self.i_d[0]:g}, {self.i_d[-1]:g}] x "
-                f"[{self.i_q[0]:g}, {self.i_q[-1]:g}] A"
+                f"[{self.i_q[0]:g}, {self.i_q[-1]:g}] A: a map over the currents the drive "
+                "reaches holds it (its i_d, i_q grid)"
             )
 
     def _currents(self, i_d: ArrayLike, i_q: ArrayLike) -> tuple[Array, Array]:
