@@ -378,7 +378,7 @@ def gather_evidence(
         if channels is measured:
             own = OwnSimulation.of(fit, channels, alignment.shift)
             adopted = None
-            if own.departure > WORLD_FIDELITY and fit.structure is not None:
+            if own.departure > WORLD_FIDELITY:
                 adopted = adopted_next_signs(channels, alignment.shift, fit, relative, judge)
             if adopted is not None:
                 (channels, fit, test), own = adopted, None

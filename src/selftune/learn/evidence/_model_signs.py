@@ -143,6 +143,8 @@ def adopted_next_signs(
     standard errors on 4 of 30 drawn interior motors (on average PWM within 1.0; without
     dead time 0.02% at 2.3), which the measured signs' wider bars hold.
     """
+    if fit.structure is None:  # an unstructured fit keeps the measured signs (on_other_signs)
+        return None
     refit = on_next_signs(channels, shift, fit, resolution)
     if refit is None:
         return None
@@ -262,10 +264,7 @@ def _robust_noise(logs: list[_Log], matrices: tuple[Array, Array, Array]) -> Arr
     median's spread ignores the few samples a wrong sign moves far); None where it is
     zero. It is larger than the noise by the model's error, which leaves more signs
     undecided, each then taken by the larger effect of the dead time."""
-    Ad, Bd, Ed = matrices
-    e = np.concatenate(
-        [log.x[1:] - log.x[:-1] @ Ad.T - log.a @ Bd.T - log.w @ Ed.T for log in logs]
-    )
+    e = np.concatenate([log.one_step_residuals(matrices) for log in logs])
     spread = 1.4826 * np.median(np.abs(e - np.median(e, axis=0)), axis=0)
     if not np.all(spread > 0.0):
         return None

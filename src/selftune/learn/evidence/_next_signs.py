@@ -19,6 +19,7 @@ import numpy as np
 
 from ...core import Array
 from ...core._phases import from_phases, phase_currents
+from ._propagation import _Log
 
 __all__ = ["UNDECIDED", "next_signs"]
 
@@ -60,7 +61,7 @@ def next_signs(
     weight = 1.0 / np.sqrt(np.diag(noise))
     per_phase = float(np.sqrt(1.5 * np.mean(np.diag(noise))))  # dq variance 2/3 of a phase's
     # what the signs' channels must explain of each next sample
-    left = x[1:] - x[:-1] @ Ad.T - a @ Bd.T - w @ Ed[:, :q].T
+    left = _Log(x=x, a=a, w=w).one_step_residuals((Ad, Bd, Ed[:, :q]))
     phases = phase_currents(x[:-1], angle)
     decided = np.abs(phases) > UNDECIDED * per_phase
     allowed = np.all(

@@ -33,6 +33,14 @@ class _Log:
     a: Array
     w: Array
 
+    def one_step_residuals(self, matrices: tuple[Array, Array, Array]) -> Array:
+        """``x~_(k+1) - Ad x~_k - Bd a_k - Ed w_k`` (T, n): what the model does not predict
+        of each next measured state from the measured one (``Ed``'s columns: ``w``'s
+        first ones, which may be all of them)."""
+        Ad, Bd, Ed = matrices
+        q = Ed.shape[1]
+        return self.x[1:] - self.x[:-1] @ Ad.T - self.a @ Bd.T - self.w[:, :q] @ Ed.T
+
 
 def simulate_model(matrices: tuple[Array, Array, Array], x0: Array, a: Array, w: Array) -> Array:
     """``xhat`` (T + 1, n) of ``xhat_(k+1) = Ad xhat_k + Bd a_k + Ed w_k`` from ``x0``.

@@ -120,10 +120,10 @@ def measurement_noise(logs: Sequence[_Log], matrices: tuple[Array, Array, Array]
     matrices : (Ad, Bd, Ed)
         The fitted model.
     """
-    Ad, Bd, Ed = matrices
+    Ad = matrices[0]
     lagged, count = np.zeros_like(Ad), 0
     for log in logs:
-        e = log.x[1:] - log.x[:-1] @ Ad.T - log.a @ Bd.T - log.w @ Ed.T
+        e = log.one_step_residuals(matrices)
         lagged += e[1:].T @ e[:-1]
         count += e.shape[0] - 1
     if count < 2:
