@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -82,10 +83,25 @@ def test_tune_schedules_a_saturating_motor_over_its_current(
         for k in (1, 2):
             error = level["theta"][k] - truth[k]
             assert abs(error) <= 4.0 * level["theta_se"][k], (level["share"], k)
+    structure = IncrementalStructure(
+        config.motor.p * config.speed, document["h"], False,
+        document["drive"]["settings"]["voltage_hold"],
+    )  # fmt: skip
+    check_recomputed(document, levels, structure, document["cost"], document["input_delay"])
+
+
+def check_recomputed(
+    document: dict[str, Any],
+    levels: list[dict[str, Any]],
+    structure: IncrementalStructure,
+    cost: dict[str, Any],
+    input_delay: int,
+) -> None:
+    """The JSON's ``current_schedule`` is the design on its levels' identified models
+    (interpolated in ``i_q*``), the structure's loop, the cost and the delay the file
+    states: recomputed here from the file alone."""
     currents = np.array([level["i_q"] for level in levels])
     thetas = np.array([level["theta"] for level in levels])
-    h, w_e = document["h"], config.motor.p * config.speed
-    structure = IncrementalStructure(w_e, h, False, document["drive"]["settings"]["voltage_hold"])
     F = np.array(document["control_law"]["F"])
 
     def plant(current: float):  # type: ignore[no-untyped-def]
@@ -94,10 +110,9 @@ def test_tune_schedules_a_saturating_motor_over_its_current(
         problem = RegulationProblem(A=A, B=B, C=np.eye(2), D=D, E=np.zeros((3, 3)), F=F)
         return problem, structure(theta)
 
-    cost = document["cost"]
     expected = design_current_schedule(
-        plant, currents, np.array(cost["Q"]), np.array(cost["R"]), h,
-        input_delay=document["input_delay"], integral_weight=np.array(cost["Q_i"]),
+        plant, currents, np.array(cost["Q"]), np.array(cost["R"]), structure.h,
+        input_delay=input_delay, integral_weight=np.array(cost["Q_i"]),
     )  # fmt: skip
     schedule = document["current_schedule"]
     np.testing.assert_allclose(schedule["current"], expected.schedule.current)

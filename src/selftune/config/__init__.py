@@ -9,7 +9,9 @@
   :class:`~selftune.learn.LogFormat` of its optional ``[log]`` table: a log in the
   drive's own columns, units and frame (:mod:`._log_table`);
   :func:`learn_log` -> :class:`LearnedLog`: a
-  log learned with it, as ``selftune learn`` and ``selftune fleet`` do (:mod:`._learn_run`);
+  log learned with it, as ``selftune learn`` and ``selftune fleet`` do, and
+  :func:`load_learn_input`: the log and the configuration checked against it, before
+  learning (:mod:`._learn_run`);
 - :class:`ScheduleConfig`: MOTOR.toml's ``[schedule]`` speeds (:mod:`._schedule_file`);
 - :func:`load_online_config` -> :class:`OnlineConfig`: an online run's duration and the
   profile of the motor's R_s, L_s and phi_pm over time (:mod:`._online_file`);
@@ -22,7 +24,13 @@ from __future__ import annotations
 
 from ._law_file import LawResult, load_control_law, load_law_result
 from ._learn_file import LEARN_TABLES, LearnConfig, load_learn_config
-from ._learn_run import LearnedLog, learn_log, learn_with_config, learning_problem
+from ._learn_run import (
+    LearnedLog,
+    learn_log,
+    learn_with_config,
+    learning_problem,
+    load_learn_input,
+)
 from ._log_table import LOG_KEYS, load_log_format
 from ._motor_file import MOTOR_TABLES, MotorConfig, load_motor_config
 from ._online_file import ONLINE_TABLES, PROFILE_KEYS, OnlineConfig, load_online_config
@@ -51,6 +59,7 @@ __all__ = [
     "load_control_law",
     "load_law_result",
     "load_learn_config",
+    "load_learn_input",
     "load_log_format",
     "load_motor_config",
     "load_online_config",

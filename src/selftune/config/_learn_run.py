@@ -22,6 +22,7 @@ __all__ = [
     "learn_over_speeds_with_config",
     "learn_with_config",
     "learning_problem",
+    "load_learn_input",
 ]
 
 
@@ -46,6 +47,42 @@ class LearnedLog:
     config: LearnConfig
     result: LearnedController
     speeds: SpeedsLearned | None = None
+
+
+def load_learn_input(
+    data_path: str | os.PathLike[str],
+    config_path: str | os.PathLike[str],
+    overrides: Mapping[str, Mapping[str, object]] | None = None,
+    overridden_by: str = "",
+) -> tuple[Trajectory, LearnConfig]:
+    """A log and its learning configuration, loaded as :func:`learn_log` loads them: the
+    log's header (or the configuration's ``[log]`` table) gives n, m, q; the
+    configuration is read and checked against them completely before the rows are
+    loaded.
+
+    Parameters
+    ----------
+    data_path, config_path, overrides, overridden_by
+        As :func:`learn_log` takes them.
+
+    Raises
+    ------
+    SelftuneError
+        One line: the file or configuration that stopped it.
+    """
+    from pathlib import Path
+
+    from ..learn import load_log, load_trajectory
+    from ..learn.data._io import file_format_of, trajectory_dimensions
+
+    name = os.fspath(data_path)
+    file_format_of(Path(name))  # a file of no known type is said first, as the first argument
+    log = load_log_format(config_path, LEARN_TABLES)  # None: selftune's own columns
+    dimensions = trajectory_dimensions(name) if log is None else log.dimensions
+    n, m, q = dimensions
+    config = load_learn_config(config_path, n, m, q, overrides, overridden_by)
+    data = load_trajectory(name) if log is None else load_log(name, log)
+    return data, config
 
 
 def learn_with_config(data: Trajectory, config: LearnConfig, source: str) -> LearnedController:
@@ -182,18 +219,8 @@ def learn_log(
     SelftuneError
         One line: the file, configuration or refusal that stopped it.
     """
-    from pathlib import Path
-
-    from ..learn import load_log, load_trajectory
-    from ..learn.data._io import file_format_of, trajectory_dimensions
-
     name = os.fspath(data_path)
-    file_format_of(Path(name))  # a file of no known type is said first, as the first argument
-    log = load_log_format(config_path, LEARN_TABLES)  # None: selftune's own columns
-    dimensions = trajectory_dimensions(name) if log is None else log.dimensions
-    n, m, q = dimensions
-    config = load_learn_config(config_path, n, m, q, overrides, overridden_by)
-    data = load_trajectory(name) if log is None else load_log(name, log)
+    data, config = load_learn_input(name, config_path, overrides, overridden_by)
     if config.schedule is None:
         return LearnedLog(data, config, learn_with_config(data, config, name))
     speeds = learn_over_speeds_with_config(data, config, name)

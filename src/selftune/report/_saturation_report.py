@@ -14,15 +14,17 @@ calls the same functions.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ..core import Array, cost_document
-from ..learn import IncrementalStructure
+from ..learn import IncrementalStructure, LearnedController
 from ..model import (
     IPMSM,
+    CurrentScheduleDesign,
     ModelBasedSolution,
     RegulationProblem,
     excess_over,
@@ -41,6 +43,9 @@ __all__ = [
     "current_lines",
     "evaluate_current_schedule",
     "judged_references",
+    "level_document",
+    "level_table",
+    "schedule_check_lines",
     "true_current_optima",
 ]
 
@@ -192,30 +197,18 @@ def current_lines(
     drive : DriveSettings
         The drive it ran on.
     """
-    schedule, check = result.design.schedule, result.design.check
     lines = [
         f"Saturating PM motor commissioned over its load on {source}, {drive_text(drive)}: "
         f"{len(result.levels)} current levels learned with the incremental structure"
         + (f" ({len(result.refusals)} logs refused and logged again)" if result.refusals else ""),
-        "",
-        "  share of rated  i_d* (A)  i_q* (A)"
-        + "".join(f"{name + ' (H) +- se':>22}" for name in INDUCTANCES),
-    ]
-    for level in result.levels:
-        values = "".join(
-            f"{level.theta[k]:12.4g} +-{level.standard_errors[k]:7.1g}" for k in (1, 2, 3)
-        )
-        lines.append(
-            f"  {level.share:14.0%}  {level.reference[0]:8.4g}  {level.reference[1]:8.4g}" + values
-        )
-    worst = int(np.argmax(check.excess))
-    lines += [
-        "",
-        f"Current schedule: the digital optimum at {schedule.current.size} currents i_q* = "
-        + ", ".join(f"{current:.4g}" for current in schedule.current)
-        + " A",
-        f"  worst excess cost {check.excess[worst]:.3g} at i_q* = {check.points[worst]:.4g} A "
-        f"over the identified models' pointwise optimum (limit {check.limit:g})",
+        *level_table(
+            "share of rated",
+            [
+                (f"{level.share:.0%}", level.reference, level.theta, level.standard_errors)
+                for level in result.levels
+            ],
+        ),
+        *schedule_check_lines(result.design),
     ]
     rated, low = evaluation.rated_excess, evaluation.low_excess
     lines += [
@@ -228,6 +221,80 @@ def current_lines(
         f"standard error, the largest {float(np.max(np.abs(evaluation.errors))):.2%} of L_qq",
     ]
     return lines
+
+
+def level_table(title: str, rows: Sequence[tuple[str, Array, Array, Array]]) -> list[str]:
+    """The levels' identified incremental inductances, a line each (after a blank line
+    and the header).
+
+    Parameters
+    ----------
+    title : str
+        The first column's header (what names a level).
+    rows : sequence of (str, ndarray, ndarray, ndarray)
+        Each level's name, ``[i_d*, i_q*]`` (A), identified ``theta`` and its standard
+        errors (:func:`~selftune.tuning._saturation.incremental_parameters`).
+    """
+    width = max(len(title), *(len(name) for name, _, _, _ in rows))
+    lines = [
+        "",
+        f"  {title:>{width}}  i_d* (A)  i_q* (A)"
+        + "".join(f"{name + ' (H) +- se':>22}" for name in INDUCTANCES),
+    ]
+    for name, reference, theta, errors in rows:
+        values = "".join(f"{theta[k]:12.4g} +-{errors[k]:7.1g}" for k in (1, 2, 3))
+        lines.append(f"  {name:>{width}}  {reference[0]:8.4g}  {reference[1]:8.4g}" + values)
+    return lines
+
+
+def schedule_check_lines(design: CurrentScheduleDesign) -> list[str]:
+    """The current schedule's grid and its worst excess cost over the identified models'
+    pointwise optimum (after a blank line).
+
+    Parameters
+    ----------
+    design : CurrentScheduleDesign
+        The schedule and its check.
+    """
+    schedule, check = design.schedule, design.check
+    worst = int(np.argmax(check.excess))
+    return [
+        "",
+        f"Current schedule: the digital optimum at {schedule.current.size} currents i_q* = "
+        + ", ".join(f"{current:.4g}" for current in schedule.current)
+        + " A",
+        f"  worst excess cost {check.excess[worst]:.3g} at i_q* = {check.points[worst]:.4g} A "
+        f"over the identified models' pointwise optimum (limit {check.limit:g})",
+    ]
+
+
+def level_document(
+    reference: Array, mean_current: Array, theta: Array, errors: Array, learned: LearnedController
+) -> dict[str, Any]:
+    """A level's entry in ``current_schedule_design``: its reference, the log's mean
+    current, the identified incremental model with its standard errors and names, and the
+    learner's verdict.
+
+    Parameters
+    ----------
+    reference : ndarray, shape (2,)
+        ``[i_d*, i_q*]``, A.
+    mean_current : ndarray, shape (2,)
+        The log's mean ``[i_d, i_q]``, A.
+    theta, errors : ndarray, shape (6,)
+        The identified parameters and their standard errors.
+    learned : LearnedController
+        The law learned on the level's log, with its verdict.
+    """
+    return {
+        "i_d": float(reference[0]),
+        "i_q": float(reference[1]),
+        "mean_current": mean_current,
+        "theta": theta,
+        "theta_se": errors,
+        "theta_names": ["R_s", *INDUCTANCES, "kappa", "kappa_q"],
+        "quality": learned.verdict,
+    }
 
 
 def current_document(
@@ -270,13 +337,13 @@ def current_document(
             "levels": [
                 {
                     "share": level.share,
-                    "i_d": float(level.reference[0]),
-                    "i_q": float(level.reference[1]),
-                    "mean_current": level.mean_current,
-                    "theta": level.theta,
-                    "theta_se": level.standard_errors,
-                    "theta_names": ["R_s", *INDUCTANCES, "kappa", "kappa_q"],
-                    "quality": level.learned.verdict,
+                    **level_document(
+                        level.reference,
+                        level.mean_current,
+                        level.theta,
+                        level.standard_errors,
+                        level.learned,
+                    ),
                 }
                 for level in result.levels
             ],

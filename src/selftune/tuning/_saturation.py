@@ -66,9 +66,12 @@ __all__ = [
     "CurrentCommissioning",
     "CurrentLevel",
     "commission_over_current",
+    "incremental_parameters",
     "incremental_theta",
+    "inductances_move",
     "learn_level",
     "level_log",
+    "schedule_over_levels",
 ]
 
 #: The steps about each level's current reference, a share of the rated q current: small
@@ -269,15 +272,83 @@ def learn_level(
     log, options = level_log(motor, saturation, settings, drive, share, seconds=seconds, seed=seed)
     reference = motor.current_reference(share * settings.torque)
     learned = learn_controller(log, _learning_problem(settings), settings.K0, options)
+    values, errors = incremental_parameters(learned, motor.phi_pm)
+    return CurrentLevel(share, reference, values, errors, np.mean(log.x, axis=0), learned)
+
+
+def incremental_parameters(learned: LearnedController, flux: float) -> tuple[Array, Array]:
+    """The incremental structure's parameters a level's fit identified, and their
+    standard errors: ``[R_s, L_dd, L_qq, L_dq, kappa, kappa_q]`` (ohm, H, H, H, -, -).
+
+    Parameters
+    ----------
+    learned : LearnedController
+        Learned with ``structure = "incremental"`` (its verdict states the motor).
+    flux : float
+        The flux the log's first reference channel assumes, ``w_1 / w_e``, Wb: the flux
+        offset ``c`` (Wb) over it is ``[kappa, kappa_q]``.
+    """
     assert learned.quality is not None and learned.quality.motor is not None  # the verdict
     found = learned.quality.motor
     names = ("R_s", "L_d", "L_q", "L_dq", "phi_pm", "phi_q")
     values = np.array([float(getattr(found, name)) for name in names])
     errors = np.array([float(getattr(found, f"{name}_se")) for name in names])
-    # the offsets over the flux the reference channel assumes (w_1 / w_e): kappa, kappa_q
-    values[4:] /= motor.phi_pm
-    errors[4:] /= motor.phi_pm
-    return CurrentLevel(share, reference, values, errors, np.mean(log.x, axis=0), learned)
+    values[4:] /= flux
+    errors[4:] /= flux
+    return values, errors
+
+
+def inductances_move(low: Array, high: Array) -> bool:
+    """Whether two neighbouring levels' identified incremental inductances (``theta[1:4]``
+    of :func:`incremental_parameters`) differ by more than :data:`INDUCTANCE_MOVE` of the
+    larger diagonal inductance.
+
+    Parameters
+    ----------
+    low, high : ndarray, shape (6,)
+        The two levels' parameters.
+    """
+    scale = float(max(np.max(low[1:3]), np.max(high[1:3])))
+    return bool(np.max(np.abs(high[1:4] - low[1:4])) > INDUCTANCE_MOVE * scale)
+
+
+def schedule_over_levels(
+    currents: Array, thetas: Array, structure: IncrementalStructure, Q: Array, R: Array,
+    *, input_delay: int, integral_weight: Array | None,
+) -> CurrentScheduleDesign:  # fmt: skip
+    """The digital optimum scheduled over ``i_q*`` on the levels' identified models,
+    interpolated linearly in ``i_q*`` between them
+    (:func:`~selftune.model.design_current_schedule`).
+
+    Parameters
+    ----------
+    currents : ndarray, shape (g,)
+        The levels' ``i_q*``, A, strictly increasing.
+    thetas : ndarray, shape (g, 6)
+        Their identified parameters (:func:`incremental_parameters`).
+    structure : IncrementalStructure
+        The structure at the levels' electrical speed, sampling period and hold, without
+        the dead-time channels (the law's plant).
+    Q, R : ndarray
+        The continuous weights of the digital cost.
+    input_delay : int
+        The loop's delay, samples.
+    integral_weight : ndarray or None
+        ``Q_i`` (None: no integral action).
+    """
+
+    def plant(current: float) -> tuple[RegulationProblem, tuple[Array, Array, Array]]:
+        theta = np.array([np.interp(current, currents, column) for column in thetas.T])
+        A, B, D = structure.continuous(theta)
+        problem = RegulationProblem(
+            A=A, B=B, C=np.eye(2), D=D, E=np.zeros((3, 3)), F=CURRENT_REFERENCE_F
+        )
+        return problem, structure(theta)
+
+    return design_current_schedule(
+        plant, currents, Q, R, structure.h, input_delay=input_delay,
+        integral_weight=integral_weight,
+    )  # fmt: skip
 
 
 def _learning_problem(settings: TuningSettings) -> LearningProblem:
@@ -286,13 +357,6 @@ def _learning_problem(settings: TuningSettings) -> LearningProblem:
         settings.Q, settings.R, C=np.eye(2), F=CURRENT_REFERENCE_F,
         integral_action=settings.integral_action, integral_weight=settings.Q_i,
     )  # fmt: skip
-
-
-def _moves(low: CurrentLevel, high: CurrentLevel) -> bool:
-    """Whether the identified inductances of neighbouring levels differ by more than
-    :data:`INDUCTANCE_MOVE` of the larger diagonal inductance."""
-    scale = float(max(np.max(low.theta[1:3]), np.max(high.theta[1:3])))
-    return bool(np.max(np.abs(high.inductances - low.inductances)) > INDUCTANCE_MOVE * scale)
 
 
 def commission_over_current(
@@ -360,7 +424,11 @@ def commission_over_current(
     count = [0]
     levels = {share: learned(share) for share in shares}
     while len(levels) < MAX_LEVELS:
-        moving = [(a, b) for a, b in pairwise(sorted(levels)) if _moves(levels[a], levels[b])]
+        moving = [
+            (a, b)
+            for a, b in pairwise(sorted(levels))
+            if inductances_move(levels[a].theta, levels[b].theta)
+        ]
         if not moving:
             break
         a, b = moving[0]
@@ -369,18 +437,9 @@ def commission_over_current(
     currents = np.array([level.reference[1] for level in found])
     thetas = np.array([level.theta for level in found])
     structure = IncrementalStructure(w_e, settings.h, False, drive.voltage_hold)
-
-    def plant(current: float) -> tuple[RegulationProblem, tuple[Array, Array, Array]]:
-        theta = np.array([np.interp(current, currents, column) for column in thetas.T])
-        A, B, D = structure.continuous(theta)
-        problem = RegulationProblem(
-            A=A, B=B, C=np.eye(2), D=D, E=np.zeros((3, 3)), F=CURRENT_REFERENCE_F
-        )
-        return problem, structure(theta)
-
     integral_weight = _learning_problem(settings).integral_weight
-    design = design_current_schedule(
-        plant, currents, settings.Q, settings.R, settings.h,
+    design = schedule_over_levels(
+        currents, thetas, structure, settings.Q, settings.R,
         input_delay=found[-1].learned.law.history, integral_weight=integral_weight,
     )  # fmt: skip
     return CurrentCommissioning(found, design, integral_weight, tuple(refusals))
