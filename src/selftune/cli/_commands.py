@@ -64,7 +64,16 @@ def _add_learn(subparsers: _Subparsers) -> None:
             " 2016). DATA is a CSV (header t,x1..xn,u1..um,w1..wq) or NPZ file."
         ),
     )
-    parser.add_argument("data", metavar="DATA", help="the samples: a .csv or .npz file")
+    parser.add_argument(
+        "data",
+        metavar="DATA",
+        nargs="+",
+        help=(
+            "the samples: a .csv, .npz or .mat file; several: a saturating motor's current"
+            ' levels, one a log ([learning] structure = "incremental"), the law'
+            " scheduled over i_q*"
+        ),
+    )
     parser.add_argument(
         "--config",
         metavar="CONFIG.toml",

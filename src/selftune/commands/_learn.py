@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from ..config import learn_log, learning_problem
@@ -22,19 +23,24 @@ if TYPE_CHECKING:  # selftune solve loads no learner
 
 
 def learn_command(
-    data_path: str, config_path: str, json_path: str | None, report_dir: str | None = None
+    data_path: str | Sequence[str],
+    config_path: str,
+    json_path: str | None,
+    report_dir: str | None = None,
 ) -> int:
     """``selftune learn``: the learned controller from a CSV, NPZ or MAT log and a config.
 
     The data file's header (or the configuration's ``[log]`` table) gives n, m, q; the
     configuration is read and checked against them completely before the rows are loaded.
     The controller comes with its quality; data that do not support one give an error
-    that says why.
+    that says why. Several logs are a saturating motor's current levels, the law
+    scheduled over ``i_q*`` (:func:`~selftune.commands._levels.learn_levels`).
 
     Parameters
     ----------
-    data_path : str
-        The CSV, NPZ or MAT log (in selftune's columns, or the ``[log]`` table's).
+    data_path : str or sequence of str
+        The CSV, NPZ or MAT log (in selftune's columns, or the ``[log]`` table's); or
+        several, one a current level.
     config_path : str
         CONFIG.toml.
     json_path : str or None
@@ -47,9 +53,19 @@ def learn_command(
 
     _check_json_target(json_path)
     _check_report_target(report_dir)
-    learned = learn_log(data_path, config_path)
-    data, config = learned.data, learned.config
-    result: Any = learned.result
+    paths = [data_path] if isinstance(data_path, str) else list(data_path)
+    levels = None
+    if len(paths) > 1:
+        from ._levels import learn_levels
+
+        levels = learn_levels(paths, config_path)
+        data_path, data, config = levels.top.source, levels.top_data, levels.config
+        result: Any = levels.top.learned
+    else:
+        [data_path] = paths
+        learned = learn_log(data_path, config_path)
+        data, config = learned.data, learned.config
+        result = learned.result
     law = result.law
     states, inputs = labels("x", data.n), labels("u", data.m)
     servo = " with integral action" if law.K_i is not None else ""
@@ -75,13 +91,16 @@ def learn_command(
     problem = learning_problem(config)
     pi, why = pi_equivalent_or_reason(result.law, problem, result.judged, result.target)
     lines += ["", *(pi.lines(inputs, states) if pi else [f"no PI equivalent: {why}"])]
-    schedule = None
-    if learned.speeds is not None:
+    schedule: Any = None
+    if levels is not None:
+        schedule = levels
+        lines += levels.lines()
+    elif learned.speeds is not None:
         schedule = learned_schedule(learned.speeds, config, result)
         lines += _schedule_lines(learned.speeds, schedule.motor, schedule.design)
     if json_path is not None:
-        document = _learn_document(result, problem, pi)
-        _write_json(json_path, {**document, **(schedule.document if schedule else {})})
+        scheduled = {} if schedule is None else schedule.document
+        _write_json(json_path, {**_learn_document(result, problem, pi), **scheduled})
     figure = schedule.figure() if schedule is not None and report_dir is not None else None
     _write_report(result, f"selftune learn: {data_path}", lines, report_dir, schedule=figure)
     _print_report(lines, json_path)
