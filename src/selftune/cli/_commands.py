@@ -61,7 +61,8 @@ def _add_learn(subparsers: _Subparsers) -> None:
             "Learn the optimal feedback K*, the value P* and (with a [regulation] table)"
             " the feedforward X*, U* from sampled data of any linear plant, by off-policy"
             " policy iteration on one batch of data (Jiang & Jiang 2012; Gao & Jiang"
-            " 2016). DATA is a CSV (header t,x1..xn,u1..um,w1..wq) or NPZ file."
+            " 2016). DATA is a CSV (header t,x1..xn,u1..um,w1..wq), NPZ or MAT file; several"
+            " DATA are a saturating motor's current levels, its law scheduled over i_q*."
         ),
     )
     parser.add_argument(
