@@ -110,6 +110,7 @@ def interior_lines(
         f"Interior PM motor commissioned on {source}, {drive_text(drive)}: digital "
         f"controller{servo}, identify-then-design from {result.data_seconds * 1e3:.3g} ms "
         "of motor data",
+        *(f"  note: {note}" for note in result.notes),
         "",
     ]
     i_d, i_q = result.references
@@ -203,7 +204,7 @@ def interior_document(
         "cost": cost_document(settings.Q, settings.R, result.integral_weight),
         "h": settings.h,
         "input_delay": law.history,
-        "notes": [],
+        "notes": list(result.notes),
         "speed_electrical": float(motor.p * settings.speed),
         "w": np.concatenate([[motor.p * settings.speed * motor.phi_pm], result.references]),
     }

@@ -30,7 +30,7 @@ from ..learn import LearnedController, LearningProblem, MotorEstimate, learn_con
 from ..model import IPMSM, SPMSM, Motor
 from ..sim import DriveRecord, DriveSettings, RealisticDrive, constant, held, uniform
 from ._knowledge import STEP_DWELL, STEP_LEVELS
-from ._learning import learning_options, pulse_bus
+from ._learning import learned_at_length, learning_options, pulse_bus
 from ._settings import TuningSettings
 
 __all__ = [
@@ -76,9 +76,12 @@ class InteriorCommissioning:
         The true torque the learned law gives at those references, N m (mean over the
         second half of the check run).
     data_seconds : float
-        Length of the experiment, s.
+        Length of the experiment learned from, s.
     integral_weight : ndarray, shape (2, 2), or None
         The integral weight the learner used (None without integral action).
+    notes : tuple of str
+        A line for each longer experiment run because the learner found one too short
+        for its noise (:func:`~._learning.learned_at_length`).
     """
 
     learned: LearnedController
@@ -89,6 +92,7 @@ class InteriorCommissioning:
     true_torque: float
     data_seconds: float
     integral_weight: Array | None
+    notes: tuple[str, ...] = ()
 
     @property
     def torque_error(self) -> float:
@@ -263,7 +267,9 @@ def commission_interior(
     Raises
     ------
     SelftuneError
-        The learner's refusal, if the data do not support a controller.
+        The learner's refusal, if the data do not support a controller (an experiment
+        refused as too short for its noise is first run again as long as the learner
+        asks, :func:`~._learning.learned_at_length`).
     """
     plant = RealisticDrive(motor, settings.speed, settings.h, drive)
     back_emf = motor.p * settings.speed * motor.phi_pm  # w_1 with the nameplate flux
@@ -276,14 +282,6 @@ def commission_interior(
     law = ControlLaw.regulator(
         settings.K0, -CURRENT_REFERENCE_F, decoupling_feedforward(motor, motor.p * settings.speed)
     )
-    experiment = plant.record(
-        law, held(reference), num_samples=round(seconds / settings.h),
-        exploration=uniform(settings.exploration), seed=seed,
-    )  # fmt: skip
-    check_current_range(
-        experiment, drive, abs(scale), f"the commissioning at {settings.speed:g} rad/s"
-    )
-    log = experiment.trajectory
     problem = LearningProblem(
         settings.Q, settings.R, C=np.eye(2), F=CURRENT_REFERENCE_F,
         integral_action=settings.integral_action, integral_weight=settings.Q_i,
@@ -292,7 +290,20 @@ def commission_interior(
         learning_options(plant, settings), method="identify", structure="ipmsm",
         dc_voltage=pulse_bus(drive),
     )  # fmt: skip
-    learned = learn_controller(log, problem, settings.K0, options)
+
+    def learned_from(samples: int) -> LearnedController:
+        experiment = plant.record(
+            law, held(reference), num_samples=samples,
+            exploration=uniform(settings.exploration), seed=seed,
+        )  # fmt: skip
+        check_current_range(
+            experiment, drive, abs(scale), f"the commissioning at {settings.speed:g} rad/s"
+        )
+        return learn_controller(experiment.trajectory, problem, settings.K0, options)
+
+    learned, samples, notes = learned_at_length(
+        learned_from, round(seconds / settings.h), settings.h
+    )
     assert learned.quality is not None and learned.quality.motor is not None  # the verdict
     found, errors = motor_of(learned.quality.motor, motor.p)
     assert isinstance(found, IPMSM)  # structure = "ipmsm"
@@ -306,6 +317,7 @@ def commission_interior(
     true_torque = float(np.mean(record.torque[count // 2 :]))
     return InteriorCommissioning(
         learned=learned, motor=identified, standard_errors=errors, torque=settings.torque,
-        references=references, true_torque=true_torque, data_seconds=seconds,
+        references=references, true_torque=true_torque, data_seconds=samples * settings.h,
         integral_weight=problem.integral_weight if settings.integral_action else None,
+        notes=notes,
     )  # fmt: skip

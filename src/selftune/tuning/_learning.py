@@ -11,12 +11,13 @@ support a controller.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import TypeVar
 
 import numpy as np
 
 from ..core import Array, pack_theta, unpack_theta
-from ..errors import InputError
+from ..errors import InputError, TooLittleData
 from ..learn import (
     IterationRecord,
     LearnedController,
@@ -35,13 +36,20 @@ from ._results import TuningIteration, TuningResult
 from ._settings import Target, TuningSettings
 
 __all__ = [
+    "LONGER_BATCHES",
+    "LONGEST_BATCH_FACTOR",
     "aligned",
     "check_drive",
     "from_learned",
+    "learned_at_length",
     "learning_options",
     "learning_problem",
+    "longer_batch",
     "pulse_bus",
 ]
+
+#: What a batch's learning returns (:func:`learned_at_length`).
+Learned = TypeVar("Learned")
 
 #: The relative agreement of the drive's sampling period with the settings' required.
 SAMPLING_AGREEMENT = 1e-9
@@ -88,6 +96,81 @@ def learning_problem(drive: Drive, settings: TuningSettings, phi_pm: float) -> L
         settings.Q, settings.R, C=C, F=F, integral_action=settings.integral_action,
         integral_weight=settings.Q_i,
     )  # fmt: skip
+
+
+#: When the learner finds a batch too short for its noise (TooLittleData), the tuner runs
+#: a longer batch of the length it asks for (with a quarter more, :func:`longer_batch`),
+#: at most :data:`LONGER_BATCHES` times and up to this many times the batch it planned;
+#: beyond, the refusal stands. (The length it names assumes the errors fall as 1/sqrt(T);
+#: a part that does not, such as the dead-time model's sensitivity, can need a second one.)
+LONGEST_BATCH_FACTOR = 10.0
+
+#: How many longer batches a tuner runs on TooLittleData (see LONGEST_BATCH_FACTOR).
+LONGER_BATCHES = 2
+
+
+def learned_at_length(
+    learn: Callable[[int], Learned], planned: int, h: float
+) -> tuple[Learned, int, tuple[str, ...]]:
+    """``learn(samples)`` of the batch planned, run again as long as a TooLittleData
+    refusal asks (:func:`longer_batch`, at most :data:`LONGER_BATCHES` times; beyond, the
+    refusal stands).
+
+    Parameters
+    ----------
+    learn : callable
+        ``samples -> result``: runs a batch of that many samples and learns from it.
+    planned : int
+        The samples first planned.
+    h : float
+        Sampling period, s.
+
+    Returns
+    -------
+    result
+        What ``learn`` returned.
+    samples : int
+        The samples of the batch it learned from.
+    notes : tuple of str
+        A line for each longer batch run, and why.
+    """
+    notes: tuple[str, ...] = ()
+    samples = planned
+    for batch_number in range(1, LONGER_BATCHES + 2):
+        try:
+            return learn(samples), samples, notes
+        except TooLittleData as refusal:
+            longer = longer_batch(refusal, samples, planned, h)
+            if batch_number > LONGER_BATCHES or longer is None:
+                raise
+            K_se, U_se = refusal.relative_se
+            notes += (
+                f"the {samples * h:.3g} s batch was too short for its noise (standard errors "
+                f"of K {K_se:.2%}, of U {U_se:.2%}); a {longer * h:.3g} s batch was run, as "
+                "the learner asked",
+            )
+            samples = longer
+    raise AssertionError("unreachable: the last batch returns or raises")
+
+
+def longer_batch(refusal: TooLittleData, samples: int, planned: int, h: float) -> int | None:
+    """The samples of the longer batch a TooLittleData refusal asks for: a quarter more
+    than the length it names; None where that is not longer than the batch refused or
+    beyond :data:`LONGEST_BATCH_FACTOR` times the one planned (the refusal stands).
+
+    Parameters
+    ----------
+    refusal : TooLittleData
+        The learner's refusal (its ``needed_seconds``).
+    samples : int
+        The refused batch's samples.
+    planned : int
+        The samples of the batch first planned.
+    h : float
+        Sampling period, s.
+    """
+    longer = int(np.ceil(1.25 * refusal.needed_seconds / h))
+    return longer if samples < longer <= LONGEST_BATCH_FACTOR * planned else None
 
 
 def learning_options(

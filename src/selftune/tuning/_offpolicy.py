@@ -7,27 +7,24 @@ from dataclasses import replace
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..errors import TooLittleData
 from ..learn import LearnedController, learn_controller
 from ..sim import held, uniform
 from ._drive import Drive
 from ._episodes import checked, known_form
 from ._knowledge import reference_perturbation
-from ._learning import check_drive, from_learned, learning_options, learning_problem
+from ._learning import (
+    LONGER_BATCHES,
+    LONGEST_BATCH_FACTOR,
+    check_drive,
+    from_learned,
+    learned_at_length,
+    learning_options,
+    learning_problem,
+)
 from ._results import TuningResult
 from ._settings import TuningSettings
 
 __all__ = ["BACK_EMF_FEEDFORWARD", "LONGER_BATCHES", "LONGEST_BATCH_FACTOR", "offpolicy"]
-
-#: When the learner finds the batch too short for its noise (TooLittleData), the session
-#: runs a longer batch of the length it asks for (with a quarter more), at most
-#: :data:`LONGER_BATCHES` times and up to this many times ``episode_length``; beyond, the
-#: refusal stands. (The length it names assumes the errors fall as 1/sqrt(T); a part that
-#: does not, such as the dead-time model's sensitivity, can need a second one.)
-LONGEST_BATCH_FACTOR = 10.0
-
-#: How many longer batches a session runs on TooLittleData (see LONGEST_BATCH_FACTOR).
-LONGER_BATCHES = 2
 
 #: The feedforward of the batch's controller: ``u_q += w_1``, the assumed back-EMF.
 BACK_EMF_FEEDFORWARD = np.array([[0.0, 0.0], [1.0, 0.0]])
@@ -95,23 +92,8 @@ def offpolicy(
         options = learning_options(drive, settings)
         return learn_controller(batch, problem, settings.K0, options), batch.duration
 
-    notes: tuple[str, ...] = ()
-    samples = settings.samples_per_episode
-    for batch_number in range(1, LONGER_BATCHES + 2):
-        try:
-            learned, seconds = learned_from(samples)
-            break
-        except TooLittleData as refusal:
-            longer = int(np.ceil(1.25 * refusal.needed_seconds / settings.h))
-            cap = LONGEST_BATCH_FACTOR * settings.samples_per_episode
-            if batch_number > LONGER_BATCHES or not samples < longer <= cap:
-                raise
-            K_se, U_se = refusal.relative_se
-            notes += (
-                f"the {samples * settings.h:.3g} s batch was too short for its noise "
-                f"(standard errors of K {K_se:.2%}, of U {U_se:.2%}); a "
-                f"{longer * settings.h:.3g} s batch was run, as the learner asked",
-            )
-            samples = longer
+    (learned, seconds), _, notes = learned_at_length(
+        learned_from, settings.samples_per_episode, settings.h
+    )
     result = from_learned(algorithm, learned, w, seconds, settings, identified)
     return replace(result, notes=(*result.notes, *notes))

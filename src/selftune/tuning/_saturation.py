@@ -35,7 +35,7 @@ from itertools import pairwise
 import numpy as np
 
 from ..core import Array
-from ..errors import SelftuneError
+from ..errors import SelftuneError, TooLittleData
 from ..learn import (
     IncrementalStructure,
     LearnedController,
@@ -54,7 +54,7 @@ from ..model import (
 )
 from ..sim import DriveSettings, RealisticDrive, Saturation, held, uniform
 from ._interior import CURRENT_REFERENCE_F, D_SHARE, check_current_range, current_steps
-from ._learning import learning_options
+from ._learning import learning_options, longer_batch
 from ._settings import TuningSettings
 
 __all__ = [
@@ -102,6 +102,9 @@ MAX_LEVELS = 9
 #: The logs a level may take: a level whose log the learner refuses is logged again
 #: with the next seed (as an engineer reruns a refused experiment), the refusals kept
 #: in :attr:`CurrentCommissioning.refusals` (the study in docs/saturation.md: 2 logs for 27 levels).
+#: A log refused as too short for its noise (TooLittleData) is logged again as long as
+#: the learner asks (:func:`~._learning.longer_batch`: a quarter more than it names, up
+#: to :data:`~._learning.LONGEST_BATCH_FACTOR` times ``seconds``).
 LEVEL_ATTEMPTS = 3
 
 
@@ -386,7 +389,7 @@ def commission_over_current(
     shares : sequence of float
         The initial levels, shares of rated torque, rising.
     seconds : float
-        Each level's learned log, s.
+        Each level's learned log, s (longer where the learner asks, :data:`LEVEL_ATTEMPTS`).
     seed : int
         Seed of the first level's log (the others' follow it).
     progress : callable, optional
@@ -402,17 +405,24 @@ def commission_over_current(
     refusals: list[tuple[float, str]] = []
     logs = iter(range(seed, seed + MAX_LEVELS * LEVEL_ATTEMPTS))
 
+    planned = round(seconds / settings.h)
+
     def attempted(share: float) -> CurrentLevel:
+        samples = planned
         for _ in range(LEVEL_ATTEMPTS - 1):
             try:
                 return learn_level(
-                    motor, saturation, settings, drive, share, seconds=seconds, seed=next(logs)
-                )
+                    motor, saturation, settings, drive, share, seconds=samples * settings.h,
+                    seed=next(logs),
+                )  # fmt: skip
             except SelftuneError as error:
                 refusals.append((share, str(error)))
+                if isinstance(error, TooLittleData):  # logged again as long as it asks
+                    samples = longer_batch(error, samples, planned, settings.h) or samples
         return learn_level(
-            motor, saturation, settings, drive, share, seconds=seconds, seed=next(logs)
-        )
+            motor, saturation, settings, drive, share, seconds=samples * settings.h,
+            seed=next(logs),
+        )  # fmt: skip
 
     def learned(share: float) -> CurrentLevel:
         level = attempted(share)
