@@ -157,14 +157,29 @@ def _rewritten(path: Path, to: Path, column: str, factor: float) -> Path:
     return to
 
 
+FLIPPED = CONFIG.replace(
+    "F = [[0.0, -1.0, 0.0], [0.0, 0.0, -1.0]]", "F = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]"
+)
+
+
 @pytest.mark.parametrize(
     ("config", "logs", "said"),
     [
         (CONFIG.replace('"incremental"', '"ipmsm"'), "ab", "[learning] structure: several logs"),
-        (CONFIG + "[schedule]\nspeeds = [10.0, 100.0]\npole_pairs = 3\n", "ab", "[schedule]: "),
-        (CONFIG, "aa", "w3: its mean i_q* reference (2 A) is that of"),
-        (CONFIG, "af", "w1: assumes a flux of"),
-        (CONFIG, "at", "t: sampled every"),
+        (CONFIG.replace('"digital"', '"continuous"'), "ab", "[learning] target: "),
+        (FLIPPED.replace("C = [[1.0", "C = [[-1.0"), "ab", "[regulation] C: the current schedule"),
+        (FLIPPED, "ab", "[regulation] F: the current schedule"),
+        (CONFIG.replace("= 360.0", "= 0.0"), "ab", "[learning] electrical_speed: the levels"),
+        (
+            CONFIG + "[schedule]\nspeeds = [10.0, 100.0]\npole_pairs = 3\n",
+            "ab",
+            "[schedule]: a speed schedule is learned from one log over several held speeds",
+        ),
+        (CONFIG, "aa", "level_2.csv: given twice (as"),
+        (CONFIG, "an", "near.csv: w3: its mean i_q* reference (2.01 A) is within 1% of"),
+        (CONFIG, "af", "flux.csv: w1: its mean is 47.52, "),
+        (CONFIG, "at", "period.csv: t: sampled every 0.0002 s"),
+        (CONFIG, "aq", "two.csv: its columns are n, m, q = (2, 2, 2) (x, u, w)"),
     ],
 )
 def test_several_logs_that_cannot_be_current_levels_are_one_line(
@@ -172,11 +187,16 @@ def test_several_logs_that_cannot_be_current_levels_are_one_line(
 ) -> None:
     """Said before any log is learned, naming the file and the key or column."""
     a, b = _tiny_logs(tmp_path)
+    two = Trajectory(t=np.arange(50) * 1e-4, x=np.ones((50, 2)), u=np.ones((50, 2)),
+                     w=np.ones((50, 2)))  # fmt: skip
+    save_trajectory(two, tmp_path / "two.csv")
     files = {
         "a": a,
         "b": b,
         "f": _rewritten(b, tmp_path / "flux.csv", "w1", 1.1),
+        "n": _rewritten(a, tmp_path / "near.csv", "w3", 1.005),
         "t": _rewritten(b, tmp_path / "period.csv", "t", 2.0),
+        "q": tmp_path / "two.csv",
     }
     config_file = tmp_path / "learn.toml"
     config_file.write_text(config)

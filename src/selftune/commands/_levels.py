@@ -27,12 +27,29 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..config import LearnConfig, learn_with_config, learning_problem, load_learn_input
+from ..config import (
+    LEARN_TABLES,
+    LearnConfig,
+    learn_with_config,
+    learning_problem,
+    load_learn_input,
+    load_log_format,
+    read_toml,
+)
 from ..core import Array, cost_document
+from ..core._numerics import check_numerics, numerics
 from ..errors import DataFileError
-from ..learn import IncrementalStructure, LearnedController, Trajectory
+from ..learn import IncrementalStructure, LearnedController, LogFormat, Trajectory
+from ..learn.evidence._alignment import SAMPLING_JITTER
 from ..model import CurrentScheduleDesign
-from ..report._saturation_report import level_document, level_table, schedule_check_lines
+from ..report._saturation_report import (
+    check_entry,
+    current_schedule_figure,
+    level_document,
+    level_table,
+    schedule_check_lines,
+)
+from ..tuning._interior import CURRENT_REFERENCE_F
 from ..tuning._saturation import (
     INDUCTANCE_MOVE,
     incremental_parameters,
@@ -45,13 +62,17 @@ if TYPE_CHECKING:  # matplotlib is loaded only to draw
 
 __all__ = ["LearnedLevel", "LearnedLevels", "learn_levels"]
 
-#: Two logs whose mean ``i_q*`` differ by less than this share of the largest are at one
-#: level (a schedule needs its currents apart).
-SAME_LEVEL = 1e-6
+#: Two logs whose mean ``i_q*`` differ by at most this share of the larger are at one
+#: level: a schedule's grid needs its currents apart (two laws 1 % apart in current
+#: would make its interpolation between them as steep as their models' noise).
+SAME_LEVEL = 0.01
 
-#: Two logs' assumed fluxes (``w_1 / w_e``) that differ by more than this share disagree:
-#: the schedule's feedforward of ``w_1`` is for one.
-SAME_FLUX = 1e-6
+#: Two logs whose mean ``w_1`` differ by more than this share disagree on the flux the
+#: reference channel assumes (``w_1 / w_e``), or were logged at other speeds: the
+#: schedule feeds ``w_1`` forward for one. 0.1 %: the back-EMF's feedforward is then off
+#: by at most that much, which the integral action removes; a ``w_1`` computed from a
+#: measured speed varies by less over a log's mean.
+SAME_FLUX = 1e-3
 
 
 @dataclass(frozen=True)
@@ -98,7 +119,8 @@ class LearnedLevels:
     integral_weight : ndarray or None
         ``Q_i`` of the learner and the design (None without integral action).
     flux : float
-        The flux the logs' ``w_1`` assumes, ``w_1 / w_e``, Wb.
+        The flux the first log's ``w_1`` assumes, ``w_1 / w_e``, Wb (the others' within
+        :data:`SAME_FLUX`; each level's ``kappa`` is over its own).
     """
 
     config: LearnConfig
@@ -152,11 +174,10 @@ class LearnedLevels:
     def figure(self) -> Figure:
         """The schedule's figure (:func:`selftune.report.figure_schedule`) beside the law
         learned at the highest level."""
-        from ..model import excess_over
-        from ..report import figure_schedule
-
-        single = excess_over(self.design.check.optima, self.top.learned.law)
-        return figure_schedule(self.design, single, float(self.top.reference[1]))
+        return current_schedule_figure(
+            self.design, self.top.learned.law, float(self.top.reference[1]),
+            "one law (the highest level)",
+        )  # fmt: skip
 
     @property
     def document(self) -> dict[str, Any]:
@@ -164,7 +185,6 @@ class LearnedLevels:
         :meth:`~selftune.model.CurrentSchedule.document`) and ``current_schedule_design``:
         each level's identified model with its log and verdict, and everything the design
         needs to be recomputed from the file (speed, period, delay, hold, cost, flux)."""
-        check = self.design.check
         top = self.top.learned
         assert top.h is not None  # identify-then-design reads h off the log
         return {
@@ -191,36 +211,142 @@ class LearnedLevels:
                 "flux": self.flux,
                 "inductance_move": INDUCTANCE_MOVE,
                 "gaps": [list(gap) for gap in self.gaps],
-                "check": {"i_q": check.points, "excess": check.excess, "limit": check.limit},
+                "check": check_entry(self.design),
             },
         }
 
 
 def _checked_config(config: LearnConfig) -> None:
-    """Refuse a configuration that cannot learn a current schedule from several logs."""
-    structure = config.options.get("structure", "none")
+    """Refuse a configuration that cannot learn a current schedule from several logs: the
+    incremental structure, the digital target, the current-reference form and a turning
+    speed are needed."""
+    options = config.options
+    structure = options.get("structure", "none")
     if structure != "incremental":
         raise DataFileError(
-            f"{config.source}: [learning] structure: several logs are learned as a saturating "
-            f'motor\'s current levels, which needs structure = "incremental" (got '
-            f'"{structure}"); or give one log'
+            f"{config.source}: [learning] structure: several logs are learned as a "
+            'saturating motor\'s current levels, which needs structure = "incremental" '
+            f'(got "{structure}"); or give one log'
         )
-    if config.schedule is not None:
+    if options.get("target") != "digital":
         raise DataFileError(
-            f"{config.source}: [schedule]: a speed schedule is learned from one log over "
-            "several held speeds, several logs are a current schedule's levels; give one "
-            "log, or leave out [schedule]"
+            f"{config.source}: [learning] target: the current schedule is the digital "
+            'optimum of the sampled loop with its delay; set target = "digital"'
         )
+    form = {"C": (config.C, np.eye(2)), "E": (config.E, np.zeros((3, 3))),
+            "F": (config.F, CURRENT_REFERENCE_F)}  # fmt: skip
+    for key, (given, expected) in form.items():
+        if given is None or given.shape != expected.shape or not np.allclose(given, expected):
+            raise DataFileError(
+                f"{config.source}: [regulation] {key}: the current schedule is for the "
+                "current-reference form (w = [p speed phi, i_d*, i_q*], C = I, E = 0, F = "
+                "[[0, -1, 0], [0, 0, -1]]), the form the firmware's i_q* = w3 is looked up in"
+            )
+    if not options.get("electrical_speed"):
+        raise DataFileError(
+            f"{config.source}: [learning] electrical_speed: the levels are learned at a "
+            "turning speed (the flux offset is read off the back-EMF); 0 gives none"
+        )
+
+
+@dataclass(frozen=True)
+class _Columns:
+    """The user's names of the time and reference columns (selftune's ``t``, ``w1``,
+    ``w3``, or the ``[log]`` table's)."""
+
+    time: str = "t"
+    w1: str = "w1"
+    w3: str = "w3"
+
+    @classmethod
+    def of(cls, log: LogFormat | None) -> _Columns:
+        """The names a log format gives (None: selftune's own columns)."""
+        if log is None:
+            return cls()
+        names = {column.key: column.column or column.key for column in log.references}
+        time = log.time.column or log.time.key
+        return cls(time, names.get("w1", "w1"), names.get("w3", "w3"))
 
 
 def _level_of(data: Trajectory, speed: float, source: str) -> tuple[Array, float]:
-    """A log's mean ``[i_d*, i_q*]`` (A) and the flux its ``w_1`` assumes (Wb)."""
-    if data.w is None or data.w.shape[1] < 3:
+    """A log's mean ``[i_d*, i_q*]`` (A) and mean ``w_1`` (V)."""
+    if data.w is None or data.w.shape[1] != 3:
         raise DataFileError(
-            f"{source}: a current level's log has the current-reference form's columns "
-            "w1 (p speed phi), w2 (i_d*) and w3 (i_q*)"
+            f"{source}: a current level's log has the current-reference form's three "
+            "reference columns, w1 (p speed phi), w2 (i_d*) and w3 (i_q*)"
         )
-    return np.mean(data.w[:, 1:3], axis=0), float(np.mean(data.w[:, 0])) / speed
+    return np.mean(data.w[:, 1:3], axis=0), float(np.mean(data.w[:, 0]))
+
+
+def _checked_logs(
+    loaded: Sequence[tuple[str, Trajectory]], speed: float, columns: _Columns
+) -> float:
+    """Refuse logs that are not one drive's levels: other sampling periods, other
+    ``w_1``, one level twice; the flux ``w_1`` assumes (Wb)."""
+    first_path, first = loaded[0]
+    period = float(np.mean(np.diff(first.t)))
+    _, first_w1 = _level_of(first, speed, first_path)
+    seen: list[tuple[str, float]] = []
+    for path, data in loaded:
+        own = float(np.mean(np.diff(data.t)))
+        if abs(own - period) > SAMPLING_JITTER * period:
+            raise DataFileError(
+                f"{path}: {columns.time}: sampled every {own:.6g} s, {first_path} every "
+                f"{period:.6g} s: one schedule is for one sampling period"
+            )
+        reference, w1 = _level_of(data, speed, path)
+        if abs(w1 - first_w1) > SAME_FLUX * abs(first_w1):
+            raise DataFileError(
+                f"{path}: {columns.w1}: its mean is {w1:.6g}, {first_path}'s {first_w1:.6g} "
+                f"({abs(w1 / first_w1 - 1.0):.2%} apart): the logs assume other fluxes or run "
+                "at other speeds, and the schedule feeds w1 forward for one; log every level "
+                "at the configuration's speed with one assumed flux"
+            )
+        for other, current in seen:
+            if abs(reference[1] - current) <= SAME_LEVEL * max(abs(current), abs(reference[1])):
+                raise DataFileError(
+                    f"{path}: {columns.w3}: its mean i_q* reference ({reference[1]:.6g} A) is "
+                    f"within {SAME_LEVEL:.0%} of {other}'s ({current:.6g} A): each log is a "
+                    "level of its own current"
+                )
+        seen.append((path, float(reference[1])))
+    return first_w1 / speed
+
+
+def _loaded(
+    data_paths: Sequence[str], config_path: str
+) -> tuple[list[tuple[str, Trajectory]], LearnConfig, _Columns]:
+    """Every log and the configuration, read and checked before any is learned."""
+    from pathlib import Path
+
+    from ..learn.data._io import file_format_of, trajectory_dimensions
+
+    if "schedule" in read_toml(config_path):
+        raise DataFileError(
+            f"{config_path}: [schedule]: a speed schedule is learned from one log over "
+            "several held speeds, several logs are a current schedule's levels; give one "
+            "log, or leave out [schedule]"
+        )
+    for index, path in enumerate(data_paths):
+        for other in data_paths[:index]:
+            if Path(path).exists() and Path(other).exists() and Path(path).samefile(other):
+                raise DataFileError(f"{path}: given twice (as {other}): each log is a level")
+    log = load_log_format(config_path, LEARN_TABLES)
+    if log is None:  # each file's own header gives its columns
+        dimensions = []
+        for path in data_paths:
+            file_format_of(Path(path))
+            dimensions.append(trajectory_dimensions(path))
+        for path, found in zip(data_paths, dimensions, strict=True):
+            if found != dimensions[0]:
+                raise DataFileError(
+                    f"{path}: its columns are n, m, q = {found} (x, u, w), {data_paths[0]}'s "
+                    f"{dimensions[0]}: the levels are logs of one drive in one form"
+                )
+    loaded = [(path, *load_learn_input(path, config_path)) for path in data_paths]
+    config = loaded[0][2]
+    _checked_config(config)
+    return [(path, data) for path, data, _ in loaded], config, _Columns.of(log)
 
 
 def learn_levels(
@@ -244,48 +370,24 @@ def learn_levels(
     Raises
     ------
     SelftuneError
-        One line naming the file: a configuration that cannot learn levels, two logs at
-        one level, logs of different sampling periods or assumed fluxes, a log refused.
+        One line naming the file and its key or column: a configuration that cannot learn
+        levels (not the incremental structure, the digital target, the current-reference
+        form and a turning speed; a ``[schedule]``), a log given twice, logs of other
+        columns, sampling periods or ``w_1``, two logs at one level, a log refused.
     """
     from tqdm import tqdm
 
-    loaded = [(path, *load_learn_input(path, config_path)) for path in data_paths]
-    config = loaded[0][2]
-    _checked_config(config)
+    loaded, config, columns = _loaded(data_paths, config_path)
     speed = float(config.options["electrical_speed"])  # type: ignore[arg-type]
-    first_path, first_data, _ = loaded[0]
-    period = float(np.median(np.diff(first_data.t)))
-    seen: list[tuple[str, float]] = []
-    _, flux = _level_of(first_data, speed, first_path)
-    for path, data, _ in loaded:
-        own = float(np.median(np.diff(data.t)))
-        if abs(own - period) > 1e-9 * period:
-            raise DataFileError(
-                f"{path}: t: sampled every {own:.6g} s, {first_path} every {period:.6g} s: "
-                "one schedule is for one sampling period"
-            )
-        reference, assumed = _level_of(data, speed, path)
-        if abs(assumed - flux) > SAME_FLUX * abs(flux):
-            raise DataFileError(
-                f"{path}: w1: assumes a flux of {assumed:.6g} Wb (w1 / electrical_speed), "
-                f"{first_path} {flux:.6g} Wb: the schedule feeds w1 forward for one flux; "
-                "log every level with the same w1"
-            )
-        for other, current in seen:
-            if abs(reference[1] - current) <= SAME_LEVEL * max(abs(current), 1.0):
-                raise DataFileError(
-                    f"{path}: w3: its mean i_q* reference ({current:.6g} A) is that of "
-                    f"{other}: each log is a level of its own current"
-                )
-        seen.append((path, float(reference[1])))
+    flux = _checked_logs(loaded, speed, columns)
     levels = []
-    for path, data, _ in tqdm(
+    for path, data in tqdm(
         loaded, desc="current levels", unit=" log", file=sys.stderr,
         disable=None if progress else True, leave=False,
     ):  # fmt: skip
         learned = learn_with_config(data, config, path)
-        theta, errors = incremental_parameters(learned, flux)
-        reference, _ = _level_of(data, speed, path)
+        reference, w1 = _level_of(data, speed, path)
+        theta, errors = incremental_parameters(learned, w1 / speed)  # the fit's own kappa
         levels.append(
             LearnedLevel(path, reference, np.mean(data.x, axis=0), theta, errors, learned)
         )
@@ -296,11 +398,13 @@ def learn_levels(
     top = found[-1].learned
     assert top.h is not None  # identify-then-design reads h off the log
     structure = IncrementalStructure(speed, top.h, False, config.options["voltage_hold"])  # type: ignore[arg-type]
-    design = schedule_over_levels(
-        np.array([level.reference[1] for level in found]),
-        np.array([level.theta for level in found]),
-        structure, config.Q, config.R,
-        input_delay=top.law.history, integral_weight=integral_weight,
-    )  # fmt: skip
-    top_data = next(data for path, data, _ in loaded if path == found[-1].source)
+    with numerics(config.source) as caught:
+        design = schedule_over_levels(
+            np.array([level.reference[1] for level in found]),
+            np.array([level.theta for level in found]),
+            structure, config.Q, config.R,
+            input_delay=top.law.history, integral_weight=integral_weight,
+        )  # fmt: skip
+    check_numerics(config.source, caught, design.schedule.table("K"))
+    top_data = next(data for path, data in loaded if path == found[-1].source)
     return LearnedLevels(config, found, top_data, design, integral_weight, flux)

@@ -206,11 +206,11 @@ def _tune_saturating(
         _write_json(json_path, document)
     rated, figure = result.levels[-1], None  # the report: the law learned at rated current
     if report_dir is not None:  # and the schedule beside that one law
-        from ..model import excess_over
-        from ..report import figure_schedule
+        from ..report._saturation_report import current_schedule_figure
 
-        single = excess_over(result.design.check.optima, rated.learned.law)
-        figure = figure_schedule(result.design, single, float(rated.reference[1]))
+        figure = current_schedule_figure(
+            result.design, rated.learned.law, float(rated.reference[1])
+        )
     return _reported(config, rated.learned, lines, (report_dir, json_path), schedule=figure)
 
 

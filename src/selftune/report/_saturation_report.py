@@ -16,11 +16,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..core import Array, cost_document
+from ..core import Array, ControlLaw, cost_document
 from ..learn import IncrementalStructure, LearnedController
 from ..model import (
     IPMSM,
@@ -34,13 +34,19 @@ from ..sim import DriveSettings, FluxMap, Saturation
 from ..tuning import TuningSettings
 from ..tuning._interior import CURRENT_REFERENCE_F
 from ..tuning._saturation import CurrentCommissioning, incremental_theta
+from ._schedule_figure import figure_schedule
 from ._tune_report import drive_text
+
+if TYPE_CHECKING:  # matplotlib is loaded only to draw
+    from matplotlib.figure import Figure
 
 __all__ = [
     "CURRENTS",
     "CurrentEvaluation",
+    "check_entry",
     "current_document",
     "current_lines",
+    "current_schedule_figure",
     "evaluate_current_schedule",
     "judged_references",
     "level_document",
@@ -268,6 +274,40 @@ def schedule_check_lines(design: CurrentScheduleDesign) -> list[str]:
     ]
 
 
+def check_entry(design: CurrentScheduleDesign) -> dict[str, Any]:
+    """The schedule's check as the JSON states it: the fine grid's ``i_q`` (A), the
+    excess cost at each and its limit.
+
+    Parameters
+    ----------
+    design : CurrentScheduleDesign
+        The schedule and its check.
+    """
+    check = design.check
+    return {"i_q": check.points, "excess": check.excess, "limit": check.limit}
+
+
+def current_schedule_figure(
+    design: CurrentScheduleDesign, law: ControlLaw, current: float, label: str | None = None
+) -> Figure:
+    """The current schedule's figure (:func:`~._schedule_figure.figure_schedule`) with one
+    law learned at a level beside it (its excess over the check's pointwise optima).
+
+    Parameters
+    ----------
+    design : CurrentScheduleDesign
+        The schedule and its check.
+    law : ControlLaw
+        The one law.
+    current : float
+        The ``i_q*`` it was learned at, A.
+    label : str, optional
+        Its legend (default: the law at rated current).
+    """
+    single = excess_over(design.check.optima, law)
+    return figure_schedule(design, np.asarray(single, dtype=float), current, label)
+
+
 def level_document(
     reference: Array, mean_current: Array, theta: Array, errors: Array, learned: LearnedController
 ) -> dict[str, Any]:
@@ -325,7 +365,7 @@ def current_document(
     drive : DriveSettings
         The drive.
     """
-    schedule, check = result.design.schedule, result.design.check
+    schedule = result.design.schedule
     rated = result.levels[-1]
     return {
         "method": "identify",
@@ -348,7 +388,7 @@ def current_document(
                 for level in result.levels
             ],
             "refusals": [{"share": share, "error": text} for share, text in result.refusals],
-            "check": {"i_q": check.points, "excess": check.excess, "limit": check.limit},
+            "check": check_entry(result.design),
         },
         "true_excess": {
             "i_q": evaluation.references[:, 1],

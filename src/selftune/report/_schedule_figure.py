@@ -41,6 +41,7 @@ def figure_schedule(
     design: ScheduleDesign | CurrentScheduleDesign,
     single_excess: Array,
     single_speed: float | None = None,
+    single_label: str | None = None,
 ) -> Figure:
     """The schedule's gains, bandwidth and excess cost against its variable: electrical
     speed (a :class:`~selftune.model.ScheduleDesign`) or the q-axis current reference (a
@@ -57,6 +58,9 @@ def figure_schedule(
     single_speed : float, optional
         Where the single law was designed (rad/s electrical, or A of ``i_q*``; marked
         where inside the range).
+    single_label : str, optional
+        The single law's legend (default: "single-speed controller" over speed, "one law
+        (rated current)" over current).
 
     Returns
     -------
@@ -98,7 +102,9 @@ def figure_schedule(
     rate.set_ylabel("bandwidth $-\\ln\\rho/h$ (rad/s)")
     rate.legend(loc="best", fontsize="small")
     floor = 1e-12
-    single = "single-speed controller" if over_speed else "one law (rated current)"
+    single = single_label or (
+        "single-speed controller" if over_speed else "one law (rated current)"
+    )
     excess.semilogy(check.points, np.maximum(check.excess, floor), color=_SCHEDULE,
                     label="interpolated schedule")  # fmt: skip
     excess.semilogy(check.points, np.maximum(single_excess, floor), color=_SINGLE,
