@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import re
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -17,11 +18,13 @@ import numpy as np
 import pytest
 
 from selftune.cli import main
-from selftune.config import load_motor_config
+from selftune.config import MotorConfig, load_motor_config
 from selftune.learn import IncrementalStructure
-from selftune.model import RegulationProblem, design_current_schedule
-from selftune.report import report_files
-from selftune.tuning._saturation import incremental_theta
+from selftune.model import IPMSM, RegulationProblem, design_current_schedule
+from selftune.report import evaluate_current_schedule, report_files
+from selftune.sim import DriveSettings, SaturationModel
+from selftune.tuning import commission_over_current, tuning_settings
+from selftune.tuning._saturation import disagreeing_levels, incremental_theta, left_out_text
 
 MOTOR = """[motor]
 R_s = 0.3
@@ -272,3 +275,45 @@ def test_a_flux_map_the_currents_leave_is_one_line_naming_its_grid(
     err = captured.err.strip().splitlines()
     assert captured.out == "" and len(err) == 1, err
     assert "is outside the flux map's grid [-5, 5] x [-5, 5] A" in err[0], err
+
+
+def test_a_level_whose_resistance_disagrees_with_the_highest_is_left_out() -> None:
+    """R_s does not depend on the current: a level 25% and 5 standard errors from the
+    highest level's R_s is left out (the 0.29 A motor's 31 ohm at 10% of rated current,
+    against 0.93), one within either bound is kept, and the sentence names each."""
+    thetas = np.zeros((5, 6))
+    errors = np.full((5, 6), 1e-3)
+    thetas[:, 0] = [30.97, 1.5, 0.95, 0.2, 0.93]
+    errors[:, 0] = [1.6, 0.05, 0.01, 0.2, 0.5]
+    # 30.97: 18.8 se and far beyond 25%; 1.5: 1.14 se only; 0.95: 2% only; 0.2: 1.3 se
+    assert disagreeing_levels(thetas, errors) == [0]
+    errors[1, 0] = 0.01  # now 1.14 over sqrt(0.01^2 + 0.5^2): still within 5 se
+    assert disagreeing_levels(thetas, errors) == [0]
+    errors[:, 0] = 0.01
+    assert disagreeing_levels(thetas, errors) == [0, 1, 3]  # 0.95 stays: within 25%
+    text = left_out_text(["10%", "40%", "70%", "85%", "100%"], thetas, errors, [0, 1, 3])
+    assert "10%: 30.97 ohm" in text and "85%: 0.2 ohm" in text and "0.93 ohm" in text
+
+
+@pytest.mark.slow
+def test_a_small_current_motor_leaves_out_the_levels_the_dead_time_misleads() -> None:
+    """A motor rated 0.29 A on 540 V (2 V of dead time, 24 mA ADC steps): at the lowest
+    levels the fit takes the dead time near zero current for resistance (tens of ohms
+    against 0.8). Those levels are left out, saying so, and the schedule on the others
+    (its first law held below them, as the firmware does) is within the issue's 2% of the
+    true pointwise optimum from 10% to 100% of rated current; with them it was 78% off at
+    10% (docs/saturation.md)."""
+    motor = IPMSM(R_s=0.8, L_d=25e-3, L_q=75e-3, phi_pm=0.26, p=2)
+    drive = replace(DriveSettings.hardware_like(dc_voltage=540.0), pwm="average")
+    config = MotorConfig(
+        motor=motor, speed=105.0, torque=0.23, drive=drive, drive_h=1e-4,
+        learning={"integral_action": True}, source="small-current motor",
+    )  # fmt: skip
+    settings = tuning_settings(config, 113)
+    rated = float(motor.current_reference(0.23)[1])
+    saturation = SaturationModel.of(motor, i_sat=0.57 * rated, drop=0.25, cross=0.1)
+    result = commission_over_current(motor, saturation, settings, drive, seed=113)
+    assert result.left_out and "R_s far from" in result.left_out_text
+    assert all(level.theta[0] > 1.25 * result.levels[-1].theta[0] for level in result.left_out)
+    evaluation = evaluate_current_schedule(result, motor, saturation, settings)
+    assert float(np.max(evaluation.schedule_excess)) <= 0.02

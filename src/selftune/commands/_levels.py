@@ -52,9 +52,12 @@ from ..report._saturation_report import (
 from ..tuning._interior import CURRENT_REFERENCE_F
 from ..tuning._saturation import (
     INDUCTANCE_MOVE,
+    disagreeing_levels,
     incremental_parameters,
     inductances_move,
+    left_out_text,
     schedule_over_levels,
+    too_few_levels,
 )
 
 if TYPE_CHECKING:  # matplotlib is loaded only to draw
@@ -121,6 +124,11 @@ class LearnedLevels:
     flux : float
         The flux the first log's ``w_1`` assumes, ``w_1 / w_e``, Wb (the others' within
         :data:`SAME_FLUX`; each level's ``kappa`` is over its own).
+    left_out : tuple of LearnedLevel
+        Logs learned but left out of the schedule: their R_s disagrees with the highest
+        level's (:func:`~selftune.tuning._saturation.disagreeing_levels`).
+    left_out_text : str
+        Why ("" when none were).
     """
 
     config: LearnConfig
@@ -129,6 +137,8 @@ class LearnedLevels:
     design: CurrentScheduleDesign
     integral_weight: Array | None
     flux: float
+    left_out: tuple[LearnedLevel, ...] = ()
+    left_out_text: str = ""
 
     @property
     def top(self) -> LearnedLevel:
@@ -161,6 +171,7 @@ class LearnedLevels:
                 ],
             ),
             *schedule_check_lines(self.design),
+            *([f"  note: logs {self.left_out_text}"] if self.left_out else []),
         ]
         for low, high in self.gaps:
             lines.append(
@@ -190,19 +201,9 @@ class LearnedLevels:
         return {
             "current_schedule": self.design.schedule.document(),
             "current_schedule_design": {
-                "levels": [
-                    {
-                        "source": level.source,
-                        **level_document(
-                            level.reference,
-                            level.mean_current,
-                            level.theta,
-                            level.standard_errors,
-                            level.learned,
-                        ),
-                    }
-                    for level in self.levels
-                ],
+                "levels": [_entry(level) for level in self.levels],
+                "left_out": [_entry(level) for level in self.left_out],
+                "left_out_reason": self.left_out_text,
                 "electrical_speed": self.config.options["electrical_speed"],
                 "h": top.h,
                 "input_delay": top.law.history,
@@ -214,6 +215,21 @@ class LearnedLevels:
                 "check": check_entry(self.design),
             },
         }
+
+
+def _entry(level: LearnedLevel) -> dict[str, Any]:
+    """A level's entry in ``current_schedule_design``: its log and
+    :func:`~selftune.report._saturation_report.level_document`'s."""
+    return {
+        "source": level.source,
+        **level_document(
+            level.reference,
+            level.mean_current,
+            level.theta,
+            level.standard_errors,
+            level.learned,
+        ),
+    }
 
 
 def _checked_config(config: LearnConfig) -> None:
@@ -392,7 +408,15 @@ def learn_levels(
             LearnedLevel(path, reference, np.mean(data.x, axis=0), theta, errors, learned)
         )
     order = np.argsort([level.reference[1] for level in levels])
-    found = tuple(levels[index] for index in order)
+    learned_levels = [levels[index] for index in order]
+    names = [level.source for level in learned_levels]
+    thetas = np.array([level.theta for level in learned_levels])
+    errors = np.array([level.standard_errors for level in learned_levels])
+    left = disagreeing_levels(thetas, errors)
+    if len(left) == len(learned_levels) - 1:
+        raise too_few_levels(names, thetas, errors, left)
+    found = tuple(level for k, level in enumerate(learned_levels) if k not in left)
+    left_out = "" if not left else left_out_text(names, thetas, errors, left)
     problem = learning_problem(config)
     integral_weight = problem.integral_weight if config.integral_action else None
     top = found[-1].learned
@@ -407,4 +431,7 @@ def learn_levels(
         )  # fmt: skip
     check_numerics(config.source, caught, design.schedule.table("K"))
     top_data = next(data for path, data in loaded if path == found[-1].source)
-    return LearnedLevels(config, found, top_data, design, integral_weight, flux)
+    return LearnedLevels(
+        config, found, top_data, design, integral_weight, flux,
+        tuple(learned_levels[k] for k in left), left_out,
+    )  # fmt: skip

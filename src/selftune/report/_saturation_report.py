@@ -33,7 +33,7 @@ from ..model import (
 from ..sim import DriveSettings, FluxMap, Saturation
 from ..tuning import TuningSettings
 from ..tuning._interior import CURRENT_REFERENCE_F
-from ..tuning._saturation import CurrentCommissioning, incremental_theta
+from ..tuning._saturation import CurrentCommissioning, CurrentLevel, incremental_theta
 from ._schedule_figure import figure_schedule
 from ._tune_report import drive_text
 
@@ -169,7 +169,12 @@ def evaluate_current_schedule(
     optima = true_current_optima(
         motor, saturation, settings.speed, settings.h, references, weights, first.history
     )
-    schedule = [result.design.schedule.law_at(float(q)) for q in references[:, 1]]
+    # the firmware holds the end laws outside the levels' currents (the lowest may be left
+    # out: CurrentCommissioning.left_out)
+    low, high = result.design.schedule.covered
+    schedule = [
+        result.design.schedule.law_at(float(np.clip(q, low, high))) for q in references[:, 1]
+    ]
     schedule_excess, rated_excess, low_excess = (
         np.asarray(excess_over(optima, law), dtype=float)
         for law in (schedule, result.levels[-1].learned.law, first)
@@ -215,6 +220,7 @@ def current_lines(
             ],
         ),
         *schedule_check_lines(result.design),
+        *([f"  note: levels {result.left_out_text}"] if result.left_out else []),
     ]
     rated, low = evaluation.rated_excess, evaluation.low_excess
     lines += [
@@ -374,20 +380,10 @@ def current_document(
         "control_law": schedule.law_at(float(rated.reference[1])).document(),
         "current_schedule": schedule.document(),
         "current_schedule_design": {
-            "levels": [
-                {
-                    "share": level.share,
-                    **level_document(
-                        level.reference,
-                        level.mean_current,
-                        level.theta,
-                        level.standard_errors,
-                        level.learned,
-                    ),
-                }
-                for level in result.levels
-            ],
+            "levels": [_level_entry(level) for level in result.levels],
             "refusals": [{"share": share, "error": text} for share, text in result.refusals],
+            "left_out": [_level_entry(level) for level in result.left_out],
+            "left_out_reason": result.left_out_text,
             "check": check_entry(result.design),
         },
         "true_excess": {
@@ -404,6 +400,21 @@ def current_document(
         "cost": cost_document(settings.Q, settings.R, result.integral_weight),
         "h": settings.h,
         "input_delay": rated.learned.law.history,
+    }
+
+
+def _level_entry(level: CurrentLevel) -> dict[str, Any]:
+    """A commissioned level's entry in ``current_schedule_design``: its share of rated
+    torque and :func:`level_document`'s."""
+    return {
+        "share": level.share,
+        **level_document(
+            level.reference,
+            level.mean_current,
+            level.theta,
+            level.standard_errors,
+            level.learned,
+        ),
     }
 
 
