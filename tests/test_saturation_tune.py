@@ -19,12 +19,14 @@ import pytest
 
 from selftune.cli import main
 from selftune.config import MotorConfig, load_motor_config
+from selftune.errors import ModelMissesEffect
 from selftune.learn import IncrementalStructure
 from selftune.model import IPMSM, RegulationProblem, design_current_schedule
 from selftune.report import evaluate_current_schedule, report_files
 from selftune.sim import DriveSettings, SaturationModel
 from selftune.tuning import commission_over_current, tuning_settings
-from selftune.tuning._saturation import disagreeing_levels, incremental_theta, left_out_text
+from selftune.tuning._resistance import disagreeing_levels, kept_levels, left_out_text
+from selftune.tuning._saturation import incremental_theta
 
 MOTOR = """[motor]
 R_s = 0.3
@@ -317,3 +319,25 @@ def test_a_small_current_motor_leaves_out_the_levels_the_dead_time_misleads() ->
     assert all(level.theta[0] > 1.25 * result.levels[-1].theta[0] for level in result.left_out)
     evaluation = evaluate_current_schedule(result, motor, saturation, settings)
     assert float(np.max(evaluation.schedule_excess)) <= 0.02
+
+
+def test_levels_far_from_the_nameplate_resistance_are_left_out_or_refused() -> None:
+    """With a nameplate, a level whose R_s is beyond twice or half of it is left out too
+    (a 0.74 A motor's 10% level found 2.19 ohm against 0.513, within 5 standard errors of
+    the highest level's); where the highest level is among them (a 0.21 A motor: every
+    level 7-21 times the nameplate's 0.186 ohm), there is no schedule, and the refusal
+    says why. Without a nameplate (learning from logs) only the levels' agreement counts."""
+    names = ["10%", "40%", "70%", "100%"]
+    thetas = np.zeros((4, 6))
+    errors = np.zeros((4, 6))
+    thetas[:, 0] = [2.19, 0.52, 0.50, 0.51]
+    errors[:, 0] = [0.4, 0.01, 0.01, 0.01]
+    assert kept_levels(names, thetas, errors) == ([0, 1, 2, 3], "")
+    kept, why = kept_levels(names, thetas, errors, nameplate=0.513)
+    assert kept == [1, 2, 3] and "10%: 2.19 ohm" in why and "nameplate's 0.513 ohm" in why
+    thetas[:, 0] = [3.86, 3.39, 2.48, 1.29]
+    errors[:, 0] = [0.77, 0.78, 0.85, 0.41]
+    assert kept_levels(names, thetas, errors)[0] == [0, 1, 2, 3]
+    with pytest.raises(ModelMissesEffect, match="too few levels agree on R_s") as refusal:
+        kept_levels(names, thetas, errors, nameplate=0.186)
+    assert "100%: 1.29 ohm" in str(refusal.value)

@@ -50,14 +50,12 @@ from ..report._saturation_report import (
     schedule_check_lines,
 )
 from ..tuning._interior import CURRENT_REFERENCE_F
+from ..tuning._resistance import kept_levels
 from ..tuning._saturation import (
     INDUCTANCE_MOVE,
-    disagreeing_levels,
     incremental_parameters,
     inductances_move,
-    left_out_text,
     schedule_over_levels,
-    too_few_levels,
 )
 
 if TYPE_CHECKING:  # matplotlib is loaded only to draw
@@ -126,7 +124,7 @@ class LearnedLevels:
         :data:`SAME_FLUX`; each level's ``kappa`` is over its own).
     left_out : tuple of LearnedLevel
         Logs learned but left out of the schedule: their R_s disagrees with the highest
-        level's (:func:`~selftune.tuning._saturation.disagreeing_levels`).
+        level's (:func:`~selftune.tuning._resistance.misled_levels`).
     left_out_text : str
         Why ("" when none were).
     """
@@ -412,11 +410,8 @@ def learn_levels(
     names = [level.source for level in learned_levels]
     thetas = np.array([level.theta for level in learned_levels])
     errors = np.array([level.standard_errors for level in learned_levels])
-    left = disagreeing_levels(thetas, errors)
-    if len(left) == len(learned_levels) - 1:
-        raise too_few_levels(names, thetas, errors, left)
-    found = tuple(level for k, level in enumerate(learned_levels) if k not in left)
-    left_out = "" if not left else left_out_text(names, thetas, errors, left)
+    kept, left_out = kept_levels(names, thetas, errors)
+    found = tuple(learned_levels[k] for k in kept)
     problem = learning_problem(config)
     integral_weight = problem.integral_weight if config.integral_action else None
     top = found[-1].learned
@@ -433,5 +428,5 @@ def learn_levels(
     top_data = next(data for path, data in loaded if path == found[-1].source)
     return LearnedLevels(
         config, found, top_data, design, integral_weight, flux,
-        tuple(learned_levels[k] for k in left), left_out,
+        tuple(level for k, level in enumerate(learned_levels) if k not in kept), left_out,
     )  # fmt: skip

@@ -35,7 +35,7 @@ from itertools import pairwise
 import numpy as np
 
 from ..core import Array
-from ..errors import ModelMissesEffect, SelftuneError, TooLittleData
+from ..errors import SelftuneError, TooLittleData
 from ..learn import (
     IncrementalStructure,
     LearnedController,
@@ -55,28 +55,24 @@ from ..model import (
 from ..sim import DriveSettings, RealisticDrive, Saturation, held, uniform
 from ._interior import CURRENT_REFERENCE_F, D_SHARE, check_current_range, current_steps
 from ._learning import learning_options, longer_batch
+from ._resistance import kept_levels
 from ._settings import TuningSettings
 
 __all__ = [
     "INDUCTANCE_MOVE",
     "LEVEL_ATTEMPTS",
     "MAX_LEVELS",
-    "RESISTANCE_SHARE",
-    "RESISTANCE_SPREAD",
     "SETTLE",
     "STEP_SHARE",
     "CurrentCommissioning",
     "CurrentLevel",
     "commission_over_current",
-    "disagreeing_levels",
     "incremental_parameters",
     "incremental_theta",
     "inductances_move",
     "learn_level",
-    "left_out_text",
     "level_log",
     "schedule_over_levels",
-    "too_few_levels",
 ]
 
 #: The steps about each level's current reference, a share of the rated q current: small
@@ -103,20 +99,6 @@ INDUCTANCE_MOVE = 0.05
 
 #: The most levels learned (the initial ones and those added).
 MAX_LEVELS = 9
-
-#: A level whose identified R_s is off the highest level's by more than this share of it
-#: and by more than :data:`RESISTANCE_SPREAD` combined standard errors is left out of the
-#: schedule (:func:`disagreeing_levels`). R_s does not depend on the current, and the
-#: levels are logged within seconds of each other (one temperature); a fit that finds it
-#: 25 % and 5 standard errors away has taken something else for resistance: on a motor
-#: rated 0.29 A (25/75 mH, 540 V, 2 V of dead time, 24 mA ADC steps) the level at 10 % of
-#: rated current, 0.03 A, found 31 ohm against 0.80 (18 standard errors), the inverter's
-#: dead time near zero current acting as a resistance, and the schedule on it cost 78 %
-#: more than the optimum there.
-RESISTANCE_SHARE = 0.25
-
-#: See :data:`RESISTANCE_SHARE`.
-RESISTANCE_SPREAD = 5.0
 
 #: The logs a level may take: a level whose log the learner refuses is logged again
 #: with the next seed (as an engineer reruns a refused experiment), the refusals kept
@@ -178,7 +160,9 @@ class CurrentCommissioning:
         learner's message.
     left_out : tuple of CurrentLevel
         Levels learned but left out of the schedule: their R_s disagrees with the highest
-        level's (:func:`disagreeing_levels`).
+        level's or the nameplate's (:func:`~._resistance.misled_levels`).
+    left_out_text : str
+        Why ("" when none were).
     """
 
     levels: tuple[CurrentLevel, ...]
@@ -186,17 +170,7 @@ class CurrentCommissioning:
     integral_weight: Array | None
     refusals: tuple[tuple[float, str], ...] = ()
     left_out: tuple[CurrentLevel, ...] = ()
-
-    @property
-    def left_out_text(self) -> str:
-        """Why :attr:`left_out` were left out ("" when none were)."""
-        if not self.left_out:
-            return ""
-        every = sorted((*self.levels, *self.left_out), key=lambda level: level.reference[1])
-        thetas = np.array([level.theta for level in every])
-        errors = np.array([level.standard_errors for level in every])
-        rows = [k for k, level in enumerate(every) if any(level is out for out in self.left_out)]
-        return left_out_text([f"{level.share:.0%}" for level in every], thetas, errors, rows)
+    left_out_text: str = ""
 
 
 def incremental_theta(saturation: Saturation, R_s: float, current: Array, flux: float) -> Array:
@@ -333,70 +307,6 @@ def incremental_parameters(learned: LearnedController, flux: float) -> tuple[Arr
     values[4:] /= flux
     errors[4:] /= flux
     return values, errors
-
-
-def disagreeing_levels(thetas: Array, errors: Array) -> list[int]:
-    """The levels whose identified R_s disagrees with the highest level's (the last):
-    off by more than :data:`RESISTANCE_SHARE` of it and :data:`RESISTANCE_SPREAD`
-    combined standard errors.
-
-    Parameters
-    ----------
-    thetas, errors : ndarray, shape (g, 6)
-        The levels' parameters (:func:`incremental_parameters`) and standard errors, by
-        rising ``i_q*``.
-
-    Returns
-    -------
-    list of int
-        Their rows.
-    """
-    R_s, se = thetas[:, 0], errors[:, 0]
-    gap = np.abs(R_s - R_s[-1])
-    bound = np.maximum(RESISTANCE_SPREAD * np.hypot(se, se[-1]), RESISTANCE_SHARE * abs(R_s[-1]))
-    return [int(k) for k in np.flatnonzero(gap[:-1] > bound[:-1])]
-
-
-def left_out_text(names: Sequence[str], thetas: Array, errors: Array, left: Sequence[int]) -> str:
-    """What :func:`disagreeing_levels` found, in one sentence.
-
-    Parameters
-    ----------
-    names : sequence of str
-        Each level's name (its share of rated torque, or its log).
-    thetas, errors : ndarray, shape (g, 6)
-        The levels' parameters and standard errors.
-    left : sequence of int
-        The rows left out.
-    """
-    top, top_se = thetas[-1, 0], errors[-1, 0]
-    found = ", ".join(
-        f"{names[k]}: {thetas[k, 0]:.4g} ohm "
-        f"({abs(thetas[k, 0] - top) / np.hypot(errors[k, 0], top_se):.1f} standard errors)"
-        for k in left
-    )
-    return (
-        f"left out of the schedule, their R_s far from the {top:.4g} ohm of the highest level "
-        f"({found}); R_s does not depend on the current: the fit took something else for "
-        "resistance there, most likely the inverter's dead time near zero current (larger "
-        "currents, a finer ADC or dead-time compensation help)"
-    )
-
-
-def too_few_levels(
-    names: Sequence[str], thetas: Array, errors: Array, left: Sequence[int]
-) -> ModelMissesEffect:
-    """The refusal when no level but the highest agrees with it on R_s (arguments as
-    :func:`left_out_text`'s)."""
-    spread = float(
-        np.max(np.abs(thetas[left, 0] - thetas[-1, 0]) / np.hypot(errors[left, 0], errors[-1, 0]))
-    )
-    return ModelMissesEffect(
-        "only the highest level is left for a schedule: the others were "
-        + left_out_text(names, thetas, errors, left).removeprefix("left out of the schedule, "),
-        statistic=spread, threshold=RESISTANCE_SPREAD,
-        causes=("the inverter's dead time near zero current", "a coarse ADC"),
-    )  # fmt: skip
 
 
 def inductances_move(low: Array, high: Array) -> bool:
@@ -542,17 +452,12 @@ def commission_over_current(
         a, b = moving[0]
         levels[0.5 * (a + b)] = learned(0.5 * (a + b))
     learned_levels = tuple(levels[share] for share in sorted(levels))
-    left = disagreeing_levels(
-        np.array([level.theta for level in learned_levels]),
-        np.array([level.standard_errors for level in learned_levels]),
-    )
-    found = tuple(level for k, level in enumerate(learned_levels) if k not in left)
-    if len(found) < 2:
-        raise too_few_levels(
-            [f"{level.share:.0%}" for level in learned_levels],
-            np.array([level.theta for level in learned_levels]),
-            np.array([level.standard_errors for level in learned_levels]), left,
-        )  # fmt: skip
+    names = [f"{level.share:.0%}" for level in learned_levels]
+    kept, why = kept_levels(
+        names, np.array([level.theta for level in learned_levels]),
+        np.array([level.standard_errors for level in learned_levels]), motor.R_s,
+    )  # fmt: skip
+    found = tuple(learned_levels[k] for k in kept)
     currents = np.array([level.reference[1] for level in found])
     thetas = np.array([level.theta for level in found])
     structure = IncrementalStructure(w_e, settings.h, False, drive.voltage_hold)
@@ -561,7 +466,5 @@ def commission_over_current(
         currents, thetas, structure, settings.Q, settings.R,
         input_delay=found[-1].learned.law.history, integral_weight=integral_weight,
     )  # fmt: skip
-    return CurrentCommissioning(
-        found, design, integral_weight, tuple(refusals),
-        tuple(learned_levels[k] for k in left),
-    )  # fmt: skip
+    left_out = tuple(level for k, level in enumerate(learned_levels) if k not in kept)
+    return CurrentCommissioning(found, design, integral_weight, tuple(refusals), left_out, why)
