@@ -322,22 +322,31 @@ def test_a_small_current_motor_leaves_out_the_levels_the_dead_time_misleads() ->
 
 
 def test_levels_far_from_the_nameplate_resistance_are_left_out_or_refused() -> None:
-    """With a nameplate, a level whose R_s is beyond twice or half of it is left out too
-    (a 0.74 A motor's 10% level found 2.19 ohm against 0.513, within 5 standard errors of
-    the highest level's); where the highest level is among them (a 0.21 A motor: every
-    level 7-21 times the nameplate's 0.186 ohm), there is no schedule, and the refusal
-    says why. Without a nameplate (learning from logs) only the levels' agreement counts."""
+    """With a nameplate, a level whose R_s is beyond twice or half of it, by enough to move
+    the sampled plant's pole 1%, is left out too (a 0.74 A motor's 10% level found 2.19 ohm
+    against 0.513, within 5 standard errors of the highest level's); where the highest
+    level is among them (a 0.21 A motor: every level 7-21 times the nameplate's 0.186 ohm),
+    there is no schedule, and the refusal says why; a gap that moves the pole 0.4% counts
+    for nothing. Without a nameplate (learning from logs) only the levels' agreement
+    counts."""
     names = ["10%", "40%", "70%", "100%"]
     thetas = np.zeros((4, 6))
     errors = np.zeros((4, 6))
     thetas[:, 0] = [2.19, 0.52, 0.50, 0.51]
+    thetas[:, 1:3] = 3.9e-3  # H: at 10 kHz the 10% level's R_s moves the pole by 4.3%
     errors[:, 0] = [0.4, 0.01, 0.01, 0.01]
     assert kept_levels(names, thetas, errors) == ([0, 1, 2, 3], "")
-    kept, why = kept_levels(names, thetas, errors, nameplate=0.513)
+    kept, why = kept_levels(names, thetas, errors, nameplate=0.513, h=1e-4)
     assert kept == [1, 2, 3] and "10%: 2.19 ohm" in why and "nameplate's 0.513 ohm" in why
     thetas[:, 0] = [3.86, 3.39, 2.48, 1.29]
+    thetas[:, 1:3] = 4.1e-3
     errors[:, 0] = [0.77, 0.78, 0.85, 0.41]
     assert kept_levels(names, thetas, errors)[0] == [0, 1, 2, 3]
     with pytest.raises(ModelMissesEffect, match="too few levels agree on R_s") as refusal:
-        kept_levels(names, thetas, errors, nameplate=0.186)
+        kept_levels(names, thetas, errors, nameplate=0.186, h=1e-4)
     assert "100%: 1.29 ohm" in str(refusal.value)
+    # twice the nameplate's R_s on a 40 uH motor moves the pole by 0.4%: kept
+    thetas[:, 0] = [3.3e-3, 3.2e-3, 3.3e-3, 3.26e-3]
+    thetas[:, 1:3] = 40e-6
+    errors[:, 0] = 1e-4
+    assert kept_levels(names, thetas, errors, nameplate=1.5e-3, h=1e-4) == ([0, 1, 2, 3], "")

@@ -22,6 +22,7 @@ from ..errors import ModelMissesEffect
 
 __all__ = [
     "NAMEPLATE_RESISTANCE",
+    "NAMEPLATE_SHIFT",
     "RESISTANCE_SHARE",
     "RESISTANCE_SPREAD",
     "disagreeing_levels",
@@ -47,11 +48,19 @@ RESISTANCE_SHARE = 0.25
 RESISTANCE_SPREAD = 5.0
 
 #: A level whose R_s is beyond this factor of the nameplate's (either way) is left out in a
-#: commissioning (:func:`far_from_nameplate`): a winding's resistance moves by about 40 %
-#: from 20 to 120 degrees C. On a 4.2/8.4 mH motor rated 0.21 A on 540 V (2 V of dead
-#: time, 50 times the resistive drop at rated current) every level found 7-21 times the
-#: truth, within 5 standard errors of each other, and the schedule was 3.6 % off.
+#: commissioning (:func:`far_from_nameplate`), where the gap moves the sampled plant by
+#: more than :data:`NAMEPLATE_SHIFT`: a winding's resistance moves by about 40 % from 20 to
+#: 120 degrees C. On a 4.2/8.4 mH motor rated 0.21 A on 540 V (2 V of dead time, 50 times
+#: the resistive drop at rated current) every level found 7-21 times the truth, within 5
+#: standard errors of each other, and the schedule was 3.6 % off.
 NAMEPLATE_RESISTANCE = 2.0
+
+#: The least gap ``|R_s - nameplate| h / L`` (the sampled plant's pole moved by about that
+#: share) that :func:`far_from_nameplate` counts: below it the law barely depends on R_s.
+#: On a 40/80 uH motor on 48 V the highest level found R_s 2 times off the nameplate's
+#: (3.3 mOhm), a gap of 0.4 % of the pole, and the schedule was within 0.021 %; the 0.21 A
+#: motor's levels were 2.7-9 % off.
+NAMEPLATE_SHIFT = 0.01
 
 
 def disagreeing_levels(thetas: Array, errors: Array) -> list[int]:
@@ -76,16 +85,21 @@ def disagreeing_levels(thetas: Array, errors: Array) -> list[int]:
     return [int(k) for k in np.flatnonzero(gap[:-1] > bound[:-1])]
 
 
-def far_from_nameplate(thetas: Array, nameplate: float | None) -> list[int]:
+def far_from_nameplate(thetas: Array, nameplate: float | None, h: float) -> list[int]:
     """The levels whose R_s is beyond :data:`NAMEPLATE_RESISTANCE` times the nameplate's
-    or below its inverse (none without a nameplate).
+    or below its inverse, by enough to move the sampled plant: ``|R_s - nameplate| h /
+    L`` beyond :data:`NAMEPLATE_SHIFT` (L the smaller incremental inductance; none
+    without a nameplate).
 
     Parameters
     ----------
     thetas : ndarray, shape (g, 6)
-        The levels' parameters (``theta[:, 0]``: R_s, ohm).
+        The levels' parameters (``theta[:, 0]``: R_s, ohm; ``theta[:, 1:3]``: the
+        inductances, H).
     nameplate : float or None
         The nameplate's R_s, ohm (None: not known, as from a drive's logs alone).
+    h : float
+        Sampling period, s.
 
     Returns
     -------
@@ -95,11 +109,16 @@ def far_from_nameplate(thetas: Array, nameplate: float | None) -> list[int]:
     if nameplate is None:
         return []
     ratio = thetas[:, 0] / nameplate
-    far = (ratio > NAMEPLATE_RESISTANCE) | (ratio < 1.0 / NAMEPLATE_RESISTANCE)
+    shift = np.abs(thetas[:, 0] - nameplate) * h / np.min(thetas[:, 1:3], axis=1)
+    far = ((ratio > NAMEPLATE_RESISTANCE) | (ratio < 1.0 / NAMEPLATE_RESISTANCE)) & (
+        shift > NAMEPLATE_SHIFT
+    )
     return [int(k) for k in np.flatnonzero(far)]
 
 
-def misled_levels(thetas: Array, errors: Array, nameplate: float | None = None) -> list[int]:
+def misled_levels(
+    thetas: Array, errors: Array, nameplate: float | None = None, h: float = 0.0
+) -> list[int]:
     """The levels left out of a schedule: those whose R_s disagrees with the highest
     level's (:func:`disagreeing_levels`) or is far from the nameplate's
     (:func:`far_from_nameplate`).
@@ -110,13 +129,16 @@ def misled_levels(thetas: Array, errors: Array, nameplate: float | None = None) 
         The levels' parameters and standard errors, by rising ``i_q*``.
     nameplate : float, optional
         The nameplate's R_s, ohm.
+    h : float
+        Sampling period, s (with ``nameplate``).
 
     Returns
     -------
     list of int
         Their rows, rising.
     """
-    return sorted({*disagreeing_levels(thetas, errors), *far_from_nameplate(thetas, nameplate)})
+    far = far_from_nameplate(thetas, nameplate, h)
+    return sorted({*disagreeing_levels(thetas, errors), *far})
 
 
 def left_out_text(
@@ -148,7 +170,7 @@ def left_out_text(
         ""
         if nameplate is None
         else f" or beyond {NAMEPLATE_RESISTANCE:g} times the nameplate's {nameplate:.4g} ohm "
-        "either way"
+        "either way (by enough to move the sampled plant)"
     )
     return (
         f"left out of the schedule, their R_s far from the {top:.4g} ohm of the highest level"
@@ -173,8 +195,9 @@ def too_few_levels(
 
 
 def kept_levels(
-    names: Sequence[str], thetas: Array, errors: Array, nameplate: float | None = None
-) -> tuple[list[int], str]:
+    names: Sequence[str], thetas: Array, errors: Array, nameplate: float | None = None,
+    h: float = 0.0,
+) -> tuple[list[int], str]:  # fmt: skip
     """The levels a schedule is designed on and why the others were left out
     (:func:`misled_levels`; "" when none were).
 
@@ -182,6 +205,8 @@ def kept_levels(
     ----------
     names, thetas, errors, nameplate
         As :func:`left_out_text` takes them.
+    h : float
+        Sampling period, s (with ``nameplate``).
 
     Returns
     -------
@@ -195,7 +220,7 @@ def kept_levels(
     ModelMissesEffect
         Fewer than two levels kept, or the highest left out (:func:`too_few_levels`).
     """
-    left = misled_levels(thetas, errors, nameplate)
+    left = misled_levels(thetas, errors, nameplate, h)
     kept = [k for k in range(len(names)) if k not in left]
     if len(kept) < 2 or len(names) - 1 in left:
         raise too_few_levels(names, thetas, errors, left, nameplate)

@@ -455,7 +455,7 @@ def commission_over_current(
     names = [f"{level.share:.0%}" for level in learned_levels]
     kept, why = kept_levels(
         names, np.array([level.theta for level in learned_levels]),
-        np.array([level.standard_errors for level in learned_levels]), motor.R_s,
+        np.array([level.standard_errors for level in learned_levels]), motor.R_s, settings.h,
     )  # fmt: skip
     found = tuple(learned_levels[k] for k in kept)
     currents = np.array([level.reference[1] for level in found])
