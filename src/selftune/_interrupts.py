@@ -19,7 +19,9 @@ from .errors import INTERRUPTED
 __all__ = ["Interrupts", "caused_by_interrupt", "despite_interrupts"]
 
 
-def despite_interrupts(cleanup: Callable[[], None], attempts: int = 5) -> None:
+def despite_interrupts(
+    cleanup: Callable[[], None], left: Callable[[], bool] | None = None, attempts: int = 5
+) -> None:
     """Run ``cleanup`` to its end even if KeyboardInterrupts land in it, then raise the
     first of them.
 
@@ -33,6 +35,11 @@ def despite_interrupts(cleanup: Callable[[], None], attempts: int = 5) -> None:
     ----------
     cleanup : callable
         The removal (idempotent: it is run again if interrupted).
+    left : callable, optional
+        Whether something is left to remove: the removal is run again while it is (a
+        removal that ignores its errors, ``shutil.rmtree(path, True)``, can leave part of
+        a tree when an interrupt lands in its walk: once in a CI run of that test, after
+        "Bad file descriptor").
     attempts : int
         How many times it is tried.
     """
@@ -40,7 +47,8 @@ def despite_interrupts(cleanup: Callable[[], None], attempts: int = 5) -> None:
     for _ in range(attempts):
         try:
             cleanup()
-            break
+            if left is None or not left():
+                break
         except KeyboardInterrupt as interrupt:
             pending = pending or interrupt
     if pending is not None:

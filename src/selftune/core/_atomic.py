@@ -520,19 +520,8 @@ def output_directory(
                 os.rename(temporary, target)
     except BaseException:
         if temporary != target:
-            despite_interrupts(lambda: _remove_tree(temporary))
+            despite_interrupts(lambda: shutil.rmtree(temporary, True), temporary.exists)
         raise
-
-
-def _remove_tree(path: Path, attempts: int = 3) -> None:
-    """Remove a temporary directory and what it holds, again while it is still there: an
-    interrupt inside the walk can leave part of it behind with its error ignored (once in
-    a CI run of the test of a Ctrl-C swallowed by a callback, after "Bad file
-    descriptor")."""
-    for _ in range(attempts):
-        shutil.rmtree(path, ignore_errors=True)
-        if not os.path.lexists(path):
-            return
 
 
 def write_text(path: str | os.PathLike[str], text: str) -> None:
