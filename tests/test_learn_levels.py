@@ -24,8 +24,8 @@ from selftune.learn.data._io import save_trajectory
 from selftune.model import excess_over
 from selftune.report._saturation_report import judged_references, true_current_optima
 from selftune.tuning import tuning_settings
-from selftune.tuning._saturation import incremental_theta, level_log
-from test_saturation_tune import DRIVE, SATURATION, check_recomputed
+from selftune.tuning._saturation import level_log
+from test_saturation_tune import DRIVE, SATURATION, check_inductances, check_recomputed
 from test_saturation_tune import MOTOR as NAMEPLATE
 
 #: The saturating motor and drive of ``selftune tune``'s test.
@@ -97,14 +97,7 @@ def test_learn_schedules_a_saturating_motor_over_its_logs_current_levels(
     ]  # fmt: skip
     motor = load_motor_config(tmp_path / "motor.toml")
     assert motor.saturation is not None
-    for level in levels:
-        truth = incremental_theta(
-            motor.saturation, motor.motor.R_s, np.array(level["mean_current"]),
-            motor.motor.phi_pm,
-        )  # fmt: skip
-        for k in (1, 2):
-            error = level["theta"][k] - truth[k]
-            assert abs(error) <= 4.0 * level["theta_se"][k], (level["source"], k)
+    check_inductances(levels, motor.saturation, motor.motor, "source")
 
     # the schedule from the file alone: the levels' models, speed, period, delay, cost
     h, cost = design["h"], design["cost"]

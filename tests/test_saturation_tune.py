@@ -23,7 +23,7 @@ from selftune.errors import ModelMissesEffect
 from selftune.learn import IncrementalStructure
 from selftune.model import IPMSM, RegulationProblem, design_current_schedule
 from selftune.report import evaluate_current_schedule, report_files
-from selftune.sim import DriveSettings, SaturationModel
+from selftune.sim import DriveSettings, Saturation, SaturationModel
 from selftune.tuning import commission_over_current, tuning_settings
 from selftune.tuning._resistance import disagreeing_levels, kept_levels, left_out_text
 from selftune.tuning._saturation import incremental_theta
@@ -80,19 +80,26 @@ def test_tune_schedules_a_saturating_motor_over_its_current(
     assert config.saturation is not None
     design = document["current_schedule_design"]
     levels = design["levels"]
-    for level in levels:
-        truth = incremental_theta(
-            config.saturation, config.motor.R_s, np.array(level["mean_current"]),
-            config.motor.phi_pm,
-        )  # fmt: skip
-        for k in (1, 2):
-            error = level["theta"][k] - truth[k]
-            assert abs(error) <= 4.0 * level["theta_se"][k], (level["share"], k)
+    check_inductances(levels, config.saturation, config.motor, "share")
     structure = IncrementalStructure(
         config.motor.p * config.speed, document["h"], False,
         document["drive"]["settings"]["voltage_hold"],
     )  # fmt: skip
     check_recomputed(document, levels, structure, document["cost"], document["input_delay"])
+
+
+def check_inductances(
+    levels: list[dict[str, Any]], saturation: Saturation, motor: IPMSM, name: str
+) -> None:
+    """Every level's identified L_dd, L_qq within 4 standard errors of the truth at its
+    mean current (a failure names the level by its key ``name``)."""
+    for level in levels:
+        truth = incremental_theta(
+            saturation, motor.R_s, np.array(level["mean_current"]), motor.phi_pm
+        )
+        for k in (1, 2):
+            error = level["theta"][k] - truth[k]
+            assert abs(error) <= 4.0 * level["theta_se"][k], (level[name], k)
 
 
 def check_recomputed(
