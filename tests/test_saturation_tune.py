@@ -24,7 +24,7 @@ from selftune.learn import IncrementalStructure
 from selftune.model import IPMSM, RegulationProblem, design_current_schedule
 from selftune.report import evaluate_current_schedule, report_files
 from selftune.sim import DriveSettings, Saturation, SaturationModel
-from selftune.tuning import commission_over_current, tuning_settings
+from selftune.tuning import TuningSettings, commission_over_current, tuning_settings
 from selftune.tuning._resistance import disagreeing_levels, kept_levels, left_out_text
 from selftune.tuning._saturation import incremental_theta
 
@@ -100,6 +100,22 @@ def check_inductances(
         for k in (1, 2):
             error = level["theta"][k] - truth[k]
             assert abs(error) <= 4.0 * level["theta_se"][k], (level[name], k)
+
+
+def saturating_case(
+    motor: IPMSM, drive: DriveSettings, speed: float, torque: float, seed: int, share: float,
+    drop: float,
+) -> tuple[TuningSettings, SaturationModel]:  # fmt: skip
+    """The settings of a commissioning at ``speed`` (rad/s) with rated ``torque`` (N m) and
+    integral action, and the motor's saturation at ``share`` of its rated q current with
+    ``drop`` (cross-saturation 0.1)."""
+    config = MotorConfig(
+        motor=motor, speed=speed, torque=torque, drive=drive, drive_h=1e-4,
+        learning={"integral_action": True}, source=f"{type(motor).__name__} saturating",
+    )  # fmt: skip
+    rated = float(motor.current_reference(torque)[1])
+    saturation = SaturationModel.of(motor, i_sat=share * rated, drop=drop, cross=0.1)
+    return tuning_settings(config, seed), saturation
 
 
 def check_recomputed(
@@ -314,13 +330,7 @@ def test_a_small_current_motor_leaves_out_the_levels_the_dead_time_misleads() ->
     10% (docs/saturation.md)."""
     motor = IPMSM(R_s=0.8, L_d=25e-3, L_q=75e-3, phi_pm=0.26, p=2)
     drive = replace(DriveSettings.hardware_like(dc_voltage=540.0), pwm="average")
-    config = MotorConfig(
-        motor=motor, speed=105.0, torque=0.23, drive=drive, drive_h=1e-4,
-        learning={"integral_action": True}, source="small-current motor",
-    )  # fmt: skip
-    settings = tuning_settings(config, 113)
-    rated = float(motor.current_reference(0.23)[1])
-    saturation = SaturationModel.of(motor, i_sat=0.57 * rated, drop=0.25, cross=0.1)
+    settings, saturation = saturating_case(motor, drive, 105.0, 0.23, 113, 0.57, 0.25)
     result = commission_over_current(motor, saturation, settings, drive, seed=113)
     assert result.left_out and "R_s far from" in result.left_out_text
     assert all(level.theta[0] > 1.25 * result.levels[-1].theta[0] for level in result.left_out)

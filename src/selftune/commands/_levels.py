@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import pairwise
 from typing import TYPE_CHECKING, Any
 
@@ -56,6 +56,7 @@ from ..tuning._saturation import (
     incremental_parameters,
     inductances_move,
     schedule_over_levels,
+    with_curvature,
 )
 
 if TYPE_CHECKING:  # matplotlib is loaded only to draw
@@ -93,6 +94,11 @@ class LearnedLevel:
         (:func:`~selftune.tuning._saturation.incremental_parameters`).
     learned : LearnedController
         The law learned on the log, with its verdict.
+    current_spread : ndarray, shape (2,)
+        The log's standard deviation of ``[i_d, i_q]``, A.
+    curvature_errors : ndarray, shape (3,)
+        The part of the inductances' standard errors that is their curvature over the
+        log's currents, H (:func:`~selftune.tuning._saturation.curvature_errors`).
     """
 
     source: str
@@ -101,6 +107,8 @@ class LearnedLevel:
     theta: Array
     standard_errors: Array
     learned: LearnedController
+    current_spread: Array
+    curvature_errors: Array = field(default_factory=lambda: np.zeros(3))
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,13 +169,7 @@ class LearnedLevels:
             f"Saturating PM motor learned at {len(self.levels)} current levels with the "
             f"incremental structure at omega_e = {speed:g} rad/s; the law above is the one "
             "at the highest",
-            *level_table(
-                "log",
-                [
-                    (level.source, level.reference, level.theta, level.standard_errors)
-                    for level in self.levels
-                ],
-            ),
+            *level_table("log", [level.source for level in self.levels], self.levels),
             *schedule_check_lines(self.design),
             *([f"  note: logs {self.left_out_text}"] if self.left_out else []),
         ]
@@ -226,6 +228,8 @@ def _entry(level: LearnedLevel) -> dict[str, Any]:
             level.theta,
             level.standard_errors,
             level.learned,
+            level.current_spread,
+            level.curvature_errors,
         ),
     }
 
@@ -402,16 +406,15 @@ def learn_levels(
         learned = learn_with_config(data, config, path)
         reference, w1 = _level_of(data, speed, path)
         theta, errors = incremental_parameters(learned, w1 / speed)  # the fit's own kappa
-        levels.append(
-            LearnedLevel(path, reference, np.mean(data.x, axis=0), theta, errors, learned)
-        )
+        mean, spread = np.mean(data.x, axis=0), np.std(data.x, axis=0)
+        levels.append(LearnedLevel(path, reference, mean, theta, errors, learned, spread))
     order = np.argsort([level.reference[1] for level in levels])
     learned_levels = [levels[index] for index in order]
     names = [level.source for level in learned_levels]
     thetas = np.array([level.theta for level in learned_levels])
     errors = np.array([level.standard_errors for level in learned_levels])
     kept, left_out = kept_levels(names, thetas, errors)
-    found = tuple(learned_levels[k] for k in kept)
+    found = with_curvature([learned_levels[k] for k in kept])
     problem = learning_problem(config)
     integral_weight = problem.integral_weight if config.integral_action else None
     top = found[-1].learned

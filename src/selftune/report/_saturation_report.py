@@ -33,7 +33,12 @@ from ..model import (
 from ..sim import DriveSettings, FluxMap, Saturation
 from ..tuning import TuningSettings
 from ..tuning._interior import CURRENT_REFERENCE_F
-from ..tuning._saturation import CurrentCommissioning, CurrentLevel, incremental_theta
+from ..tuning._saturation import (
+    CurrentCommissioning,
+    CurrentLevel,
+    LevelFields,
+    incremental_theta,
+)
 from ._schedule_figure import figure_schedule
 from ._tune_report import drive_text
 
@@ -42,6 +47,7 @@ if TYPE_CHECKING:  # matplotlib is loaded only to draw
 
 __all__ = [
     "CURRENTS",
+    "CURVATURE_NOTE",
     "CurrentEvaluation",
     "check_entry",
     "current_document",
@@ -57,6 +63,11 @@ __all__ = [
 
 #: The currents judged between 10 % and 100 % of rated torque.
 CURRENTS = 24
+
+#: The levels' table notes the curvature's part of the inductances' standard errors where
+#: it is more than this many times the noise's at some level (the fit's average over the
+#: log's currents then differs from the value at the level by more than the noise shows).
+CURVATURE_NOTE = 1.0
 
 #: The identified incremental inductances' names (``theta[1:4]``).
 INDUCTANCES = ("L_dd", "L_qq", "L_dq")
@@ -213,11 +224,7 @@ def current_lines(
         f"{len(result.levels)} current levels learned with the incremental structure"
         + (f" ({len(result.refusals)} logs refused and logged again)" if result.refusals else ""),
         *level_table(
-            "share of rated",
-            [
-                (f"{level.share:.0%}", level.reference, level.theta, level.standard_errors)
-                for level in result.levels
-            ],
+            "share of rated", [f"{level.share:.0%}" for level in result.levels], result.levels
         ),
         *schedule_check_lines(result.design),
         *([f"  note: levels {result.left_out_text}"] if result.left_out else []),
@@ -235,27 +242,49 @@ def current_lines(
     return lines
 
 
-def level_table(title: str, rows: Sequence[tuple[str, Array, Array, Array]]) -> list[str]:
+def level_table(title: str, names: Sequence[str], levels: Sequence[LevelFields]) -> list[str]:
     """The levels' identified incremental inductances, a line each (after a blank line
-    and the header).
+    and the header), and a note where their curvature over the logs' currents is more
+    of their standard errors than the noise (:data:`CURVATURE_NOTE`).
 
     Parameters
     ----------
     title : str
         The first column's header (what names a level).
-    rows : sequence of (str, ndarray, ndarray, ndarray)
-        Each level's name, ``[i_d*, i_q*]`` (A), identified ``theta`` and its standard
-        errors (:func:`~selftune.tuning._saturation.incremental_parameters`).
+    names : sequence of str
+        Each level's name.
+    levels : sequence of CurrentLevel or LearnedLevel
+        Each level's ``[i_d*, i_q*]`` (A), identified ``theta`` and its standard errors
+        (:func:`~selftune.tuning._saturation.incremental_parameters`, the curvature's
+        included: :func:`~selftune.tuning._saturation.with_curvature`).
     """
-    width = max(len(title), *(len(name) for name, _, _, _ in rows))
+    width = max(len(title), *(len(name) for name in names))
     lines = [
         "",
         f"  {title:>{width}}  i_d* (A)  i_q* (A)"
         + "".join(f"{name + ' (H) +- se':>22}" for name in INDUCTANCES),
     ]
-    for name, reference, theta, errors in rows:
+    for name, level in zip(names, levels, strict=True):
+        theta, errors, reference = level.theta, level.standard_errors, level.reference
         values = "".join(f"{theta[k]:12.4g} +-{errors[k]:7.1g}" for k in (1, 2, 3))
         lines.append(f"  {name:>{width}}  {reference[0]:8.4g}  {reference[1]:8.4g}" + values)
+    noise = [
+        np.sqrt(np.maximum(level.standard_errors[1:4] ** 2 - level.curvature_errors**2, 0.0))
+        for level in levels
+    ]
+    ratios = [
+        float(np.max(level.curvature_errors / np.maximum(own, np.finfo(float).tiny)))
+        for level, own in zip(levels, noise, strict=True)
+    ]
+    worst = int(np.argmax(ratios))
+    if ratios[worst] > CURVATURE_NOTE:
+        lines.append(
+            f"  note: the inductances' standard errors include their curvature over each "
+            f"log's currents, up to {ratios[worst]:.2g} times the noise's (at {names[worst]}, "
+            f"where the log's i_q spreads by {levels[worst].current_spread[1]:.3g} A): the fit "
+            "finds the inductances averaged over its log's currents; a smaller exploration "
+            "and smaller steps about each level would find them nearer the level"
+        )
     return lines
 
 
@@ -315,10 +344,17 @@ def current_schedule_figure(
 
 
 def level_document(
-    reference: Array, mean_current: Array, theta: Array, errors: Array, learned: LearnedController
+    reference: Array,
+    mean_current: Array,
+    theta: Array,
+    errors: Array,
+    learned: LearnedController,
+    spread: Array,
+    curvature: Array,
 ) -> dict[str, Any]:
     """A level's entry in ``current_schedule_design``: its reference, the log's mean
-    current, the identified incremental model with its standard errors and names, and the
+    current and spread, the identified incremental model with its standard errors and
+    names, the part of the inductances' that is their curvature over the log, and the
     learner's verdict.
 
     Parameters
@@ -331,14 +367,21 @@ def level_document(
         The identified parameters and their standard errors.
     learned : LearnedController
         The law learned on the level's log, with its verdict.
+    spread : ndarray, shape (2,)
+        The log's standard deviation of ``[i_d, i_q]``, A.
+    curvature : ndarray, shape (3,)
+        The part of the standard errors of ``[L_dd, L_qq, L_dq]`` that is their curvature
+        over the log's currents, H (:func:`~selftune.tuning._saturation.curvature_errors`).
     """
     return {
         "i_d": float(reference[0]),
         "i_q": float(reference[1]),
         "mean_current": mean_current,
+        "current_spread": spread,
         "theta": theta,
         "theta_se": errors,
         "theta_names": ["R_s", *INDUCTANCES, "kappa", "kappa_q"],
+        "inductance_curvature_se": curvature,
         "quality": learned.verdict,
     }
 
@@ -414,6 +457,8 @@ def _level_entry(level: CurrentLevel) -> dict[str, Any]:
             level.theta,
             level.standard_errors,
             level.learned,
+            level.current_spread,
+            level.curvature_errors,
         ),
     }
 
