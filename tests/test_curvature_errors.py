@@ -3,7 +3,7 @@
 A level's fit finds the inductances averaged over its log's currents; where the log
 spreads the current over a good part of the saturation's scale, that average is off the
 value at the mean current by more than the noise's standard error
-(:func:`selftune.tuning._saturation.curvature_errors`).
+(:func:`selftune.tuning._curvature.curvature_errors`).
 """
 
 from __future__ import annotations
@@ -18,13 +18,8 @@ from selftune.core import Array
 from selftune.model import IPMSM
 from selftune.report._saturation_report import level_table
 from selftune.sim import DriveSettings
-from selftune.tuning._saturation import (
-    CurrentLevel,
-    curvature_errors,
-    incremental_theta,
-    learn_level,
-    with_curvature,
-)
+from selftune.tuning._curvature import curvature_errors, with_curvature
+from selftune.tuning._saturation import CurrentLevel, incremental_theta, learn_level
 from test_saturation_tune import saturating_case
 
 

@@ -49,6 +49,7 @@ from ..report._saturation_report import (
     level_table,
     schedule_check_lines,
 )
+from ..tuning._curvature import with_curvature
 from ..tuning._interior import CURRENT_REFERENCE_F
 from ..tuning._resistance import kept_levels
 from ..tuning._saturation import (
@@ -56,7 +57,6 @@ from ..tuning._saturation import (
     incremental_parameters,
     inductances_move,
     schedule_over_levels,
-    with_curvature,
 )
 
 if TYPE_CHECKING:  # matplotlib is loaded only to draw
@@ -98,7 +98,7 @@ class LearnedLevel:
         The log's standard deviation of ``[i_d, i_q]``, A.
     curvature_errors : ndarray, shape (3,)
         The part of the inductances' standard errors that is their curvature over the
-        log's currents, H (:func:`~selftune.tuning._saturation.curvature_errors`).
+        log's currents, H (:func:`~selftune.tuning._curvature.curvature_errors`).
     """
 
     source: str

@@ -32,11 +32,11 @@ from ..model import (
 )
 from ..sim import DriveSettings, FluxMap, Saturation
 from ..tuning import TuningSettings
+from ..tuning._curvature import LevelFields
 from ..tuning._interior import CURRENT_REFERENCE_F
 from ..tuning._saturation import (
     CurrentCommissioning,
     CurrentLevel,
-    LevelFields,
     incremental_theta,
 )
 from ._schedule_figure import figure_schedule
@@ -227,7 +227,7 @@ def current_lines(
             "share of rated", [f"{level.share:.0%}" for level in result.levels], result.levels
         ),
         *schedule_check_lines(result.design),
-        *([f"  note: levels {result.left_out_text}"] if result.left_out else []),
+        *([f"  note: levels {result.left_out_text}"] if result.left_out_text else []),
     ]
     rated, low = evaluation.rated_excess, evaluation.low_excess
     lines += [
@@ -256,7 +256,7 @@ def level_table(title: str, names: Sequence[str], levels: Sequence[LevelFields])
     levels : sequence of CurrentLevel or LearnedLevel
         Each level's ``[i_d*, i_q*]`` (A), identified ``theta`` and its standard errors
         (:func:`~selftune.tuning._saturation.incremental_parameters`, the curvature's
-        included: :func:`~selftune.tuning._saturation.with_curvature`).
+        included: :func:`~selftune.tuning._curvature.with_curvature`).
     """
     width = max(len(title), *(len(name) for name in names))
     lines = [
@@ -371,7 +371,7 @@ def level_document(
         The log's standard deviation of ``[i_d, i_q]``, A.
     curvature : ndarray, shape (3,)
         The part of the standard errors of ``[L_dd, L_qq, L_dq]`` that is their curvature
-        over the log's currents, H (:func:`~selftune.tuning._saturation.curvature_errors`).
+        over the log's currents, H (:func:`~selftune.tuning._curvature.curvature_errors`).
     """
     return {
         "i_d": float(reference[0]),
@@ -427,6 +427,7 @@ def current_document(
             "refusals": [{"share": share, "error": text} for share, text in result.refusals],
             "left_out": [_level_entry(level) for level in result.left_out],
             "left_out_reason": result.left_out_text,
+            "unlearned": list(result.unlearned),
             "check": check_entry(result.design),
         },
         "true_excess": {

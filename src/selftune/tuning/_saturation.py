@@ -31,7 +31,6 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from itertools import pairwise
-from typing import Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 
@@ -54,6 +53,7 @@ from ..model import (
     solve_digital_regulation,
 )
 from ..sim import DriveSettings, RealisticDrive, Saturation, held, uniform
+from ._curvature import with_curvature
 from ._interior import CURRENT_REFERENCE_F, D_SHARE, check_current_range, current_steps
 from ._learning import learning_options, longer_batch
 from ._resistance import kept_levels
@@ -67,16 +67,13 @@ __all__ = [
     "STEP_SHARE",
     "CurrentCommissioning",
     "CurrentLevel",
-    "LevelFields",
     "commission_over_current",
-    "curvature_errors",
     "incremental_parameters",
     "incremental_theta",
     "inductances_move",
     "learn_level",
     "level_log",
     "schedule_over_levels",
-    "with_curvature",
 ]
 
 #: The steps about each level's current reference, a share of the rated q current: small
@@ -101,28 +98,6 @@ SETTLE = 0.05
 #: then refines the grid between the levels if the interpolation of the gains needs it.
 INDUCTANCE_MOVE = 0.05
 
-
-class LevelFields(Protocol):
-    """What :func:`with_curvature` and the levels' table read of a level (CurrentLevel
-    or LearnedLevel): a dataclass with these fields."""
-
-    __dataclass_fields__: ClassVar[dict[str, Any]]
-
-    @property
-    def reference(self) -> Array: ...
-    @property
-    def curvature_errors(self) -> Array: ...
-    @property
-    def mean_current(self) -> Array: ...
-    @property
-    def current_spread(self) -> Array: ...
-    @property
-    def theta(self) -> Array: ...
-    @property
-    def standard_errors(self) -> Array: ...
-
-
-LevelT = TypeVar("LevelT", bound=LevelFields)
 
 #: The most levels learned (the initial ones and those added).
 MAX_LEVELS = 9
@@ -158,8 +133,8 @@ class CurrentLevel:
         The log's standard deviation of ``[i_d, i_q]`` about that mean, A.
     curvature_errors : ndarray, shape (3,)
         The part of the standard errors of ``[L_dd, L_qq, L_dq]`` (H) that is the
-        inductances' curvature over the log's currents (:func:`curvature_errors`; zeros
-        until the levels are compared).
+        inductances' curvature over the log's currents (:func:`~._curvature.curvature_errors`;
+        zeros until the levels are compared).
     """
 
     share: float
@@ -197,7 +172,10 @@ class CurrentCommissioning:
         Levels learned but left out of the schedule: their R_s disagrees with the highest
         level's or the nameplate's (:func:`~._resistance.misled_levels`).
     left_out_text : str
-        Why ("" when none were).
+        Why, and which lowest levels were not learned ("" when none were).
+    unlearned : tuple of float
+        The lowest levels (shares of rated torque) whose every log was refused, below
+        every level learned: the schedule starts above them (:data:`LEVEL_ATTEMPTS`).
     """
 
     levels: tuple[CurrentLevel, ...]
@@ -206,6 +184,7 @@ class CurrentCommissioning:
     refusals: tuple[tuple[float, str], ...] = ()
     left_out: tuple[CurrentLevel, ...] = ()
     left_out_text: str = ""
+    unlearned: tuple[float, ...] = ()
 
 
 def incremental_theta(saturation: Saturation, R_s: float, current: Array, flux: float) -> Array:
@@ -345,87 +324,6 @@ def incremental_parameters(learned: LearnedController, flux: float) -> tuple[Arr
     return values, errors
 
 
-def curvature_errors(currents: Array, inductances: Array, noise: Array, spreads: Array) -> Array:
-    """The standard error each level's incremental inductances take from their curvature
-    over the level's log.
-
-    A level's fit explains its whole log with one linear model, so it finds the
-    inductances averaged over the log's currents, not their value at the mean current:
-    to second order ``L(i0) + L'' s^2 / 2`` for a log spread by ``s`` about ``i0``. Where
-    the exploration and the steps move the current over a good part of the saturation's
-    scale (a small-current motor: 1.1 A about 0.29 A on a 55 uH motor rated 2.9 A) that
-    bias was up to 9 times the noise's standard error. The levels' own inductances give
-    ``L''`` along ``i_q``: each three neighbouring levels' parabola, whose leading
-    coefficient ``c = L'' / 2`` has a noise of its own (its standard error ``s_c`` from
-    the three levels' ``noise``); ``max(c^2 - s_c^2, 0)`` estimates the true ``c^2``
-    (without that, on the study's closely spaced levels, where the curvature is small,
-    the levels' noise alone raised 65 % of errors within one standard error to 88 %). A
-    level takes the largest among the parabolas through it or through its neighbours (an
-    end level lies on one parabola, whose curvature is the middle level's: on the 55 uH
-    motor it missed the bend at rated current by 5 standard errors), and the bias
-    ``|c| s_q^2`` is its standard error. The curvature along ``i_d``, which levels along
-    ``i_q`` do not show, is not in it. With fewer than three levels, zeros.
-
-    Parameters
-    ----------
-    currents : ndarray, shape (g,)
-        The levels' mean ``i_q``, A, rising.
-    inductances, noise : ndarray, shape (g, 3)
-        Their identified ``[L_dd, L_qq, L_dq]`` and the fits' standard errors of them, H.
-    spreads : ndarray, shape (g,)
-        Their logs' standard deviation of ``i_q``, A.
-
-    Returns
-    -------
-    ndarray, shape (g, 3)
-        H.
-    """
-    currents, inductances = np.asarray(currents, float), np.asarray(inductances, float)
-    noise, spreads = np.asarray(noise, float), np.asarray(spreads, float)
-    count = currents.size
-    errors = np.zeros((count, 3))
-    if count < 3:
-        return errors
-    curvatures = []  # each window's c, net of its noise
-    for start in range(count - 2):
-        window = currents[start : start + 3]
-        # c = sum_j L_j / prod_(k != j) (i_j - i_k): the parabola's leading coefficient
-        weights = np.array(
-            [1.0 / np.prod([window[j] - window[k] for k in range(3) if k != j]) for j in range(3)]
-        )
-        c = weights @ inductances[start : start + 3]
-        variance = weights**2 @ noise[start : start + 3] ** 2
-        curvatures.append(np.sqrt(np.maximum(c * c - variance, 0.0)))
-    for k in range(count):
-        near = [curvatures[start] for start in range(max(0, k - 3), min(k + 1, count - 3) + 1)]
-        errors[k] = np.max(near, axis=0) * spreads[k] ** 2
-    return errors
-
-
-def with_curvature(levels: Sequence[LevelT]) -> tuple[LevelT, ...]:
-    """The levels with :func:`curvature_errors` added to their inductances' standard
-    errors (in quadrature) and kept in ``curvature_errors``.
-
-    Parameters
-    ----------
-    levels : sequence of CurrentLevel or LearnedLevel
-        By rising ``i_q*``, each with ``mean_current``, ``current_spread``, ``theta`` and
-        ``standard_errors``.
-    """
-    extra = curvature_errors(
-        np.array([level.mean_current[1] for level in levels]),
-        np.array([level.theta[1:4] for level in levels]),
-        np.array([level.standard_errors[1:4] for level in levels]),
-        np.array([level.current_spread[1] for level in levels]),
-    )
-    found = []
-    for level, added in zip(levels, extra, strict=True):
-        errors = np.array(level.standard_errors, dtype=float)
-        errors[1:4] = np.hypot(errors[1:4], added)
-        found.append(replace(level, standard_errors=errors, curvature_errors=added))
-    return tuple(found)
-
-
 def inductances_move(low: Array, high: Array) -> bool:
     """Whether two neighbouring levels' identified incremental inductances (``theta[1:4]``
     of :func:`incremental_parameters`) differ by more than :data:`INDUCTANCE_MOVE` of the
@@ -557,7 +455,18 @@ def commission_over_current(
         return level
 
     count = [0]
-    levels = {share: learned(share) for share in shares}
+    levels: dict[float, CurrentLevel] = {}
+    unlearned: list[tuple[float, SelftuneError]] = []
+    for share in shares:
+        try:
+            levels[share] = learned(share)
+        except SelftuneError as error:
+            if levels or share == shares[-1]:  # only levels below every one learned
+                raise
+            refusals.append((share, str(error)))
+            unlearned.append((share, error))
+    if len(levels) < 2:
+        raise unlearned[-1][1]
     while len(levels) < MAX_LEVELS:
         moving = [
             (a, b)
@@ -584,4 +493,20 @@ def commission_over_current(
         input_delay=found[-1].learned.law.history, integral_weight=integral_weight,
     )  # fmt: skip
     left_out = tuple(level for k, level in enumerate(learned_levels) if k not in kept)
-    return CurrentCommissioning(found, design, integral_weight, tuple(refusals), left_out, why)
+    if unlearned:
+        cause = str(unlearned[-1][1]).split(":")[0]
+        refused = ", ".join(f"{share:.0%}" for share, _ in unlearned)
+        why = "; ".join(
+            text
+            for text in (
+                f"{refused} not learned, each of its {LEVEL_ATTEMPTS} logs refused (the "
+                f"last: {cause}): the schedule starts at the lowest level learned, "
+                f"{found[0].share:.0%}, whose law the firmware holds below it",
+                why,
+            )
+            if text
+        )
+    return CurrentCommissioning(
+        found, design, integral_weight, tuple(refusals), left_out, why,
+        tuple(share for share, _ in unlearned),
+    )  # fmt: skip
