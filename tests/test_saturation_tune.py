@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import selftune.tuning._saturation as saturation_module
+from selftune.bench import SaturationCase, SaturationStudy, markdown_saturation
 from selftune.cli import main
 from selftune.config import MotorConfig, load_motor_config
 from selftune.errors import ModelMissesEffect
@@ -424,3 +425,15 @@ def test_a_lowest_level_whose_logs_are_all_refused_is_left_out_saying_so(
         _refusing(monkeypatch, refused)
         with pytest.raises(ModelMissesEffect, match="a test's refusal"):
             commission_over_current(config.motor, config.saturation, settings, config.drive)
+
+
+def test_the_saturation_studys_table_states_its_pwm_and_calibration() -> None:
+    """The study's markdown says which PWM it ran on and how many inductance errors fell
+    within one standard error (a refused case's none counted)."""
+    learned = SaturationCase(
+        "1: IPMSM 2/6 mH", 0, "", 29.0, 9, 0, 0.088, 19.9, 16.4, (0.5, -1.5), (0.1, 0.2), 58.0
+    )
+    refused = replace(learned, seed=1, refusal_text="too little data", z=(), errors_percent=())
+    lines = markdown_saturation(SaturationStudy((learned, refused), 99.0, "carrier"))
+    assert "on carrier PWM" in lines[2] and "standard error of the truth: 50% of 2" in lines[2]
+    assert "refused: too little data" in lines[-1]

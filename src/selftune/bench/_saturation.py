@@ -5,7 +5,8 @@ saturating at the scale ``i_sat``, cross-saturation 0.1, so that its incremental
 ``L_qq`` falls by 20-40 % between no load and rated current). It runs on the realistic
 drive with the hardware-like drive's one-sample delay, 2 V of dead time, 10 mA noise and
 12-bit ADC, but average PWM (carrier PWM steps the saturating motor segment by segment,
-about 8 ms a sample: too slow for this study; docs/saturation.md), 10 kHz.
+about three times the time: ``measure_saturation(..., pwm="carrier")``; docs/saturation.md),
+10 kHz.
 :func:`~selftune.tuning.commission_over_current` learns it at 10, 40, 70 and 100 % of
 rated torque (and between them where the identified inductance moves by more than
 :data:`~selftune.tuning._saturation.INDUCTANCE_MOVE`) and schedules the law over
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 
@@ -36,6 +38,9 @@ from ..sim import DriveSettings, SaturationModel
 from ..tuning import commission_over_current, tuning_settings
 from ._common import table, with_progress
 from ._interior import LOW_VOLTAGE_DEAD_TIME
+
+#: The drive's PWM.
+Pwm = Literal["average", "carrier"]
 
 __all__ = [
     "CURRENTS",
@@ -115,15 +120,18 @@ class SaturationStudy:
     ----------
     cases : tuple of SaturationCase
     wall_seconds : float
+    pwm : str
+        The drive's PWM, ``"average"`` or ``"carrier"``.
     """
 
     cases: tuple[SaturationCase, ...]
     wall_seconds: float
+    pwm: Pwm = "average"
 
 
-def _case(index: int, seed: int) -> SaturationCase:
+def _case(index: int, seed: int, pwm: Pwm = "average") -> SaturationCase:
     motor, speed, torque, bus, share, drop = SATURATING_MOTORS[index]
-    drive = replace(DriveSettings.hardware_like(dc_voltage=bus), pwm="average")
+    drive = replace(DriveSettings.hardware_like(dc_voltage=bus), pwm=pwm)
     if bus < 100.0:  # a low-voltage drive's MOSFETs, as the interior study's
         drive = replace(drive, dead_time=LOW_VOLTAGE_DEAD_TIME)
     config = MotorConfig(
@@ -160,7 +168,9 @@ def _case(index: int, seed: int) -> SaturationCase:
     )  # fmt: skip
 
 
-def measure_saturation(quick: bool, progress: bool = True, seeds: int = 2) -> SaturationStudy:
+def measure_saturation(
+    quick: bool, progress: bool = True, seeds: int = 2, pwm: Pwm = "average"
+) -> SaturationStudy:
     """The saturation study (see the module).
 
     Parameters
@@ -171,13 +181,16 @@ def measure_saturation(quick: bool, progress: bool = True, seeds: int = 2) -> Sa
         Show a progress bar.
     seeds : int
         Seeds per motor in the full run.
+    pwm : str
+        The drive's PWM: ``"average"`` (the study's) or ``"carrier"`` (each carrier
+        segment stepped: about three times the time).
     """
     cases = [(0, 0)] if quick else [
         (index, seed) for index in range(len(SATURATING_MOTORS)) for seed in range(seeds)
     ]  # fmt: skip
     started = time.perf_counter()
-    results = with_progress(cases, lambda case: _case(*case), "saturation", progress)
-    return SaturationStudy(tuple(results), time.perf_counter() - started)
+    results = with_progress(cases, lambda case: _case(*case, pwm), "saturation", progress)
+    return SaturationStudy(tuple(results), time.perf_counter() - started, pwm)
 
 
 def _within_one(cases: list[SaturationCase]) -> str:
@@ -210,7 +223,8 @@ def markdown_saturation(study: SaturationStudy) -> list[str]:
         "## Saturating motors: the current schedule",
         "",
         f"Excess cost over the true pointwise digital optimum at {CURRENTS} currents from "
-        "10% to 100% of rated, largest (target <= 2%); incremental inductances learned "
+        f"10% to 100% of rated on {study.pwm} PWM, largest (target <= 2%); incremental "
+        "inductances learned "
         f"within one standard error of the truth: {_within_one(learned)} (68% expected). "
         f"{study.wall_seconds:.0f} s.",
         "",
