@@ -410,7 +410,7 @@ def test_a_lowest_level_whose_logs_are_all_refused_is_left_out_saying_so(
     result = commission_over_current(config.motor, config.saturation, settings, config.drive)
     assert result.unlearned == (0.1,) and result.levels[0].share == 0.4
     assert [share for share, _ in result.refusals] == [0.1] * LEVEL_ATTEMPTS
-    assert "10% not learned, each of its 3 logs refused (the last: the model cannot" in (
+    assert "10% not learned, all 3 logs of each refused (the last: the model cannot" in (
         result.left_out_text
     )
     evaluation = evaluate_current_schedule(result, config.motor, config.saturation, settings)

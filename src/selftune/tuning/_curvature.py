@@ -50,10 +50,10 @@ def curvature_errors(currents: Array, inductances: Array, noise: Array, spreads:
     to second order ``L(i0) + L'' s^2 / 2`` for a log spread by ``s`` about ``i0``. Where
     the exploration and the steps move the current over a good part of the saturation's
     scale (a small-current motor: 1.1 A about 0.29 A on a 55 uH motor rated 2.9 A) that
-    bias was up to 9 times the noise's standard error. The levels' own inductances give
-    ``L''`` along ``i_q``: each three neighbouring levels' parabola, whose leading
-    coefficient ``c = L'' / 2`` has a noise of its own (its standard error ``s_c`` from
-    the three levels' ``noise``); ``max(c^2 - s_c^2, 0)`` estimates the true ``c^2``
+    bias was up to 11 times the noise's standard error (docs/saturation.md). The levels'
+    own inductances give ``L''`` along ``i_q``: each three neighbouring levels' parabola,
+    whose leading coefficient ``c = L'' / 2`` has a noise of its own (its standard error
+    ``s_c`` from the three levels' ``noise``); ``max(c^2 - s_c^2, 0)`` estimates the true ``c^2``
     (without that, on the study's closely spaced levels, where the curvature is small,
     the levels' noise alone raised 65 % of errors within one standard error to 88 %). A
     level takes the largest among the parabolas through it or through its neighbours (an

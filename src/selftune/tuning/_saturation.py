@@ -23,7 +23,12 @@ diagonal inductance, a level is learned between them (up to :data:`MAX_LEVELS`).
 :func:`~selftune.model.design_current_schedule` designs the optimum at each level's
 identified model and checks the interpolated law on a fine grid between the levels
 against the pointwise optimum of the identified models interpolated linearly in ``i_q*``
-(refining the grid by bisection there).
+(refining the grid by bisection there). Levels whose R_s disagrees with the highest
+level's or the nameplate's are left out of it (:func:`~._resistance.kept_levels`), and so
+are the lowest levels whose every log the learner refused
+(:attr:`CurrentCommissioning.unlearned`): the schedule then starts at the lowest level
+kept. Each level's inductances' standard errors include their curvature over its log's
+currents (:func:`~._curvature.with_curvature`).
 """
 
 from __future__ import annotations
@@ -97,7 +102,6 @@ SETTLE = 0.05
 #: interpolation between levels stays well inside the 2 % target; the design's own check
 #: then refines the grid between the levels if the interpolation of the gains needs it.
 INDUCTANCE_MOVE = 0.05
-
 
 #: The most levels learned (the initial ones and those added).
 MAX_LEVELS = 9
@@ -422,7 +426,8 @@ def commission_over_current(
     Raises
     ------
     SelftuneError
-        A level's refusal, or the design's.
+        A level's refusal (but for the lowest levels' while another is learned: they are
+        left out, :attr:`CurrentCommissioning.unlearned`), or the design's.
     """
     w_e = motor.p * settings.speed
     refusals: list[tuple[float, str]] = []
@@ -499,7 +504,7 @@ def commission_over_current(
         why = "; ".join(
             text
             for text in (
-                f"{refused} not learned, each of its {LEVEL_ATTEMPTS} logs refused (the "
+                f"{refused} not learned, all {LEVEL_ATTEMPTS} logs of each refused (the "
                 f"last: {cause}): the schedule starts at the lowest level learned, "
                 f"{found[0].share:.0%}, whose law the firmware holds below it",
                 why,
