@@ -224,8 +224,8 @@ def markdown_saturation(study: SaturationStudy) -> list[str]:
         "",
         f"Excess cost over the true pointwise digital optimum at {CURRENTS} currents from "
         f"10% to 100% of rated on {study.pwm} PWM, largest (target <= 2%); incremental "
-        "inductances learned "
-        f"within one standard error of the truth: {_within_one(learned)} (68% expected). "
+        f"inductances learned within one standard error of the truth: {_within_one(learned)} "
+        "(68% expected). "
         f"{study.wall_seconds:.0f} s.",
         "",
         *table(

@@ -34,11 +34,7 @@ from ..sim import DriveSettings, FluxMap, Saturation
 from ..tuning import TuningSettings
 from ..tuning._curvature import LevelFields
 from ..tuning._interior import CURRENT_REFERENCE_F
-from ..tuning._saturation import (
-    CurrentCommissioning,
-    CurrentLevel,
-    incremental_theta,
-)
+from ..tuning._saturation import CurrentCommissioning, CurrentLevel, incremental_theta
 from ._schedule_figure import figure_schedule
 from ._tune_report import drive_text
 

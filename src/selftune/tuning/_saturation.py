@@ -501,16 +501,12 @@ def commission_over_current(
     if unlearned:
         cause = str(unlearned[-1][1]).split(":")[0]
         refused = ", ".join(f"{share:.0%}" for share, _ in unlearned)
-        why = "; ".join(
-            text
-            for text in (
-                f"{refused} not learned, all {LEVEL_ATTEMPTS} logs of each refused (the "
-                f"last: {cause}): the schedule starts at the lowest level learned, "
-                f"{found[0].share:.0%}, whose law the firmware holds below it",
-                why,
-            )
-            if text
+        note = (
+            f"{refused} not learned, all {LEVEL_ATTEMPTS} logs of each refused (the last: "
+            f"{cause}): the schedule starts at the lowest level learned, "
+            f"{found[0].share:.0%}, whose law the firmware holds below it"
         )
+        why = f"{note}; {why}" if why else note
     return CurrentCommissioning(
         found, design, integral_weight, tuple(refusals), left_out, why,
         tuple(share for share, _ in unlearned),
