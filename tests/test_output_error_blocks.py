@@ -113,3 +113,30 @@ def test_the_adp_rows_summed_block_by_block_are_the_same(monkeypatch: pytest.Mon
     blocked = learn_controller(log, problem, np.eye(2), options)
     np.testing.assert_array_equal(blocked.K, whole.K)
     np.testing.assert_array_equal(blocked.U, whole.U)
+
+
+def test_a_structure_at_its_domains_edge_has_a_forward_difference_jacobian() -> None:
+    """A structure that has no model below zero in its first parameter (an inductance) and
+    a point within one difference step of zero: the Jacobian's column is the forward
+    difference there, the others central, and each agrees with the derivative in closed
+    form (a search on a 25 uH motor with 2 V of dead time reached such a point and the
+    step below it raised an input error on the user's behalf)."""
+    from selftune.errors import InputError
+    from selftune.learn.evidence._output_error import _jacobian_map
+
+    def structure(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        inductance, gain = float(theta[0]), float(theta[1])
+        if not inductance > 0.0:
+            raise InputError(f"L_d: must be positive, got {inductance:.4g} H")
+        return (
+            np.array([[1.0 - gain * inductance]]),
+            np.array([[gain**2 * inductance]]),
+            np.zeros((1, 1)),
+        )
+
+    theta = np.array([5e-10, 3.0])  # the first step is 1e-9: below zero
+    jacobian = _jacobian_map(structure, theta, structured=True)
+    assert jacobian is not None
+    # vec([Ad, Bd, Ed]) = [1 - g L, g^2 L, 0]: linear in L, so one-sided differences are exact
+    exact = np.array([[-theta[1], -theta[0]], [theta[1] ** 2, 2.0 * theta[1] * theta[0]], [0, 0]])
+    np.testing.assert_allclose(jacobian, exact, rtol=1e-5, atol=1e-12)

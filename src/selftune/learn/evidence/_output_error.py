@@ -226,18 +226,28 @@ def _jacobian_map(
     matrices: Callable[[Array], tuple[Array, Array, Array]], theta: Array, structured: bool
 ) -> Array | None:
     """``d vec([Ad, Bd, Ed]) / d theta`` for a structure (central differences); None for
-    the unstructured model (the identity)."""
+    the unstructured model (the identity).
+
+    Where the step below a parameter leaves the structure's domain (an inductance within
+    a step of zero, which a search may reach on data that do not fix it: a 25 uH motor
+    on 48 V with 2 V of dead time), that column is the forward difference instead."""
     if not structured:
         return None
+
+    def flat(point: Array) -> Array:
+        return np.concatenate(matrices(point), axis=1).ravel(order="F")
+
     columns = []
     for index in range(theta.shape[0]):
         step = 1e-6 * max(abs(float(theta[index])), 1e-3)
         plus, minus = theta.copy(), theta.copy()
         plus[index] += step
         minus[index] -= step
-        high = np.concatenate(matrices(plus), axis=1).ravel(order="F")
-        low = np.concatenate(matrices(minus), axis=1).ravel(order="F")
-        columns.append((high - low) / (2 * step))
+        high = flat(plus)
+        try:
+            columns.append((high - flat(minus)) / (2 * step))
+        except InputError:
+            columns.append((high - flat(theta)) / step)
     return np.column_stack(columns)
 
 
