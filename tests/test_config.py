@@ -196,6 +196,31 @@ def test_the_integral_weight_is_read_with_integral_action(tmp_path: Path) -> Non
 
 
 @pytest.mark.parametrize(
+    ("motor", "extra", "share"),
+    [
+        ("L_s = 0.002\n", "", 0.02),  # a surface motor
+        ("L_d = 0.002\nL_q = 0.002\n", "", 0.02),  # equal inductances: a surface motor
+        ("L_d = 0.002\nL_q = 0.005\n", "", 0.03),  # an interior motor
+        ("L_d = 0.002\nL_q = 0.005\n", "[saturation]\ni_sat = 6.0\ndrop = 0.15\n", 0.02),
+    ],
+)
+def test_a_drive_explores_at_a_share_of_its_bus_an_interior_motor_more(
+    tmp_path: Path, motor: str, extra: str, share: float
+) -> None:
+    """A [drive] with a DC bus sets the exploration's default: 2% of the bus, 3% for an
+    interior motor without [saturation]; a [learning] exploration always wins."""
+    text = (
+        f"[motor]\nR_s = 0.2\n{motor}phi_pm = 0.1\np = 4\n"
+        "[operating_point]\nspeed = 100.0\ntorque = 5.0\n"
+        "[drive]\ndc_voltage = 540.0\nswitching_frequency = 10000.0\n" + extra
+    )
+    config = load_motor_config(write(tmp_path, text))
+    assert tuning_settings(config).exploration == pytest.approx(share * 540.0, rel=1e-12)
+    chosen = load_motor_config(write(tmp_path, text + "[learning]\nexploration = 4.5\n"))
+    assert tuning_settings(chosen).exploration == 4.5
+
+
+@pytest.mark.parametrize(
     ("lines", "expected"),
     [
         (

@@ -96,26 +96,21 @@ def test_the_small_inductances_at_low_speed_are_learned_within_their_bars(number
     assert case.largest_z <= 3.0, case.largest_z
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="on the measured signs L_d is 0.64% low (the issue's limit 0.5%) at 0.8 standard "
-    "errors; reported on the next sample's signs it would be 0.004%, but those bars miss the "
-    "carrier PWM's bias of L_q on 4 of 30 drawn motors (adopted_next_signs)",
-)
-def test_a_fit_whose_errors_are_correlated_is_within_half_a_percent() -> None:
-    """Drawn 15 of the interior study (``drawn_cases(30, 13, interior=True)``, a 0.93/1.40 mH
-    motor at ``w_e h`` = 0.18 on 540 V with 2 V of dead time): on the measured signs its
-    output errors' variances are 117 times white noise's and L_d comes out 0.64% low. The
-    fit passes every test but misses part of the data; on the next sample's signs it
-    explains them (the inflation 1.00) within 0.01% of the heated truth."""
+def test_the_motor_that_missed_half_a_percent_now_meets_it() -> None:
+    """Drawn 15 of the interior study (``drawn_cases(30, 13, interior=True)``, a 0.93/1.40
+    mH motor rated 1.2 A at ``w_e h`` = 0.18 on 540 V with 2 V of dead time). At 2% of the
+    bus of exploration its phase currents' signs near zero were the noise's so often that
+    L_d came out 0.64% low (0.8 standard errors of 0.80%): the issue's 0.5% missed. At an
+    interior motor's default 3% (``default_exploration``) the exploration outweighs the
+    dead time's voltage: L_d, L_q and the flux within 0.5% and 3 standard errors."""
     from selftune.bench._interior import _run as interior_run
 
     motor, speed, torque, bus, seed, adc_range = drawn_cases(30, 13, interior=True)[14]
     case = interior_run(motor, speed, torque, bus, seed, "drawn 15", adc_range)  # type: ignore[arg-type]
-    assert case.learned
+    assert case.learned, case.refusal_text
     for name in ("L_d", "L_q", "phi_pm"):
-        assert abs(case.error_percent(name)) <= 0.05, name
-        assert abs(case.z(name)) <= 3.0, name
+        assert abs(case.error_percent(name)) <= 0.5, (name, case.error_percent(name))
+        assert abs(case.z(name)) <= 3.0, (name, case.z(name))
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

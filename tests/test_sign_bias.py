@@ -180,13 +180,15 @@ def _small_motor_on_48_volts(seed: int) -> tuple[IPMSM, DriveSettings, TuningSet
 
 
 def test_a_fit_carried_by_the_measured_signs_is_refused_not_returned() -> None:
-    """Seed 0 of that motor: the fit explains the log only through the measured signs, and
+    """Seed 1 of that motor: the fit explains the log only through the measured signs, and
     the next sample's signs do not explain it either. Before this refusal the
     commissioning returned R_s 62-71% high and L_d 3-5% low at 4-6 standard errors (seeds
-    0 and 2); now the cause is named."""
-    motor, drive, settings = _small_motor_on_48_volts(0)
+    0 and 2, at 2% of the bus of exploration); now the cause is named. (At an interior
+    motor's 3%, seeds 1 and 4 are refused so, and 0, 2 and 3 learned within 1.2 standard
+    errors.)"""
+    motor, drive, settings = _small_motor_on_48_volts(1)
     with pytest.raises(selftune.ModelMissesEffect, match="only through the measured currents'"):
-        commission_interior(motor, settings, drive, seed=0)
+        commission_interior(motor, settings, drive, seed=1)
 
 
 def test_a_fit_carried_by_the_measured_signs_is_learned_on_the_next_samples_signs() -> None:

@@ -41,7 +41,13 @@ from ._ramp import RampCommissioning, commission_ramp
 from ._results import TuningIteration, TuningResult
 from ._saturation import CurrentCommissioning, CurrentLevel, commission_over_current
 from ._session import ALGORITHMS, AlgorithmName, run_algorithm
-from ._settings import TUNING_KEYS, Perturbation, TuningSettings, tuning_settings
+from ._settings import (
+    TUNING_KEYS,
+    Perturbation,
+    TuningSettings,
+    default_exploration,
+    tuning_settings,
+)
 
 __all__ = [
     "ALGORITHMS",
@@ -73,6 +79,7 @@ __all__ = [
     "commission_interior",
     "commission_over_current",
     "commission_ramp",
+    "default_exploration",
     "follow",
     "known_flux_form",
     "offpolicy",
