@@ -10,7 +10,7 @@ import numpy as np
 
 from ..core import finite_float, positive_finite, positive_integer
 from ..errors import InputError
-from ._inverter import COPPER_COEFFICIENT, MAGNET_COEFFICIENT
+from ._inverter import COPPER_COEFFICIENT, MAGNET_COEFFICIENT, dead_time_amplitude
 
 __all__ = ["HARDWARE_LIKE", "DriveSettings"]
 
@@ -137,6 +137,17 @@ class DriveSettings:
             raise InputError("adc_range: adc_bits needs the ADC's full scale adc_range (A)")
         object.__setattr__(self, "adc_bits", bits)
         object.__setattr__(self, "adc_range", positive_finite(self.adc_range, "adc_range"))
+
+    def dead_time_voltage(self, h: float) -> float:
+        """The dead time's voltage error per phase at one PWM period per sample,
+        ``t_d V_dc / h``, V (0 without dead time or DC bus).
+
+        Parameters
+        ----------
+        h : float
+            Sampling period, the PWM period, s.
+        """
+        return dead_time_amplitude(self.dead_time, self.dc_voltage, h)
 
     @classmethod
     def ideal(cls) -> DriveSettings:

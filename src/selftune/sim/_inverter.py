@@ -85,6 +85,7 @@ __all__ = [
     "MotorT",
     "PwmSegments",
     "carrier_segments",
+    "dead_time_amplitude",
     "dead_time_voltage",
     "from_phases",
     "heated_motor",
@@ -109,6 +110,21 @@ if TYPE_CHECKING:  # a default (PEP 696) for the type checker: a drive's motor i
     MotorT = DefaultTypeVar("MotorT", bound=SPMSM | IPMSM, default=SPMSM)
 else:
     MotorT = TypeVar("MotorT", bound=SPMSM | IPMSM)
+
+
+def dead_time_amplitude(dead_time: float, dc_voltage: float | None, period: float) -> float:
+    """The dead time's voltage error per phase, ``t_d f_sw V_dc``, V (0 without a DC bus).
+
+    Parameters
+    ----------
+    dead_time : float
+        ``t_d``, s.
+    dc_voltage : float or None
+        ``V_dc``, V.
+    period : float
+        The PWM period ``1 / f_sw``, s.
+    """
+    return dead_time * (dc_voltage or 0.0) / period
 
 
 def scaled_motor(motor: MotorT, R_s: float, L: float, phi_pm: float) -> MotorT:
@@ -323,8 +339,8 @@ class Modulator:
 
     @property
     def dead_time_amplitude(self) -> float:
-        """``t_d f_sw V_dc``, V."""
-        return self.dead_time * (self.dc_voltage or 0.0) / self.period
+        """``t_d f_sw V_dc``, V (:func:`dead_time_amplitude`)."""
+        return dead_time_amplitude(self.dead_time, self.dc_voltage, self.period)
 
     @property
     def limit(self) -> float:

@@ -31,6 +31,7 @@ from ..model import IPMSM, SPMSM, Motor
 from ..sim import DriveRecord, DriveSettings, RealisticDrive, constant, held, uniform
 from ._knowledge import STEP_DWELL, STEP_LEVELS
 from ._learning import learned_at_length, learning_options, pulse_bus
+from ._resistance import check_against_nameplate
 from ._settings import TuningSettings
 
 __all__ = [
@@ -270,6 +271,9 @@ def commission_interior(
         The learner's refusal, if the data do not support a controller (an experiment
         refused as too short for its noise is first run again as long as the learner
         asks, :func:`~._learning.learned_at_length`).
+    ModelMissesEffect
+        When the identified R_s is far from the nameplate's
+        (:func:`~._resistance.check_against_nameplate`).
     """
     plant = RealisticDrive(motor, settings.speed, settings.h, drive)
     back_emf = motor.p * settings.speed * motor.phi_pm  # w_1 with the nameplate flux
@@ -308,6 +312,10 @@ def commission_interior(
     found, errors = motor_of(learned.quality.motor, motor.p)
     assert isinstance(found, IPMSM)  # structure = "ipmsm"
     identified = found
+    check_against_nameplate(
+        identified.R_s, identified.L_d, identified.L_q, motor.R_s, settings.h,
+        (drive.dead_time_voltage(settings.h), motor.R_s * abs(scale)),
+    )  # fmt: skip
     references = identified.current_reference(settings.torque)
     w = np.concatenate([[back_emf], references])
     count = round(check_seconds / settings.h)

@@ -33,6 +33,7 @@ from ..sim import DriveSettings, RealisticDrive, held, ramp_speeds, run_speed_pr
 from ._interior import check_current_range, current_steps, decoupling_feedforward, motor_of
 from ._knowledge import STEP_DWELL, STEP_LEVELS
 from ._learning import learning_options, pulse_bus
+from ._resistance import check_against_nameplate
 from ._settings import TuningSettings
 
 __all__ = [
@@ -127,6 +128,9 @@ def commission_ramp(
     ------
     SelftuneError
         The learner's refusal of a segment, naming its speed.
+    ModelMissesEffect
+        When the combined motor's R_s is far from the nameplate's
+        (:func:`~._resistance.check_against_nameplate`).
     """
     h = settings.h
     count = round(seconds / h)
@@ -168,6 +172,11 @@ def commission_ramp(
     )  # fmt: skip
     learned = learn_over_speeds(log, problem, settings.K0, base)
     combined = motor_of(learned.motor, motor.p)
+    found = combined[0]
+    check_against_nameplate(
+        found.R_s, found.L_d, found.L_q, motor.R_s, h,
+        (drive.dead_time_voltage(h), motor.R_s * abs(scale)),
+    )  # fmt: skip
     return RampCommissioning(
         motor=combined[0], standard_errors=combined[1],
         covered=learned.covered, segments=learned.parts,
