@@ -97,6 +97,7 @@ def _settings(seed: int = 0) -> tuple[TuningSettings, DriveSettings]:
     config = MotorConfig(
         motor=MOTOR, speed=SPEED, torque=TORQUE, drive=drive, drive_h=H,
         learning={"integral_action": True}, source="saturating test motor",
+        saturation=SATURATION,
     )  # fmt: skip
     return tuning_settings(config, seed), drive
 

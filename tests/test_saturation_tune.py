@@ -112,12 +112,13 @@ def saturating_case(
     """The settings of a commissioning at ``speed`` (rad/s) with rated ``torque`` (N m) and
     integral action, and the motor's saturation at ``share`` of its rated q current with
     ``drop`` (cross-saturation 0.1)."""
+    rated = float(motor.current_reference(torque)[1])
+    saturation = SaturationModel.of(motor, i_sat=share * rated, drop=drop, cross=0.1)
     config = MotorConfig(
         motor=motor, speed=speed, torque=torque, drive=drive, drive_h=1e-4,
         learning={"integral_action": True}, source=f"{type(motor).__name__} saturating",
+        saturation=saturation,
     )  # fmt: skip
-    rated = float(motor.current_reference(torque)[1])
-    saturation = SaturationModel.of(motor, i_sat=share * rated, drop=drop, cross=0.1)
     return tuning_settings(config, seed), saturation
 
 

@@ -134,13 +134,14 @@ def _case(index: int, seed: int, pwm: Pwm = "average") -> SaturationCase:
     drive = replace(DriveSettings.hardware_like(dc_voltage=bus), pwm=pwm)
     if bus < 100.0:  # a low-voltage drive's MOSFETs, as the interior study's
         drive = replace(drive, dead_time=LOW_VOLTAGE_DEAD_TIME)
+    rated = float(motor.current_reference(torque)[1])
+    saturation = SaturationModel.of(motor, i_sat=share * rated, drop=drop, cross=CROSS)
     config = MotorConfig(
         motor=motor, speed=speed, torque=torque, drive=drive, drive_h=1e-4,
         learning={"integral_action": True}, source=f"saturating motor {index + 1}",
+        saturation=saturation,
     )  # fmt: skip
     settings = tuning_settings(config, seed)
-    rated = float(motor.current_reference(torque)[1])
-    saturation = SaturationModel.of(motor, i_sat=share * rated, drop=drop, cross=CROSS)
     references = judged_references(motor, torque)
     low, high = (saturation.incremental(*references[k])[1, 1] for k in (0, -1))
     fall = 100.0 * (1.0 - high / low)
