@@ -3,15 +3,18 @@ design the digital optimum, put the torque reference on the identified motor's M
 curve, and measure the torque it gives.
 
 The drive engineer knows the pole pairs, the operating point, the nameplate flux (what
-the controller assumes in ``w_1 = p speed phi_assumed``) and inductances (roughly: K0's
-default and the experiment's decoupling use them), not the resistance; the fit
-re-estimates every parameter. The experiment runs the current-reference form ``w = [w_1,
-i_d*, i_q*]`` under the gentle K0 with the back-EMF and the references' cross-coupling fed
-forward (:func:`decoupling_feedforward`): the q current walks through the ``"steps"`` levels
+the controller assumes in ``w_1 = p speed phi_assumed``), inductances (roughly: K0's
+default and the experiment's decoupling use them) and resistance; the fit
+re-estimates every parameter, and an R_s far from the nameplate's is refused
+(:func:`~._resistance.check_against_nameplate`: where the dead time dwarfs the resistive
+drop, a fit can take part of it for resistance, and the inductances move with it). The
+experiment runs the current-reference form ``w = [w_1, i_d*, i_q*]`` under the gentle K0
+with the back-EMF and the references' cross-coupling fed forward
+(:func:`decoupling_feedforward`): the q current walks through the ``"steps"`` levels
 (:data:`~._knowledge.STEP_LEVELS`, reversing the current for the dead-time model) of the
-q current ``2 T* / (3 p phi_assumed)``, and the d current through ``0`` and
-``-D_SHARE`` of it with a different dwell, so that the three channels vary
-independently. Identify-then-design with the interior structure
+q current ``2 T* / (3 p phi_assumed)``, and the d current through ``0`` and ``-D_SHARE``
+of it with a different dwell, so that the three channels vary independently.
+Identify-then-design with the interior structure
 (:class:`~selftune.learn.IpmsmStructure`) gives the law with its verdict; the MTPA
 references of ``T*`` come from the identified motor
 (:meth:`~selftune.model.IPMSM.current_reference`), and a run of the learned law at them
