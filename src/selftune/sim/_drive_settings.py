@@ -10,7 +10,8 @@ import numpy as np
 
 from ..core import finite_float, positive_finite, positive_integer
 from ..errors import InputError
-from ._inverter import COPPER_COEFFICIENT, MAGNET_COEFFICIENT, dead_time_amplitude
+from ._inverter import COPPER_COEFFICIENT, MAGNET_COEFFICIENT
+from ._pwm import dead_time_amplitude
 
 __all__ = ["HARDWARE_LIKE", "DriveSettings"]
 

@@ -62,6 +62,7 @@ from ._pwm import (
     _CarrierInverter,
     _Results,
     carrier_segments,
+    dead_time_amplitude,
     dead_time_voltage,
     from_phases,
     leg_duties,
@@ -85,7 +86,6 @@ __all__ = [
     "MotorT",
     "PwmSegments",
     "carrier_segments",
-    "dead_time_amplitude",
     "dead_time_voltage",
     "from_phases",
     "heated_motor",
@@ -110,21 +110,6 @@ if TYPE_CHECKING:  # a default (PEP 696) for the type checker: a drive's motor i
     MotorT = DefaultTypeVar("MotorT", bound=SPMSM | IPMSM, default=SPMSM)
 else:
     MotorT = TypeVar("MotorT", bound=SPMSM | IPMSM)
-
-
-def dead_time_amplitude(dead_time: float, dc_voltage: float | None, period: float) -> float:
-    """The dead time's voltage error per phase, ``t_d f_sw V_dc``, V (0 without a DC bus).
-
-    Parameters
-    ----------
-    dead_time : float
-        ``t_d``, s.
-    dc_voltage : float or None
-        ``V_dc``, V.
-    period : float
-        The PWM period ``1 / f_sw``, s.
-    """
-    return dead_time * (dc_voltage or 0.0) / period
 
 
 def scaled_motor(motor: MotorT, R_s: float, L: float, phi_pm: float) -> MotorT:

@@ -42,6 +42,7 @@ __all__ = [
     "carrier_edges",
     "carrier_sample",
     "carrier_segments",
+    "dead_time_amplitude",
     "dead_time_voltage",
     "from_phases",
     "leg_duties",
@@ -55,6 +56,21 @@ _Results = tuple[ComplexArray, ComplexArray, ComplexArray, ComplexArray, Complex
 #: ``conj(PHASE_DIRECTIONS)`` and CLARKE as Python complex numbers (one motor's sample).
 _DIRECTIONS = tuple(complex(d) for d in np.conj(PHASE_DIRECTIONS))
 _CLARKE = tuple(complex(c) for c in CLARKE)
+
+
+def dead_time_amplitude(dead_time: float, dc_voltage: float | None, period: float) -> float:
+    """The dead time's voltage error per phase, ``t_d f_sw V_dc``, V (0 without a DC bus).
+
+    Parameters
+    ----------
+    dead_time : float
+        ``t_d``, s.
+    dc_voltage : float or None
+        ``V_dc``, V.
+    period : float
+        The PWM period ``1 / f_sw``, s.
+    """
+    return dead_time * (dc_voltage or 0.0) / period
 
 
 def dead_time_voltage(signs: Array, amplitude: float) -> ComplexArray:
