@@ -128,6 +128,22 @@ class DriveRecord:
     commanded_voltages: Array
     torque: Array
 
+    def steady_torque(self) -> float:
+        """The mean true torque over the record's second half, N m, taken over the whole
+        electrical turns it holds (ending at the last sample) where the rotor turns at
+        least once in it: the dead time's six-step ripple and every other harmonic of the
+        speed then average out, which over a part of a turn they do not."""
+        half = self.torque[self.torque.shape[0] // 2 :]
+        if self.trajectory.angle is None:
+            return float(np.mean(half))
+        angle = np.unwrap(self.trajectory.angle[self.torque.shape[0] - half.shape[0] :])
+        turned = np.abs(angle[-1] - angle)
+        turns = np.floor(turned[0] / (2.0 * np.pi))
+        if turns < 1.0:
+            return float(np.mean(half))
+        start = int(np.flatnonzero(turned <= turns * 2.0 * np.pi)[0])
+        return float(np.mean(half[start:-1]))
+
 
 @dataclass(frozen=True)
 class RealisticDrive(Generic[MotorT]):
