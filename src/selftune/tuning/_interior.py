@@ -278,8 +278,8 @@ def check_samples(seconds: float, electrical_speed: float, h: float) -> int:
     h : float
         Sampling period, s.
     """
-    turns = 2.0 * CHECK_TURNS * 2.0 * np.pi / max(abs(electrical_speed), 1e-12)
-    return round(max(seconds, min(turns, CHECK_LIMIT)) / h)
+    turns_seconds = 2.0 * CHECK_TURNS * 2.0 * np.pi / max(abs(electrical_speed), 1e-12)
+    return round(max(seconds, min(turns_seconds, CHECK_LIMIT)) / h)
 
 
 def commission_interior(

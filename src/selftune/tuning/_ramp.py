@@ -171,14 +171,13 @@ def commission_ramp(
         structure="ipmsm" if interior else "spmsm", dc_voltage=pulse_bus(drive),
     )  # fmt: skip
     learned = learn_over_speeds(log, problem, settings.K0, base)
-    combined = motor_of(learned.motor, motor.p)
-    found = combined[0]
+    found, errors = motor_of(learned.motor, motor.p)
     check_against_nameplate(
         found.R_s, found.L_d, found.L_q, motor.R_s, h,
         (drive.dead_time_voltage(h), motor.R_s * abs(scale)),
     )  # fmt: skip
     return RampCommissioning(
-        motor=combined[0], standard_errors=combined[1],
+        motor=found, standard_errors=errors,
         covered=learned.covered, segments=learned.parts,
         data_seconds=count * h,
         integral_weight=problem.integral_weight if settings.integral_action else None,

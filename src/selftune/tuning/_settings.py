@@ -294,10 +294,9 @@ def default_exploration(config: MotorConfig) -> float:
         return PAPER_EXPLORATION
     motor = config.motor
     interior = isinstance(motor, IPMSM) and motor.L_d != motor.L_q
-    share = "interior_exploration_fraction" if interior and config.saturation is None else (
-        "exploration_fraction"
-    )  # fmt: skip
-    return DRIVE_DEFAULTS[share] * drive.dc_voltage
+    if interior and config.saturation is None:
+        return DRIVE_DEFAULTS["interior_exploration_fraction"] * drive.dc_voltage
+    return DRIVE_DEFAULTS["exploration_fraction"] * drive.dc_voltage
 
 
 @dataclass(frozen=True)
