@@ -19,7 +19,8 @@ from selftune.core._phases import (
     phases_to_dq,
     space_vector_duties,
 )
-from selftune.learn.evidence._dead_time import lost_signs, phase_signs, sign_vector
+from selftune.learn.evidence._dead_time import phase_signs, sign_vector
+from selftune.learn.evidence._pulses import lost_signs
 from selftune.sim._pwm import carrier_edges
 
 #: A 12-bit ADC's step over +-20 A, A (a power of 2: its sums are exact).
@@ -130,7 +131,7 @@ def test_the_dead_time_delays_every_pulse_by_half_of_it() -> None:
     T / 2``, a term the size of ``v`` rather than of the command)."""
     from math import exp
 
-    from selftune.learn.evidence._dead_time import pulse_delay_gain
+    from selftune.learn.evidence._pulses import pulse_delay_gain
     from selftune.sim._pwm import carrier_sample, dead_time_voltage
 
     R_s, L_s, period, bus, dead = 0.25, 2.5e-3, 1e-4, 540.0, 0.5e-6

@@ -137,7 +137,8 @@ def test_the_moment_of_the_dead_time_short_pulses_leave_out_is_kept_in_any_chunk
     ``[x_(k-1), a_k, w_k, s(x_(k-1))]``, every sign at row k's angle): the same whether fed
     in one chunk or many, as the direct weighed sum, forgotten with the other moments
     (a restart's share scales it); rows off the voltage limit add nothing."""
-    from selftune.learn.evidence._dead_time import lost_signs, phase_signs
+    from selftune.learn.evidence._dead_time import phase_signs
+    from selftune.learn.evidence._pulses import lost_signs
 
     rng = np.random.default_rng(3)
     rows, bus, v, advance = 3000, 100.0, 1.0, 0.02

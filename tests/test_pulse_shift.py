@@ -1,11 +1,11 @@
-"""The dead time's late and short pulses in the identify-then-design learner's reported
-error bars (:mod:`selftune.learn.evidence._pulses`).
+"""The carrier's pulses in the identify-then-design learner's reported error bars
+(:mod:`selftune.learn.evidence._pulses`).
 
-On carrier PWM with dead time every pulse comes half the dead time late, which the
-dead-time model's ``-v sign(i)`` does not carry: the flux of the three motors drawn here
-came out 0.007-0.02% low at 4.6-6.4 standard errors (docs/schedule.md), within 0.3-2.7 on
-average PWM with the same dead time. With the drive's DC bus the reported standard
-errors hold the shift; the decisions (the law, its verdict) and the values do not move.
+On carrier PWM with dead time every pulse comes half the dead time late and sits about
+the period's middle, which the held model does not carry: the flux of the three motors
+drawn here came out 0.007-0.02% low at 4.6-6.4 standard errors (docs/schedule.md), within
+0.3-2.7 on average PWM with the same dead time. With the drive's DC bus the reported
+standard errors hold the shift, and the fit on the next sample's signs is reported.
 """
 
 from __future__ import annotations
@@ -20,10 +20,9 @@ from selftune.bench._interior import BOTTOM_SPEED_SHARE, drawn_cases, study_driv
 from selftune.config import MotorConfig
 from selftune.errors import InputError
 from selftune.learn import LearningOptions
-from selftune.learn.evidence._dead_time import pulse_delay_gain
 from selftune.model import SPMSM
 from selftune.report._digital_evaluation import true_motor
-from selftune.tuning import tuning_settings
+from selftune.tuning import commission_interior, tuning_settings
 from selftune.tuning._ramp import RampCommissioning, commission_ramp
 
 #: Drawn motors of the ramp study (docs/schedule.md, ``drawn_cases(60, 11)``) whose flux
@@ -55,12 +54,13 @@ def _names(result: RampCommissioning) -> tuple[str, ...]:
 
 
 @pytest.mark.parametrize("number", DRAWN)
-def test_the_reported_bars_hold_the_late_pulses_and_nothing_else_moves(
+def test_with_the_bus_the_reported_bars_hold_the_carriers_pulses(
     number: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Without the bus the flux is beyond 3 standard errors (the bias is there); with it
-    every inductance and the flux are within 3 of the reported ones, the values, each
-    part's law and its verdict's numbers are the same, and the standard errors only grow."""
+    (the fit on the next sample's signs reported where the tests accept it) every
+    inductance and the flux are within 3 of the reported ones, and each part says that
+    its bars hold the pulses."""
     bare, truth, _ = _ramp(number, False, monkeypatch)
     result, _, _ = _ramp(number, True, monkeypatch)
     names = _names(result)
@@ -68,35 +68,40 @@ def test_the_reported_bars_hold_the_late_pulses_and_nothing_else_moves(
     z = [(getattr(result.motor, n) - getattr(truth, n)) / result.standard_errors[n] for n in names]
     assert abs(z_bare[-1]) > 3.0, z_bare
     assert max(abs(value) for value in z) <= 3.0, z
-    for name in (*names, "R_s"):
-        assert getattr(result.motor, name) == getattr(bare.motor, name)
-        assert result.standard_errors[name] >= bare.standard_errors[name]
     for (_, learned), (_, plain) in zip(result.segments, bare.segments, strict=True):
         assert learned.quality is not None and plain.quality is not None
-        np.testing.assert_array_equal(learned.law.K, plain.law.K)
-        np.testing.assert_array_equal(learned.law.U, plain.law.U)
-        np.testing.assert_array_equal(learned.quality.U_se, plain.quality.U_se)
-        assert learned.quality.stability_margin == plain.quality.stability_margin
-        assert len(learned.quality.notes) == len(plain.quality.notes) + 1
+        said = [note for note in learned.quality.notes if "the carrier's pulses" in note]
+        assert len(said) == 1 and not any("pulses" in note for note in plain.quality.notes)
 
 
-def test_far_from_the_modulations_limit_a_surface_motors_shift_is_the_delays(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    """No pulse is short below the limit, and a surface motor's voltage moving the
-    current ``g`` times more (:func:`pulse_delay_gain`) is the held model with ``R_s``,
-    ``L_s``, the back-EMF ratio and the dead-time voltage all divided by ``g``: the
-    shift is ``(1 / g - 1)`` times each, at either speed."""
-    result, _, drive = _ramp(DRAWN[0], True, monkeypatch)
-    for _, learned in result.segments:
-        assert learned.evidence is not None and learned.evidence.fit is not None
-        theta = learned.evidence.fit.parameters  # R_s, L_s, kappa, v
-        t_d = theta[3] * 1e-4 / drive.dc_voltage
-        gain = pulse_delay_gain(float(theta[0]), float(theta[1]), t_d)
-        assert learned.evidence.pulse_shift is not None
-        np.testing.assert_allclose(
-            learned.evidence.pulse_shift, (1.0 / gain - 1.0) * theta, rtol=0.02
-        )
+@pytest.mark.parametrize("number", (13, 17))
+def test_the_shift_is_the_carriers_bias_on_an_interior_motor(number: int) -> None:
+    """Drawn interior motors (0.09/0.19 and 0.13/0.30 mH on 48 V, docs/interior.md) at
+    their rated speed, fitted on the next sample's signs: L_q comes out about 0.05% low,
+    beyond 3 of the noise's standard errors, and the shift the carrier's pulses leave
+    (:func:`~selftune.learn.evidence._pulses.carrier_increments`) is that error within 2
+    of them; on average PWM, where no pulse is centred, the same fit's L_q error is
+    within 3."""
+    motor, speed, torque, bus, seed, adc_range = drawn_cases(30, 13, interior=True)[number - 1]
+    errors = {}
+    for pwm in ("carrier", "average"):
+        drive = replace(study_drive(bus, adc_range), pwm=pwm)
+        config = MotorConfig(
+            motor=motor, speed=speed, torque=torque, drive=drive, drive_h=1e-4,
+            learning={"integral_action": True}, source=f"drawn {number}",
+        )  # fmt: skip
+        result = commission_interior(motor, tuning_settings(config, seed), drive, seed=seed)
+        evidence = result.learned.evidence
+        assert evidence is not None and evidence.fit is not None
+        noise = float(np.sqrt(evidence.fit.parameter_covariance[2, 2]))
+        error = float(evidence.fit.parameters[2]) - true_motor(motor, drive).L_q
+        errors[pwm] = (error, noise, evidence.pulse_shift, evidence.next_sample_signs)
+    error, noise, shift, changed = errors["carrier"]
+    assert changed > 0 and shift is not None  # the next sample's signs, the bus given
+    assert error < -3.0 * noise
+    assert abs(error - shift[2]) < 2.0 * noise
+    error, noise, shift, _ = errors["average"]
+    assert shift is None and abs(error) < 3.0 * noise
 
 
 def test_a_bus_that_is_not_positive_is_refused_by_name() -> None:

@@ -414,9 +414,10 @@ def _judged(
     if evidence.pulse_shift is not None and evidence.fit is not None:  # reported, not judged
         widened = replace(evidence, fit=with_pulse_shift(evidence.fit, evidence.pulse_shift))
         note = (
-            "the motor's standard errors include the shift the dead time's pulses leave, "
-            "which its model does not carry (every pulse half the dead time late; a pulse "
-            "shorter than the dead time losing only its length), from the DC bus"
+            "the motor's standard errors include the shift the carrier's pulses leave, "
+            "which its model does not carry (each leg's pulse centred in the period and one "
+            "edge late by the dead time, where the model holds the voltage over the sample), "
+            "from the DC bus"
         )
         quality = replace(quality, motor=motor_estimate(widened), notes=(*quality.notes, note))
     return LearnedController(

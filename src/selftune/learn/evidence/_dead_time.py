@@ -26,7 +26,6 @@ unexplained error nor mistaken for back-EMF or feedforward.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Literal, cast
@@ -40,7 +39,6 @@ from ...core._phases import (
     from_phases,
     phase_currents,
     phases_of_dq,
-    space_vector_duties,
     to_phases,
 )
 from ...errors import ConfigurationMismatch, InputError
@@ -57,11 +55,10 @@ __all__ = [
     "check_angle",
     "direction_signs",
     "line_to_line",
-    "lost_signs",
     "path_signs",
     "path_vector",
+    "phase_sign_values",
     "phase_signs",
-    "pulse_delay_gain",
     "sign_vector",
     "with_dead_time",
     "with_signs_of",
@@ -200,95 +197,21 @@ def phase_signs(x: Array, angle: Array) -> Array:
     return vector.view(np.float64).reshape(*vector.shape, 2)
 
 
-def lost_signs(
-    x: Array, a: Array, angle: Array, advance: float, dc_voltage: float, voltage: float
-) -> Array:
-    """The part of the phase signs' vector whose dead time a short pulse does not carry.
-
-    A leg whose current flows out (``i_x > 0``) rises ``t_d`` late, so its pulse, ``d_x
-    T`` long in a carrier period ``T`` (duty ``d_x``), loses ``t_d``; one whose current
-    flows in falls ``t_d`` late, so the pulse gains ``t_d`` of the ``(1 - d_x) T`` it
-    does not fill: hence ``-v sign(i_x)``, ``v = t_d V_dc / T``. A pulse cannot be
-    shorter than nothing nor longer than the period: where the room, ``m_x T`` (``m_x
-    = d_x`` for ``i_x > 0``, ``1 - d_x`` for ``i_x < 0``), is shorter than ``t_d`` the
-    leg loses only ``m_x T``, and a leg held at duty 0 or 1 does not switch and loses
-    nothing. The error is then ``-v sign(i_x) (1 - l_x)`` with the share lost::
-
-        l_x = max(0, 1 - m_x T / t_d) = max(0, 1 - m_x V_dc / v)   (1 where d_x is 0 or 1)
-
-    so the model's ``-v s_k`` (:func:`phase_signs`) leaves out ``+v c_k``, ``c_k = (2/3)
-    sum_x sign(i_x) l_x exp(j 2 pi x / 3)`` in dq: nonzero only where a leg's room is
-    within ``t_d`` of none, i.e. at the voltage limit (``|u| = V_dc / sqrt(3)`` leaves
-    two legs at duties 0 and 1 only at six angles, and within ``t_d / T`` of them over
-    a band of angles around those).
+def phase_sign_values(x: Array, angle: Array) -> Array:
+    """``sign(i_x)`` of each phase current (T, 3), 0 within rounding of none (as
+    :func:`phase_signs`, whose dq vector they make).
 
     Parameters
     ----------
     x : ndarray, shape (T, 2)
-        ``[i_d, i_q]`` at the rows (whose signs the dead time acts with), A.
-    a : ndarray, shape (T, 2)
-        The dq voltage applied over each row's sample, V.
+        ``[i_d, i_q]``, A.
     angle : ndarray, shape (T,)
         Electrical rotor angle at each row, rad.
-    advance : float
-        The angle the modulator turns the command ahead of the row's, rad (the drive's
-        angle compensation: ``w_e h / 2`` from the sample's start to its middle).
-    dc_voltage : float
-        ``V_dc``, V.
-    voltage : float
-        ``v = t_d V_dc / T``, V (not positive: nothing lost).
-
-    Returns
-    -------
-    ndarray, shape (T, 2)
-        ``c_k`` in dq, dimensionless (0 where every leg has room).
     """
-    turn = np.exp(1j * np.asarray(angle, dtype=float))
-    current = (x[:, 0] + 1j * x[:, 1]) * turn
+    current = (x[:, 0] + 1j * x[:, 1]) * np.exp(1j * np.asarray(angle, dtype=float))
     phases = to_phases(current)
-    kept = _kept(phases, np.abs(current)[:, np.newaxis])  # as phase_signs: 0 within rounding
-    signs = np.sign(phases, out=np.zeros(phases.shape), where=kept)
-    modulated = (a[:, 0] + 1j * a[:, 1]) * turn * np.exp(1j * advance)
-    duties = space_vector_duties(modulated, dc_voltage)
-    room = np.where(signs > 0.0, duties, 1.0 - duties)
-    lost = np.clip(1.0 - room * dc_voltage / voltage, 0.0, 1.0) if voltage > 0.0 else 0.0 * room
-    lost[(duties <= 0.0) | (duties >= 1.0)] = 1.0 if voltage > 0.0 else 0.0
-    vector = from_phases(signs * lost) * np.conj(turn)
-    return np.column_stack([vector.real, vector.imag])
-
-
-def pulse_delay_gain(R_s: float, L_s: float, dead_time: float) -> float:
-    """How much more a voltage held over a sample moves a surface PMSM's current when the
-    inverter's dead time delays every pulse by half of it.
-
-    The dead time moves one edge of each switching leg's pulse by ``t_d``: the rise of a
-    leg whose current flows out, the fall of one whose current flows in. Either way the
-    pulse's middle comes ``t_d / 2`` later in the carrier period: besides the dead-time
-    voltage (the pulse's width, :func:`phase_signs`), the inverter's output is the held
-    voltage ``t_d / 2`` late. In the stationary frame a surface motor's current decays
-    at ``R_s / L_s`` (the rotation is in the back-EMF), so a volt-second applied ``t_d /
-    2`` later has decayed by ``exp(-R_s t_d / (2 L_s))`` less at the sample's end: the
-    voltage's effect on the next sample, ``Bd`` per volt, is ``exp(R_s t_d / (2 L_s))``
-    times the held model's. A centred pulse (no dead time) is not late, and its
-    volt-seconds' spread about the middle is second order in ``R_s T / L_s``. In an
-    interior motor's rotor frame the rotation cancels the same way to first order in
-    ``t_d``: its d and q voltages each take the factor of their own axis's inductance.
-
-    Parameters
-    ----------
-    R_s : float
-        Stator resistance, ohm.
-    L_s : float
-        Inductance, H (an interior motor's ``L_d`` or ``L_q``).
-    dead_time : float
-        ``t_d``, s.
-
-    Returns
-    -------
-    float
-        The factor on ``Bd``: 1 without dead time.
-    """
-    return math.exp(R_s * dead_time / (2.0 * L_s))
+    kept = _kept(phases, np.abs(current)[:, np.newaxis])
+    return np.sign(phases, out=np.zeros(phases.shape), where=kept)
 
 
 def path_signs(x: Array, angle: Array) -> Array:

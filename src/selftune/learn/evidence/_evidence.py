@@ -75,7 +75,7 @@ from ._output_error import (
     SpmsmStructure,
     fit_output_error,
 )
-from ._pulses import pulse_shift
+from ._pulses import holds_pulses, pulse_shift
 from ._rounding import resolution_floor
 from ._sign_bias import WORLD_FIDELITY, OwnSimulation, without_sign_bias
 from ._structure_check import check_structure, structure_statistic
@@ -378,7 +378,7 @@ def gather_evidence(
         if channels is measured:
             own = OwnSimulation.of(fit, channels, alignment.shift)
             adopted = None
-            if own.departure > WORLD_FIDELITY:
+            if own.departure > WORLD_FIDELITY or holds_pulses(fit.structure, options.dc_voltage):
                 adopted = adopted_next_signs(channels, alignment.shift, fit, relative, judge)
             if adopted is not None:
                 (channels, fit, test), own = adopted, None

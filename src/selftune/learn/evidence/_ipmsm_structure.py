@@ -71,17 +71,33 @@ class IpmsmStructure:
         InputError
             If an inductance is not positive, or the discretization overflows.
         """
-        R_s, L_d, L_q, kappa = (float(value) for value in np.asarray(theta, dtype=float)[:4])
+        A, B = self.continuous(theta)
+        kappa, L_q = float(theta[3]), float(theta[2])
+        D = np.zeros((2, self.references))
+        D[1, 0] = -kappa / L_q
+        v = float(theta[4]) if self.dead_time else None
+        return sampled_blocks(A, B, D, self.h, self.electrical_speed, self.hold, v)
+
+    def continuous(self, theta: Array) -> tuple[Array, Array]:
+        """The continuous current dynamics ``(A, B)`` (1/s, 1/H) of ``theta``.
+
+        Parameters
+        ----------
+        theta : ndarray, shape (4,) or (5,)
+            The parameters (as :meth:`__call__`'s).
+
+        Raises
+        ------
+        InputError
+            If an inductance is not positive.
+        """
+        R_s, L_d, L_q = (float(value) for value in np.asarray(theta, dtype=float)[:3])
         for name, value in (("L_d", L_d), ("L_q", L_q)):
             if not value > 0.0:
                 raise InputError(f"{name}: must be positive, got {value:.4g} H")
         w_e = self.electrical_speed
         A = np.array([[-R_s / L_d, w_e * L_q / L_d], [-w_e * L_d / L_q, -R_s / L_q]])
-        B = np.diag([1.0 / L_d, 1.0 / L_q])
-        D = np.zeros((2, self.references))
-        D[1, 0] = -kappa / L_q
-        v = float(theta[4]) if self.dead_time else None
-        return sampled_blocks(A, B, D, self.h, w_e, self.hold, v)
+        return A, np.diag([1.0 / L_d, 1.0 / L_q])
 
     def stack(self, thetas: Array) -> tuple[Array, Array, Array]:
         """:meth:`__call__` of each row of ``thetas``, stacked.

@@ -136,6 +136,18 @@ class SpmsmStructure:
         dead_time = _real(turning)
         return Ad, Bd, np.concatenate([Ed, -thetas[:, 3, None, None] * dead_time], axis=2)
 
+    def continuous(self, theta: Array) -> tuple[Array, Array]:
+        """The continuous current dynamics ``(A, B)`` (1/s, 1/H) of ``theta``.
+
+        Parameters
+        ----------
+        theta : ndarray, shape (3,) or (4,)
+            The parameters (as :meth:`__call__`'s).
+        """
+        rows = np.asarray(theta, dtype=float)[np.newaxis, :3]
+        A, B, _ = self._continuous(rows[:, 0], rows[:, 1], rows[:, 2])
+        return A[0], B[0]
+
     def _continuous(self, R_s: Array, L_s: Array, kappa: Array) -> tuple[Array, Array, Array]:
         """The continuous-time ``A``, ``B``, ``D`` of a stack of parameters."""
         P, w_e = R_s.size, self.electrical_speed

@@ -22,8 +22,9 @@ from numpy.typing import NDArray
 
 from ...core import Array, positive_finite
 from ...errors import InputError
-from ..evidence._dead_time import lost_signs, phase_signs
+from ..evidence._dead_time import phase_signs
 from ..evidence._discrete_model import DiscreteModel
+from ..evidence._pulses import lost_signs
 from ._moments import ForgettingMoments, add_rows, transposed_covariance
 
 __all__ = ["OnlineModel"]
@@ -55,7 +56,7 @@ class OnlineModel:
     pulses : (float, float) or None
         With dead time on a PWM inverter: the angle its modulator turns a row's command
         ahead, rad, and its DC bus, V; the moments then keep the dead time that short
-        pulses do not carry (:func:`~..evidence._dead_time.lost_signs`), which the model
+        pulses do not carry (:func:`~..evidence._pulses.lost_signs`), which the model
         leaves out (:meth:`omitted_shift`).
     dead_time_voltage : float
         ``v = t_d V_dc / T``, V, that pulses are judged short against (the caller's

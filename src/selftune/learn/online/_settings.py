@@ -72,8 +72,8 @@ class OnlineSettings:
         The inverter's DC bus, V, if known (with ``dead_time`` and the ``"stationary"``
         hold of a PWM inverter): the reported error bars then hold the shift that the
         dead time's pulses leave in the estimates, the part short pulses do not carry
-        (:func:`~..evidence._dead_time.lost_signs`; :meth:`~._model.OnlineModel.omitted_shift`)
-        and every pulse's delay by half of it (:func:`~..evidence._dead_time.pulse_delay_gain`).
+        (:func:`~..evidence._pulses.lost_signs`; :meth:`~._model.OnlineModel.omitted_shift`)
+        and every pulse's delay by half of it (:func:`~..evidence._pulses.pulse_delay_gain`).
         It does not enter any decision.
     least_change : (float, float, float, float)
         The least change of ``R_s``, ``L_s``, the flux ratio and the dead-time voltage

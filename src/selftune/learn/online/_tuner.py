@@ -51,8 +51,8 @@ import numpy as np
 from ...core import Array, ControlLaw
 from ...errors import InputError, Refusal, UnsolvableError
 from .._problem import LearningProblem
-from ..evidence._dead_time import pulse_delay_gain
 from ..evidence._discrete_model import DiscreteModel
+from ..evidence._pulses import pulse_delay_gain
 from ..learners._identify import design_digital
 from ._certify import Certificate, certify
 from ._model import OnlineModel
@@ -103,7 +103,7 @@ GUARD_DOUBT = (0.3, 0.3, 0.3, 0.3)
 #: carrier PWM with dead time (rms 2.7-3.9 on the medium and large motors) for a reason
 #: the share cannot carry: a large torque step's first samples are at the voltage limit,
 #: where a leg's pulse is shorter than the dead time and loses only its own length, which
-#: the model's full dead-time voltage leaves out (:func:`~..evidence._dead_time.lost_signs`;
+#: the model's full dead-time voltage leaves out (:func:`~..evidence._pulses.lost_signs`;
 #: the medium motor, 30 s: rms 0.9-1.1 without dead time, on average PWM, or with the
 #: simulator's pulses unclipped; 4.1 with them, the same bias under 3-30 mA of noise or a
 #: 12-bit ADC alone). The flux: 5%. It was the servo's (rms 3.4-4.3 without), and it
@@ -111,7 +111,7 @@ GUARD_DOUBT = (0.3, 0.3, 0.3, 0.3)
 #: 23 standard errors (on average PWM 0.0001%; with the dead time centred in the pulse,
 #: 0.0012% high): the dead time delays every pulse by half of it, so the voltage moves
 #: the current ``R_s t_d / (2 L_s)`` more than the held model says
-#: (:func:`~..evidence._dead_time.pulse_delay_gain`; 0.010% on the servo, 0.0025% and
+#: (:func:`~..evidence._pulses.pulse_delay_gain`; 0.010% on the servo, 0.0025% and
 #: 0.0016% on the medium and large motors, whose constant runs were 0.0023% and 0.0015%
 #: low). Where the DC bus is known (:attr:`OnlineSettings.dc_voltage`) the reported
 #: covariance holds the shift both leave in each parameter
@@ -441,7 +441,7 @@ class OnlineTuner:
         holds the shift the dead time's pulses leave in the parameters (with
         :attr:`OnlineSettings.dc_voltage`: the short ones' lost part,
         :meth:`~._model.OnlineModel.omitted_shift`, and every pulse's delay,
-        :func:`~..evidence._dead_time.pulse_delay_gain`)."""
+        :func:`~..evidence._pulses.pulse_delay_gain`)."""
         settings, slow = self.settings, self._model.moments[2]
         assert self._theta is not None
         weight = slow.instrument_weight(Theta)

@@ -157,10 +157,9 @@ def verdict(
         )
     if evidence.next_sample_signs:
         notes.append(
-            "the currents' signs measured near zero current (where the noise decides them) "
-            "did not explain the data; the dead-time model took the phase signs of "
-            f"{evidence.next_sample_signs} samples as the next sample shows them, and the "
-            "parameters are that fit's"
+            "the dead-time model took the phase signs of "
+            f"{evidence.next_sample_signs} samples as the next sample shows them (near zero "
+            "current the noise decides the measured ones), and the parameters are that fit's"
         )
     if (
         evidence.sign_correction is None and fit is not None
