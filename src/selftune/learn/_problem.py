@@ -335,9 +335,10 @@ class LearningOptions:
         The inverter's DC bus, V, if known (a carrier PWM inverter, one carrier period a
         sample): with ``dead_time``, a surface or interior structure and the
         ``"stationary"`` hold, the reported motor's standard errors (``quality.motor``)
-        then hold the shift the dead time's pulses leave in its parameters, which the
-        dead-time model does not carry (:mod:`selftune.learn.evidence._pulses`). No
-        decision reads it.
+        then hold the shift the carrier's pulses leave in its parameters, which the held
+        model does not carry (:mod:`selftune.learn.evidence._pulses`), and the fit on the
+        phase signs the next sample shows is reported where it explains the data better
+        and passes the tests (:func:`~selftune.learn.evidence._model_signs.adopted_next_signs`).
     """
 
     target: Target = "continuous"

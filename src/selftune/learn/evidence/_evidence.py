@@ -29,8 +29,11 @@ before refusing, the tests judge the model refitted on the signs of its own nois
 currents, then on those the next sample shows (:func:`~._model_signs.sign_refits`), where
 those explain the data better, and refuse only if both fail them. The parameters reported
 are the measured signs' fit's, with their bias removed (:mod:`._sign_bias`), except a
-structured fit's on the next sample's signs where the tests accept that one
-(:func:`~._model_signs.on_other_signs`, :func:`~._model_signs.adopted_next_signs`); a
+structured fit's on the next sample's signs where the tests accept that one and it
+explains the data better, the measured signs' fit having failed the tests, its own
+simulation departing from the data, or the DC bus given so that the reported bars hold
+the carrier's pulses (:func:`~._model_signs.on_other_signs`,
+:func:`~._model_signs.adopted_next_signs`, :func:`~._pulses.holds_pulses`); a
 refit on the model's own signs would have too small standard errors (its signs follow
 its parameters).
 

@@ -12,8 +12,9 @@ currents (:func:`on_model_signs`), then those the next sample shows
 
 The parameters a structured fit reports are those of the signs the tests accepted: the
 next sample's where the measured ones fail them (:func:`on_other_signs`), or where the
-measured signs' fit passes them but its own simulation does not describe the data
-(:func:`adopted_next_signs`); the verdict notes it. The next sample's signs' bias is
+measured signs' fit passes them but its own simulation does not describe the data or
+the reported bars hold the carrier's pulses (:func:`adopted_next_signs`); the verdict
+notes it. The next sample's signs' bias is
 measured and removed as the measured ones' is (:mod:`._sign_bias`, its simulations
 taking their signs the same way).
 
@@ -134,14 +135,16 @@ def adopted_next_signs(
     0.0995-0.1000 ohm, the output errors' covariance's determinant e^11 times smaller,
     the simulation's departure 0.009-0.017 against 0.44-0.49.
 
-    Not taken where the measured signs' output errors are only correlated in time (beyond
-    :data:`~._evidence.INFLATION_LIMIT`), though the refit explains those data better
-    too: at ``w_e h`` = 0.18 a 0.93/1.40 mH motor on 540 V with 2 V of dead time had its
-    variances 117 times white noise's and L_d 0.64% low at 0.8 standard errors, and on
-    the next sample's signs 0.004% (0.3). Its bars are then the noise's alone, and on the
-    carrier PWM they miss the modulation's bias of L_q: 0.04-0.09% low at 3.6-4.5
-    standard errors on 4 of 30 drawn interior motors (on average PWM within 1.0; without
-    dead time 0.02% at 2.3), which the measured signs' wider bars hold.
+    :func:`~._evidence.gather_evidence` also tries it where the measured signs' own
+    simulation describes the data but the reported bars can hold the carrier's pulses
+    (:func:`~._pulses.holds_pulses`: the DC bus given). The refit then explains the data
+    better where the measured signs' wrong ones only correlate the output errors: at 5%
+    of rated speed a 0.11/0.28 mH motor on 48 V had L_d 1.31% off at 1.5 standard
+    errors on the measured signs, 0.018% (1.7) on the next sample's, and with the true
+    signs 0.01%. The next sample's signs' bars are the noise's, and on carrier PWM they
+    missed the pulses' bias of L_q (0.03-0.06% low at 3.0-3.6 standard errors on 4 of 30
+    drawn interior motors at rated speed), which :func:`~._pulses.pulse_shift` now puts
+    in them; without the bus the measured signs' wider bars hold it.
     """
     if fit.structure is None:  # an unstructured fit keeps the measured signs (on_other_signs)
         return None
