@@ -153,6 +153,7 @@ def load_learn_config(
         dc_voltage = 540.0    # optional, V: a carrier PWM inverter's DC bus; with
                               # dead_time and a surface or interior structure, the
                               # reported motor's standard errors hold its pulses' shift
+                              # and the next sample's signs' fit may be reported
         [log]                 # optional: the log's own columns, units and frame
                               # (selftune.config._log_table); then n = m = 2 and q is
                               # the number of references w1..wq it names

@@ -31,9 +31,9 @@ those explain the data better, and refuse only if both fail them. The parameters
 are the measured signs' fit's, with their bias removed (:mod:`._sign_bias`), except a
 structured fit's on the next sample's signs where the tests accept that one and it
 explains the data better, the measured signs' fit having failed the tests, its own
-simulation departing from the data, or the DC bus given so that the reported bars hold
-the carrier's pulses (:func:`~._model_signs.on_other_signs`,
-:func:`~._model_signs.adopted_next_signs`, :func:`~._pulses.holds_pulses`); a
+simulation departing from the data, the DC bus given so that the reported bars hold the
+carrier's pulses, or the two fits apart beyond the measured one's bars
+(:func:`~._model_signs.on_other_signs`, :func:`~._model_signs.reported_next_signs`); a
 refit on the model's own signs would have too small standard errors (its signs follow
 its parameters).
 
@@ -70,7 +70,7 @@ from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
 from ._dead_time import DeadTimeChannels, DeadTimeModel, Switching, with_dead_time
 from ._discrete_model import DiscreteModel, lack_of_rank, regressor_names
 from ._incremental_structure import IncrementalStructure
-from ._model_signs import adopted_next_signs, changed_signs, on_other_signs
+from ._model_signs import changed_signs, on_other_signs, reported_next_signs
 from ._output_error import (
     IpmsmStructure,
     MotorStructure,
@@ -80,7 +80,7 @@ from ._output_error import (
 )
 from ._pulses import holds_pulses, pulse_shift
 from ._rounding import resolution_floor
-from ._sign_bias import WORLD_FIDELITY, OwnSimulation, without_sign_bias
+from ._sign_bias import OwnSimulation, without_sign_bias
 from ._structure_check import check_structure, structure_statistic
 
 __all__ = [
@@ -380,9 +380,8 @@ def gather_evidence(
         own = None
         if channels is measured:
             own = OwnSimulation.of(fit, channels, alignment.shift)
-            adopted = None
-            if own.departure > WORLD_FIDELITY or holds_pulses(fit.structure, options.dc_voltage):
-                adopted = adopted_next_signs(channels, alignment.shift, fit, relative, judge)
+            pulses = (own.departure, holds_pulses(fit.structure, options.dc_voltage))
+            adopted = reported_next_signs(channels, alignment.shift, fit, relative, judge, pulses)
             if adopted is not None:
                 (channels, fit, test), own = adopted, None
         floor = resolution_floor(np.concatenate([e.x for e in episodes]), relative)

@@ -25,8 +25,10 @@ model's; their effect on the measured currents is the fitted model's response to
 and the output-error fit would move by one Gauss-Newton step on that response
 (:func:`pulse_shift`): the bias they leave, to first order. The reported motor's
 standard errors hold it (:func:`with_pulse_shift`); no decision of the verdict reads
-them. It needs the DC bus (``t_d = v h / V_dc`` from the fitted dead-time voltage ``v``,
-one carrier period a sample) and the stationary hold of a PWM inverter.
+them, but where they can be held (:func:`holds_pulses`) the fit on the signs the next
+sample shows may be reported (:func:`~._model_signs.adopted_next_signs`). It needs
+the DC bus (``t_d = v h / V_dc`` from the fitted dead-time voltage ``v``, one carrier
+period a sample) and the stationary hold of a PWM inverter.
 
 On carrier PWM with dead time (the ramp and interior draws, docs/schedule.md and
 docs/interior.md) the flux (once L_q) came out 0.004-0.02% low at 3.2-8.0 standard errors

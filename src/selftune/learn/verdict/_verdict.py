@@ -156,10 +156,17 @@ def verdict(
             "removed; the standard errors include the correction's own size"
         )
     if evidence.next_sample_signs:
+        unheld = (
+            ""
+            if evidence.pulse_shift is not None
+            else "; on a carrier PWM inverter its standard errors leave out the shift its "
+            "pulses leave unless the DC bus is given ([learning] dc_voltage, V)"
+        )
         notes.append(
             "the dead-time model took the phase signs of "
             f"{evidence.next_sample_signs} samples as the next sample shows them (near zero "
-            "current the noise decides the measured ones), and the parameters are that fit's"
+            "current the noise decides the measured ones), and the parameters are that "
+            f"fit's{unheld}"
         )
     if (
         evidence.sign_correction is None and fit is not None
