@@ -338,7 +338,7 @@ class LearningOptions:
         then hold the shift the carrier's pulses leave in its parameters, which the held
         model does not carry (:mod:`selftune.learn.evidence._pulses`), and the fit on the
         phase signs the next sample shows is reported where it explains the data better
-        and passes the tests (:func:`~selftune.learn.evidence._model_signs.adopted_next_signs`).
+        and passes the tests (:func:`~selftune.learn.evidence._model_signs.reported_next_signs`).
     """
 
     target: Target = "continuous"

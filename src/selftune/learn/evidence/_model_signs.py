@@ -12,9 +12,9 @@ currents (:func:`on_model_signs`), then those the next sample shows
 
 The parameters a structured fit reports are those of the signs the tests accepted: the
 next sample's where the measured ones fail them (:func:`on_other_signs`), or where the
-measured signs' fit passes them but its own simulation does not describe the data or
-the reported bars hold the carrier's pulses (:func:`adopted_next_signs`); the verdict
-notes it. The next sample's signs' bias is
+measured signs' fit passes them but its own simulation does not describe the data, the
+reported bars hold the carrier's pulses, or it lies beyond its own bars from the next
+sample's (:func:`reported_next_signs`); the verdict notes it. The next sample's signs' bias is
 measured and removed as the measured ones' is (:mod:`._sign_bias`, its simulations
 taking their signs the same way).
 
@@ -180,14 +180,12 @@ def adopted_next_signs(
     fit: OutputErrorFit,
     resolution: float,
     judge: Judge,
-    departure: float = WORLD_FIDELITY,
+    departure: float,
 ) -> Accepted | None:
     """The fit on the signs the next sample shows (:func:`on_next_signs`), its channels
     and its consistency, for a measured signs' structured ``fit`` that passed the tests
-    but whose own simulation does not describe the data
-    (:class:`~._sign_bias.OwnSimulation` beyond :data:`~._sign_bias.WORLD_FIDELITY`), so
-    that its signs' bias cannot be measured: where the refit explains the data better,
-    passes the tests and its own simulation describes them; else None.
+    (:func:`reported_next_signs` says when it is reported): where the refit explains the
+    data better, passes the tests and its own simulation describes them; else None.
 
     ``departure`` is the most the refit's own simulation may depart from the data
     (:class:`~._sign_bias.OwnSimulation`): :data:`~._sign_bias.WORLD_FIDELITY`, or

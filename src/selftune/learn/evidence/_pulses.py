@@ -51,7 +51,7 @@ from scipy.linalg import expm
 from ...core import Array
 from ...core._phases import CLARKE, from_phases, space_vector_duties
 from ._alignment import applied_inputs
-from ._dead_time import DeadTimeChannels, phase_sign_values, phase_signs
+from ._dead_time import DeadTimeChannels, phase_sign_values
 from ._ipmsm_structure import IpmsmStructure
 from ._output_error import (
     OutputErrorFit,
@@ -127,6 +127,7 @@ def pulse_shift(
     A, B = structure.continuous(fit.parameters)
     n = Ad.shape[0]
     advance = 0.5 * structure.electrical_speed * structure.h  # the modulator's compensation
+    held = (A, B, structure.h, structure.electrical_speed)
     logs, responses = [], []
     for episode, angle in zip(channels.episodes, channels.angles, strict=True):
         a, first = applied_inputs(episode, shift)
@@ -134,7 +135,6 @@ def pulse_shift(
         x, a = episode.x[first : first + count + 1], a[:count]
         assert episode.w is not None
         logs.append(_Log(x=x, a=a, w=episode.w[first : first + count]))
-        held = (A, B, structure.h, structure.electrical_speed)
         pulses = (angle[first : first + count], advance, dc_voltage, v)
         omitted = carrier_increments(held, x[:-1], a, pulses)
         step = (Ad, np.eye(n), np.zeros((n, 0)))  # the omitted increment, a sample on
@@ -206,7 +206,8 @@ def carrier_increments(
     F[1:] = np.cumsum(0.5 * (G[1:] + G[:-1]) * np.diff(s)[:, np.newaxis, np.newaxis], axis=0)
     turn = np.exp(1j * np.asarray(angle, dtype=float))
     signs = phase_sign_values(x, angle)
-    duties = space_vector_duties((a[:, 0] + 1j * a[:, 1]) * turn * np.exp(1j * advance), dc_voltage)
+    ahead = (a[:, 0] + 1j * a[:, 1]) * np.exp(1j * advance)  # Rot(advance) a_k
+    duties = space_vector_duties(ahead * turn, dc_voltage)
     t_d = v * h / dc_voltage
     switching = (duties > 0.0) & (duties < 1.0)
     fall = np.minimum((1.0 + duties) * h / 2 + t_d * ((signs < 0.0) & switching), h)
@@ -216,9 +217,8 @@ def carrier_increments(
     legs = dc_voltage * CLARKE[np.newaxis, :] * np.conj(turn)[:, np.newaxis]  # dq at the start
     leg_dq = np.stack([legs.real, legs.imag], -1)  # (T, 3, 2)
     carrier = np.einsum("tkij,tkj->ti", width.reshape(*width.shape[:2], 2, 2), leg_dq)
-    c0, s0 = np.cos(advance), np.sin(advance)
-    commanded = a @ np.array([[c0, -s0], [s0, c0]]).T - v * phase_signs(x, angle)
-    return np.asarray(carrier - commanded @ F[-1].T)
+    commanded = ahead - v * from_phases(signs) * np.conj(turn)  # s_k: phase_signs
+    return np.asarray(carrier - np.column_stack([commanded.real, commanded.imag]) @ F[-1].T)
 
 
 def lost_signs(
@@ -282,8 +282,8 @@ def pulse_delay_gain(R_s: float, L_s: float, dead_time: float) -> float:
     The dead time moves one edge of each switching leg's pulse by ``t_d``: the rise of a
     leg whose current flows out, the fall of one whose current flows in. Either way the
     pulse's middle comes ``t_d / 2`` later in the carrier period: besides the dead-time
-    voltage (the pulse's width, :func:`phase_signs`), the inverter's output is the held
-    voltage ``t_d / 2`` late. In the stationary frame a surface motor's current decays
+    voltage (the pulse's width, :func:`~._dead_time.phase_signs`), the inverter's output
+    is the held voltage ``t_d / 2`` late. In the stationary frame a surface motor's current decays
     at ``R_s / L_s`` (the rotation is in the back-EMF), so a volt-second applied ``t_d /
     2`` later has decayed by ``exp(-R_s t_d / (2 L_s))`` less at the sample's end: the
     voltage's effect on the next sample, ``Bd`` per volt, is ``exp(R_s t_d / (2 L_s))``
