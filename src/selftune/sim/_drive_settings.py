@@ -139,6 +139,22 @@ class DriveSettings:
         object.__setattr__(self, "adc_bits", bits)
         object.__setattr__(self, "adc_range", positive_finite(self.adc_range, "adc_range"))
 
+    @property
+    def adc_step(self) -> float | None:
+        """The ADC's least significant bit, ``adc_range / 2**(adc_bits - 1)``, A (None
+        without an ADC)."""
+        if self.adc_bits is None or self.adc_range is None:
+            return None
+        return self.adc_range / 2 ** (self.adc_bits - 1)
+
+    @property
+    def current_resolution(self) -> float:
+        """The standard deviation of a phase current's measurement error, A: the noise's
+        and the ADC rounding's (a uniform error of one step, ``step / sqrt(12)``), taken
+        as independent."""
+        step = 0.0 if self.adc_step is None else self.adc_step
+        return float(np.hypot(self.current_noise, step / np.sqrt(12.0)))
+
     def dead_time_voltage(self, h: float) -> float:
         """The dead time's voltage error per phase at one PWM period per sample,
         ``t_d V_dc / h``, V (0 without dead time or DC bus).

@@ -399,10 +399,9 @@ def _modulation_offset(settings: DriveSettings, w_e: Array, h: float) -> Array:
 
 
 def _sensor(settings: DriveSettings, noise: Array | None) -> CurrentSensor:
-    if settings.adc_bits is None or settings.adc_range is None:
+    if settings.adc_bits is None or settings.adc_step is None:
         return CurrentSensor(noise=noise, lsb=None, codes=0)
-    codes = 2 ** (settings.adc_bits - 1)
-    return CurrentSensor(noise=noise, lsb=settings.adc_range / codes, codes=codes)
+    return CurrentSensor(noise=noise, lsb=settings.adc_step, codes=2 ** (settings.adc_bits - 1))
 
 
 def _loop_inputs(
