@@ -168,14 +168,11 @@ def test_coarse_steps_are_simulated_and_stated_fine_ones_are_not() -> None:
 
 
 def test_a_refusal_on_coarse_steps_names_the_adc() -> None:
-    """The corpus's 48 V motor (48.8 mA steps, 2 mA of noise) refused at 0.03 s: the
+    """The corpus's 48 V motor (48.8 mA steps, 2 mA of noise) refused at 0.05 s: the
     message names the ADC's steps and the noise before them, not only the length. (At
     0.1 s it is learned, within 2.6 standard errors of the digital optimum: the phase
     currents the ADC reads as exactly 0 no longer take the rounding's signs in the
-    dead-time model, whose noise had made the standard error of K 6%. At 0.05 s it was
-    refused too until the signs' bias was measured on currents that follow the data's
-    (``selftune.learn.evidence._sign_bias.FOLLOW_GAIN``): now learned, the norm of K's
-    error 1.4 standard errors.)"""
+    dead-time model, whose noise had made the standard error of K 6%.)"""
     from selftune.bench._corpus import MOTORS, CorpusLog, recorded
     from selftune.bench._refusals import _known, _options
 
@@ -183,9 +180,9 @@ def test_a_refusal_on_coarse_steps_names_the_adc() -> None:
     log = CorpusLog(motor, "realistic drive", 160_002, 2.09e-3, 0.813)
     problem, K0 = _known(motor.experiment)
     with pytest.raises(TooLittleData) as refusal:
-        learn_controller(recorded(log, 600), problem, K0, _options("adp"))
+        learn_controller(recorded(log, 1000), problem, K0, _options("adp"))
     message = str(refusal.value)
     assert "the currents are whole 48.8 mA steps of an ADC with" in message
-    # 2 mA under 48.8 mA steps is below what these samples resolve: "no noise the errors
+    # 2 mA under 48.8 mA steps is below what 2,000 samples resolve: "no noise the errors
     # show" (the rounding's variance is 50 times the noise's)
     assert "before it: its rounding is a fixed function of the current" in message

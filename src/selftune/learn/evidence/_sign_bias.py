@@ -10,26 +10,15 @@ of noise, 0.3 A rms currents) U was 5-9% off under standard errors of 1.4-2.2%; 
 true signs, 0.07% off.
 
 The bias is measured on the fitted model itself (a parametric bootstrap): the model's
-currents are simulated from the logged inputs with the dead time switching on their
+own currents are simulated from the logged inputs with the dead time switching on their
 true signs, measurement noise of the estimated covariance is added, the signs are taken
 from those noisy currents as from the log, and the model is refitted
-(:data:`BIAS_DRAWS` times). The simulated currents follow the measured ones: each step
-moves :data:`FOLLOW_GAIN` of the way to the next measured current, and the world's
-inputs are the logged ones plus what puts that move through the model, so that the
-world is the model exactly and its currents cross zero where the data's do. The bias
-depends on where and how long the currents linger near zero; the model's own open-loop
-currents, on a plant its resistance barely damps, drift from the data's by what a small
-change of the model integrates: a 4.5/11.3 mH motor of 0.32 ohm rated 0.28 A, on its
-own currents, had its bias of L_q measured as -0.08%, then +0.47%, +0.18% and -0.35%
-in four rounds (each round's six refits within 0.05% of each other) and was reported
-0.52% off; on the followed currents the rounds agree within 0.03% and it is 0.04% off.
-
-The refits' mean departure from the model is the bias at the model; the parameters are
-corrected by it and their variances are at least the refits'. The bias is measured where
-the model is, not where the truth is: a second round measures it again at the corrected
-model and corrects again, and the covariance gains the second correction's outer product
-(the correction is known no better than its last round) and the draws' noise in the
-rounds' means.
+(:data:`BIAS_DRAWS` times). The refits' mean departure from the model is the bias at
+the model; the parameters are corrected by it and their variances are at least the
+refits'. The bias is measured where the model is, not where the truth is: a second
+round measures it again at the corrected model and corrects again, and the covariance
+gains the second correction's outer product (the correction is known no better than its
+last round) and the draws' noise in the rounds' means.
 
 The simulation must describe the data. Where the fitted model's noise-free currents,
 its dead time switched on their own signs, are off the measured ones by more than
@@ -79,7 +68,6 @@ from ._output_error import OutputErrorFit, _finish, _Log, _logs
 
 __all__ = [
     "BIAS_DRAWS",
-    "FOLLOW_GAIN",
     "OWN_SIGNS_LIMIT",
     "WORLD_FIDELITY",
     "OwnSimulation",
@@ -113,14 +101,6 @@ WORLD_FIDELITY = 1.0 / 3.0
 #: standard errors); 0.37-0.51 on logs whose results were within their errors (the flux
 #: step of a low-inductance motor, a two-speed ramp), where the bias is left unmeasured.
 OWN_SIGNS_LIMIT = 1.0
-
-#: The share of what the model's prediction misses of the next measured current by
-#: which the refits' world moves each step (:func:`_followed_world`): its currents then
-#: follow the data's with a lag of about ten samples and stay off them by about half the
-#: noise's standard deviation. On 30 random interior motors of 540 V and 48 V (the
-#: interior study's seed 14 at rated speed) the errors over 0.5% went from 2 to 1 with
-#: 0.1; with 0.03 and 0.3 the small-current motors' errors were as scattered.
-FOLLOW_GAIN = 0.1
 
 #: Gauss-Newton iterations of each refit: on the README's drive (1-2 s logs, four seeds)
 #: 4 left K and U as close to the truth as 12 did (their errors' norms within 0.7 of a
@@ -158,43 +138,25 @@ def _simulated(
     log: _Log,
     start: tuple[Array, Array],
     switching: Switching,
-    follow: float = 0.0,
-) -> tuple[Array, Array]:
+) -> Array:
     """The model's currents (T + 1, 2) from ``start = (x0, angles)`` with the dead time
-    switching on their own signs (the last two columns of ``Ed`` are the signs' gain),
-    and what ``follow`` added to each step (T, 2).
-
-    On the path (:func:`~._dead_time.path_vector`) a sample's signs need its end: taken
-    from the step with the signs at its start, then from the step with the path's
-    (twice). With ``follow`` > 0 each step first adds ``follow`` times what its prediction
-    on the start's signs misses of the next measured current (``log.x``), which the
-    signs then act on as on the inputs' share (:func:`_followed_world`)."""
+    switching on their own signs: the last two columns of ``Ed`` are the signs' gain. On
+    the path (:func:`~._dead_time.path_vector`) a sample's signs need its end: taken from
+    the step with the signs at its start, then from the step with the path's (twice)."""
     Ad, Bd, Ed = matrices
     x0, angle = start
     q = Ed.shape[1] - 2
     forcing = (log.a @ Bd.T + log.w[:, :q] @ Ed[:, :q].T).tolist()
-    measured = log.x.tolist()
     cos, sin = np.cos(angle).tolist(), np.sin(angle).tolist()
     (a00, a01), (a10, a11) = Ad.tolist()
     (g00, g01), (g10, g11) = Ed[:, q:].tolist()
     x = np.empty((len(forcing) + 1, 2))
-    added = np.zeros((len(forcing), 2))
     d, q_ = float(x0[0]), float(x0[1])
     x[0] = d, q_
     for k, (f_d, f_q) in enumerate(forcing):
         free_d, free_q = a00 * d + a01 * q_ + f_d, a10 * d + a11 * q_ + f_q
         s_d, s_q = sign_vector(d, q_, cos[k], sin[k])
         next_d, next_q = free_d + g00 * s_d + g01 * s_q, free_q + g10 * s_d + g11 * s_q
-        if follow > 0.0:
-            add_d = follow * (measured[k + 1][0] - next_d)
-            add_q = follow * (measured[k + 1][1] - next_q)
-            free_d, free_q, next_d, next_q = (
-                free_d + add_d,
-                free_q + add_q,
-                next_d + add_d,
-                next_q + add_q,
-            )
-            added[k] = add_d, add_q
         for _ in range(2 if switching == "path" else 0):
             s_d, s_q = path_vector(
                 (d, q_, cos[k], sin[k]), (next_d, next_q, cos[k + 1], sin[k + 1])
@@ -202,7 +164,7 @@ def _simulated(
             next_d, next_q = free_d + g00 * s_d + g01 * s_q, free_q + g10 * s_d + g11 * s_q
         d, q_ = next_d, next_q
         x[k + 1] = d, q_
-    return x, added
+    return x
 
 
 def model_currents(fit: OutputErrorFit, channels: DeadTimeChannels, shift: int) -> list[Array]:
@@ -236,7 +198,7 @@ def model_currents(fit: OutputErrorFit, channels: DeadTimeChannels, shift: int) 
         x = episode.x.copy()
         x[first : first + log.x.shape[0]] = _simulated(
             matrices, log, (simulated[0], rows), channels.switching
-        )[0]
+        )
         currents.append(x)
     return currents
 
@@ -269,30 +231,9 @@ def _own_currents(
     """Each log's currents simulated by the model from its inputs, the dead time switched
     on the simulated currents' own signs."""
     return [
-        _simulated(matrices, log, (x0, angle), switching)[0]
+        _simulated(matrices, log, (x0, angle), switching)
         for log, x0, angle in zip(logs, x0s, rows, strict=True)
     ]
-
-
-def _followed_world(
-    matrices: tuple[Array, Array, Array],
-    logs: Sequence[_Log],
-    rows: Sequence[Array],
-    x0s: Sequence[Array],
-    switching: Switching,
-) -> tuple[list[Array], list[_Log]]:
-    """The refits' world (see the module): each log's currents simulated by the model, the
-    dead time on their own signs, each step moved :data:`FOLLOW_GAIN` of the way to the
-    next measured current, and the logs with the inputs that make those currents the
-    model's exactly (the logged ones plus what puts each step's move through ``Bd``)."""
-    Bd = matrices[1]
-    truths, worlds = [], []
-    for log, x0, angle in zip(logs, x0s, rows, strict=True):
-        truth, added = _simulated(matrices, log, (x0, angle), switching, FOLLOW_GAIN)
-        inputs = log.a + np.linalg.lstsq(Bd, added.T, rcond=None)[0].T
-        truths.append(truth)
-        worlds.append(_Log(x=log.x, a=inputs, w=log.w))
-    return truths, worlds
 
 
 def _departure(truths: Sequence[Array], logs: Sequence[_Log]) -> Array:
@@ -428,7 +369,7 @@ def without_sign_bias(
     """
     own = OwnSimulation.of(fit, channels, shift) if own is None else own
     switching, whole, starts = own.switching, own.whole, own.starts
-    logs, rows, x0s = own.logs, own.rows, own.x0s
+    logs, rows, x0s, truths = own.logs, own.rows, own.x0s, own.truths
     signs = SWITCHING_SIGNS[switching]
     departure = own.departure
     if departure > OWN_SIGNS_LIMIT:  # the fit itself: the measured signs carry it
@@ -451,19 +392,17 @@ def without_sign_bias(
     draws = np.zeros((0, fit.parameters.shape[0]))
     for _ in range(BIAS_ROUNDS):
         if steps:  # the corrected model's own currents (the fit's are above)
-            own_currents = _own_currents(fit.matrices(corrected), logs, rows, x0s, switching)
-            if not _describes(own_currents, logs):
+            truths = _own_currents(fit.matrices(corrected), logs, rows, x0s, switching)
+            if not _describes(truths, logs):
                 return None
-        truths, worlds = _followed_world(fit.matrices(corrected), logs, rows, x0s, switching)
 
         def world(
             rng: np.random.Generator,
             truths: list[Array] = truths,
-            worlds: list[_Log] = worlds,
             model: tuple[Array, Array, Array] = fit.matrices(corrected),  # the next signs' reader
         ) -> list[_Log]:
             drawn = []
-            for truth, log, angle in zip(truths, worlds, rows, strict=True):
+            for truth, log, angle in zip(truths, logs, rows, strict=True):
                 if lattice is None:
                     x = truth + rng.standard_normal(truth.shape) @ root.T
                 else:
