@@ -320,15 +320,13 @@ def default_exploration(config: MotorConfig, h: float | None = None) -> float:
     large inductance whose resistance damps it, on an ADC coarse for its current), the
     exploration is raised until it is not, to at most 10% of the bus: the inductances'
     standard errors shrink as that ratio grows. On the 30 of seed 13 (ADC steps of 24.4
-    mA, 10 mA of noise) six 540 V motors of 8.9-90 mH are raised, to 31.5-54 V; with
-    the signs' bias measured on currents that follow the data's
-    (:data:`~selftune.learn.evidence._sign_bias.FOLLOW_GAIN`), at 5% of rated speed the
-    largest error of L_d, L_q or the flux fell from 0.97% to 0.19% (drawn 26, 17.7/44.3
-    mH, 0.24 A rated; drawn 9, 26.3/65.7 mH, from 0.90% to 0.07%), at 30% from 0.64% to
-    0.21%, at rated speed from 0.29% to 0.17%; no motor was refused, and the 48 V motors
-    (whose 1.44 V drives amperes) were not raised. At 20 resolutions instead of 30,
-    drawn 28 (12/30 mH, raised to 24 V rather than 36 V) was 0.47% off at 30% of rated
-    speed.
+    mA, 10 mA of noise) six 540 V motors of 8.9-90 mH are raised, to 31.5-54 V; at 5% of
+    rated speed the largest error of L_d, L_q or the flux fell from 0.97% to 0.26%
+    (drawn 26, 17.7/44.3 mH, 0.24 A rated, to 0.07%; drawn 9, 26.3/65.7 mH, from 0.90%
+    to 0.06%), at 30% from 0.64% to 0.24%, at rated speed from 0.29% to 0.18%; no motor
+    was refused, and the 48 V motors (whose 1.44 V drives amperes) were not raised. At
+    20 resolutions instead of 30 drawn 28 (12/30 mH, raised to 24 V rather than 36 V)
+    had L_d's standard error 0.29% at 30% of rated speed, at 30 0.16%.
 
     Parameters
     ----------
