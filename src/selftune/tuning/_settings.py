@@ -280,8 +280,9 @@ EXPLORED_RESOLUTIONS = 30.0
 def explored_current(motor: IPMSM, h: float, exploration: float) -> Array:
     """The rms d and q currents, A, that a uniform exploration of ``+-exploration`` (V)
     on each axis drives through the nameplate ``motor`` under the default K0 (each axis
-    a first-order loop, the cross-coupling and the delay left out): a sample moves the
-    current by ``a = 1 - R_s h / L - K0_fraction``, so its variance is
+    a first-order loop, the cross-coupling and the delay left out): each sample keeps
+    ``a = 1 - R_s h / L - K0_fraction`` of the current and adds ``h / L`` times a
+    uniform voltage of variance ``exploration^2 / 3``, so the current's variance is
     ``(exploration h / L)^2 / 3 / (1 - a^2)``.
 
     Parameters
@@ -340,10 +341,8 @@ def default_exploration(config: MotorConfig, h: float | None = None) -> float:
     if drive is None or drive.dc_voltage is None:
         return PAPER_EXPLORATION
     motor = config.motor
-    interior = isinstance(motor, IPMSM) and motor.L_d != motor.L_q
-    if not interior or config.saturation is not None:
+    if not isinstance(motor, IPMSM) or motor.L_d == motor.L_q or config.saturation is not None:
         return DRIVE_DEFAULTS["exploration_fraction"] * drive.dc_voltage
-    assert isinstance(motor, IPMSM)
     exploration = DRIVE_DEFAULTS["interior_exploration_fraction"] * drive.dc_voltage
     h = (config.drive_h or PAPER_SAMPLING) if h is None else h
     wanted = EXPLORED_RESOLUTIONS * drive.current_resolution
