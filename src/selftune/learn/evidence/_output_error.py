@@ -286,6 +286,32 @@ def _residuals_and_jacobian(
     return residuals, jacobians, simulated
 
 
+def simulation_spread(fit: OutputErrorFit, logs: list[_Log], x0s: list[Array]) -> Array:
+    """The rms over the logs' samples of the standard deviation of the fit's simulated
+    states under its parameter covariance (linearized), per state (n,), in the states'
+    unit.
+
+    Parameters
+    ----------
+    fit : OutputErrorFit
+        The fit.
+    logs : list of _Log
+        Logs of the fit's kind (its exogenous channels).
+    x0s : list of ndarray
+        Their initial states.
+    """
+    chain = _jacobian_map(fit.matrices, fit.parameters, fit.structure is not None)
+    mats = fit.matrices(fit.parameters)
+    [(_, jacobians, _)] = _run_searches([_residuals_and_jacobian(logs, mats, x0s, chain)])
+    p, C = fit.parameters.shape[0], fit.parameter_covariance
+    total, count = np.zeros(fit.model.n), 0
+    for jacobian in jacobians:
+        for J in jacobian.blocks():
+            total += np.einsum("kia,ab,kib->i", J[:, :, :p], C, J[:, :, :p])
+            count += J.shape[0]
+    return np.sqrt(total / max(count, 1))
+
+
 #: Rounds of re-estimating the noise weight W; Levenberg-Marquardt runs within each.
 WEIGHT_ROUNDS = 3
 
