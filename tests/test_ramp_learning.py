@@ -37,6 +37,7 @@ from selftune.learn import (
     save_trajectory,
 )
 from selftune.learn._speeds import MIN_SEGMENT, speed_segments
+from selftune.learn.verdict import _quality as verdict_quality
 from selftune.model import EXCESS, IPMSM, SPMSM, Motor, design_schedule
 from selftune.report import report_files
 from selftune.report._digital_evaluation import true_motor
@@ -263,11 +264,18 @@ def test_a_bad_schedule_table_is_one_line_naming_the_key(
     assert str(caught.value).startswith(f"{path}: {said.removeprefix('bad.toml: ')}")
 
 
-def test_a_part_below_the_top_speed_too_imprecise_for_its_own_law_counts_by_its_variance() -> None:
+def test_a_part_below_the_top_speed_too_imprecise_for_its_own_law_counts_by_its_variance(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """At 5% of the rated speed an 80 mH motor's part gives its own law's feedforward
     beyond the precision limit (TooLittleData); the top speed's part passes, so the low
     part is learned again with that gate open, says so in a note, and the combined motor
-    is the truth's within 4 standard errors, its schedule within 1% of the optimum."""
+    is the truth's within 4 standard errors, its schedule within 1% of the optimum.
+
+    The low part's U has a relative standard error of 20% (25.5% when the signs' bias was
+    measured on the replayed voltages, beyond the servo's 25% limit; the experiment re-run
+    under the drive's law narrowed it), the top part's 0.13%: the limit is set to 15%."""
+    monkeypatch.setattr(verdict_quality, "SERVO_FEEDFORWARD_LIMIT", 0.15)
     motor, speed = SPMSM(R_s=0.84, L_s=0.08, phi_pm=0.16, p=4), 95.0
     drive = dataclasses.replace(
         DriveSettings.hardware_like(dc_voltage=540.0), temperature_rise=20.0
