@@ -97,16 +97,15 @@ class DriveLaw:
         n, m = logs[0][0].shape[1], logs[0][1].shape[1]
         Y = np.vstack([a[lag + 1 :] for _, a, _ in logs])
         lengths = [a.shape[0] - lag - 1 for _, a, _ in logs]
-        fits = {}
-        for integral in (True, False):
-            Phi = np.vstack([_regressors(x, a, w, lag, integral) for x, a, w in logs])
-            if Phi.shape[0] < 10 * Phi.shape[1]:
-                return None
-            fits[integral] = (Phi, *_least_squares(Phi, Y))
-        Phi, theta, se = fits[True]
+        Phi = np.vstack([_regressors(x, a, w, lag, True) for x, a, w in logs])
+        if Phi.shape[0] < 10 * Phi.shape[1]:
+            return None
+        theta, se = _least_squares(Phi, Y)
         S = slice(m + 2 * n, m + 3 * n)  # the integrator's gains, within their noise: none
         integral = bool(np.any(np.abs(theta[S]) > SIGNIFICANCE * se[S]))
-        Phi, theta, _ = fits[integral]
+        if not integral:
+            Phi = np.vstack([_regressors(x, a, w, lag, False) for x, a, w in logs])
+            theta = _least_squares(Phi, Y)[0]
         if not _white(Y - Phi @ theta, lengths):
             return None
         gains = theta[: m + (3 if integral else 2) * n].T

@@ -182,7 +182,7 @@ def _simulated(
     (a00, a01), (a10, a11) = Ad.tolist()
     (g00, g01), (g10, g11) = Ed[:, q:].tolist()
     x = np.empty((len(forcing) + 1, 2))
-    a = log.a.copy()
+    a = log.a if loop is None else log.a.copy()  # the law's answers are added
     d, q_ = float(x0[0]), float(x0[1])
     x[0] = d, q_
     if loop is not None:  # the law's answer to the departure from the logged currents
@@ -282,18 +282,20 @@ def _replay_uncertainty(fit: OutputErrorFit, logs: list[_Log], x0s: list[Array])
     """The fit's simulated currents' standard deviation under its parameter covariance
     (:func:`~._output_error.simulation_spread`) as a fraction of the measured currents'
     spread, the larger state's (:data:`REPLAY_UNCERTAINTY`)."""
+    return float(np.max(simulation_spread(fit, logs, x0s) / _spread(logs)))
+
+
+def _spread(logs: Sequence[_Log]) -> Array:
+    """The measured currents' standard deviation per state (never zero), A."""
     measured = np.concatenate([log.x for log in logs])
-    spread = np.maximum(np.std(measured, axis=0), np.finfo(float).tiny)
-    return float(np.max(simulation_spread(fit, logs, x0s) / spread))
+    return np.maximum(np.std(measured, axis=0), np.finfo(float).tiny)
 
 
 def _departure(truths: Sequence[Array], logs: Sequence[_Log]) -> Array:
     """The rms of the simulated currents' departure from the measured ones, per state, as
     a fraction of the measured currents' spread."""
-    measured = np.concatenate([log.x for log in logs])
     departure = np.concatenate([truth - log.x for truth, log in zip(truths, logs, strict=True)])
-    spread = np.maximum(np.std(measured, axis=0), np.finfo(float).tiny)
-    return np.sqrt(np.mean(departure**2, axis=0)) / spread
+    return np.sqrt(np.mean(departure**2, axis=0)) / _spread(logs)
 
 
 def _describes(truths: Sequence[Array], logs: Sequence[_Log]) -> bool:
