@@ -85,10 +85,13 @@ def bootstrapped(
     """
     noise_root = np.linalg.cholesky(fit.noise_covariance)
 
-    def world(rng: np.random.Generator) -> list[_Log]:
+    def world(rng: np.random.Generator, count: int) -> list[list[_Log]]:
         return [
-            _Log(x=xhat + rng.standard_normal(xhat.shape) @ noise_root.T, a=log.a, w=log.w)
-            for xhat, log in zip(fit.simulated, logs, strict=True)
+            [
+                _Log(x=xhat + rng.standard_normal(xhat.shape) @ noise_root.T, a=log.a, w=log.w)
+                for xhat, log in zip(fit.simulated, logs, strict=True)
+            ]
+            for _ in range(count)
         ]
 
     draws = refits(fit, world, (matrices, structured), floor, BOOTSTRAP_DRAWS)
@@ -99,7 +102,7 @@ def bootstrapped(
 
 def refits(
     fit: OutputErrorFit,
-    world: Callable[[np.random.Generator], list[_Log]],
+    world: Callable[[np.random.Generator, int], list[list[_Log]]],
     kind: tuple[Callable[[Array], tuple[Array, Array, Array]], bool],
     floor: Array,
     count: int,
@@ -114,7 +117,9 @@ def refits(
     fit : OutputErrorFit
         The fit the draws start from.
     world : callable
-        A random generator's draw of the logs: what the data would be if the fit were true.
+        ``world(rng, count)``: ``count`` draws of the logs from a random generator, in
+        turn (each draw's random numbers after the previous one's): what the data would
+        be if the fit were true.
     kind : (callable, bool)
         The parameters' map to ``(Ad, Bd, Ed)`` and whether it is a structure's.
     floor : ndarray, shape (n,)
@@ -132,10 +137,7 @@ def refits(
     """
     rng = np.random.default_rng(20261123)
     origin = fit.parameters if start is None else start
-    searches = []
-    for _ in range(count):  # the draws in turn, as one refit after another would make them
-        logs = world(rng)
-        searches.append(_search(logs, origin.copy(), kind, iterations, floor))
+    searches = [_search(logs, origin.copy(), kind, iterations, floor) for logs in world(rng, count)]
     # the refits side by side: each step's propagations of all of them are one
     refitted = [parameters for parameters, *_ in _run_searches(searches)]
     draws = [parameters for parameters in refitted if np.all(np.isfinite(parameters))]

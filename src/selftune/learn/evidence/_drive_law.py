@@ -117,21 +117,29 @@ class DriveLaw:
         m = self.gains.shape[0]
         return m, (self.gains.shape[1] - m) // 3
 
-    def start(self) -> tuple[Array, Array, Array]:
+    def start(self, draws: int | None = None) -> tuple[Array, Array, Array]:
         """The history of a run that has not departed: the last answer (m,), the
-        departures (lag + 2, n) and their running sums (lag + 1, n), newest first."""
+        departures (lag + 2, n) and their running sums (lag + 1, n), newest first; with
+        ``draws``, of that many runs side by side ((draws, m), (lag + 2, draws, n), ...).
+        """
         m, n = self.shape
-        return np.zeros(m), np.zeros((self.lag + 2, n)), np.zeros((self.lag + 1, n))
+        batch = () if draws is None else (draws,)
+        return (
+            np.zeros((*batch, m)),
+            np.zeros((self.lag + 2, *batch, n)),
+            np.zeros((self.lag + 1, *batch, n)),
+        )
 
     def answer(self, history: tuple[Array, Array, Array], departure: Array) -> Array:
         """The law's answer (m,) to the measured currents' departure at this sample (n,),
-        ``history`` (:meth:`start`) moved on to it in place.
+        ``history`` (:meth:`start`) moved on to it in place; of runs side by side, their
+        answers (draws, m) to their departures (draws, n).
 
         Parameters
         ----------
         history : (ndarray, ndarray, ndarray)
             The run's history, updated.
-        departure : ndarray, shape (n,)
+        departure : ndarray, shape (n,) or (draws, n)
             The measured currents' departure from the log's at this sample, A.
         """
         last, departures, sums = history
@@ -140,10 +148,11 @@ class DriveLaw:
         sums[1:] = sums[:-1].copy()
         sums[0] = sums[0] + departure
         lag = self.lag
-        answer = self.gains @ np.concatenate(
-            [last, departures[lag], departures[lag + 1], sums[lag]]
+        regressors = np.concatenate(
+            [last, departures[lag], departures[lag + 1], sums[lag]], axis=-1
         )
-        last[:] = answer
+        answer = regressors @ self.gains.T
+        last[...] = answer
         return answer
 
     def closes_stable_loop(self, Ad: Array, Bd: Array) -> bool:

@@ -67,6 +67,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -167,9 +168,10 @@ def _simulated(
 ) -> tuple[Array, Array]:
     """The model's currents (T + 1, 2) from ``start = (x0, angles)`` with the dead time
     switching on their own signs (the last two columns of ``Ed`` are the signs' gain),
-    and the inputs (T, m) it ran on: the logged ones, or with ``loop = (law, noise)``
+    and the inputs (T, m) it ran on: the logged ones; or with ``loop = (law, noise)``
     those of the drive's law (:class:`~._drive_law.DriveLaw`) on the currents plus
-    ``noise`` (T + 1, 2), the logged exploration kept.
+    ``noise`` (draws, T + 1, 2), the logged exploration kept, for each of the draws side
+    by side: currents (draws, T + 1, 2) and inputs (draws, T, m).
 
     On the path (:func:`~._dead_time.path_vector`) a sample's signs need its end: taken
     from the step with the signs at its start, then from the step with the path's
@@ -181,21 +183,22 @@ def _simulated(
     cos, sin = np.cos(angle).tolist(), np.sin(angle).tolist()
     (a00, a01), (a10, a11) = Ad.tolist()
     (g00, g01), (g10, g11) = Ed[:, q:].tolist()
-    x = np.empty((len(forcing) + 1, 2))
-    a = log.a if loop is None else log.a.copy()  # the law's answers are added
-    d, q_ = float(x0[0]), float(x0[1])
-    x[0] = d, q_
+    d: Any = float(x0[0])  # a float, or the draws' array where the law closes the loop
+    q_: Any = float(x0[1])
     if loop is not None:  # the law's answer to the departure from the logged currents
         law, noise = loop
-        history = law.start()
-        departures = (noise[:-1] - log.x[:-1]).tolist()
+        draws = noise.shape[0]
+        history = law.start(draws)
+        departures = noise[:, :-1] - log.x[:-1]
+        answers = np.empty((draws, *log.a.shape))
+        d, q_ = np.full(draws, d), np.full(draws, q_)
+    states = [(d, q_)]
     for k, (f_d, f_q) in enumerate(forcing):
         if loop is not None:
-            e_d, e_q = departures[k]
-            answer = law.answer(history, np.array([d + e_d, q_ + e_q]))
-            a[k] += answer
-            move_d, move_q = (Bd @ answer).tolist()
-            f_d, f_q = f_d + move_d, f_q + move_q
+            answer = law.answer(history, np.column_stack([d, q_]) + departures[:, k])
+            answers[:, k] = answer
+            move = answer @ Bd.T
+            f_d, f_q = f_d + move[:, 0], f_q + move[:, 1]
         free_d, free_q = a00 * d + a01 * q_ + f_d, a10 * d + a11 * q_ + f_q
         s_d, s_q = sign_vector(d, q_, cos[k], sin[k])
         next_d, next_q = free_d + g00 * s_d + g01 * s_q, free_q + g10 * s_d + g11 * s_q
@@ -205,8 +208,11 @@ def _simulated(
             )
             next_d, next_q = free_d + g00 * s_d + g01 * s_q, free_q + g10 * s_d + g11 * s_q
         d, q_ = next_d, next_q
-        x[k + 1] = d, q_
-    return x, a
+        states.append((d, q_))
+    x = np.array(states)  # (T + 1, 2), or (T + 1, 2, draws)
+    if loop is None:
+        return x, log.a
+    return x.transpose(2, 0, 1), log.a + answers
 
 
 def model_currents(fit: OutputErrorFit, channels: DeadTimeChannels, shift: int) -> list[Array]:
@@ -457,30 +463,45 @@ def without_sign_bias(
 
         def world(
             rng: np.random.Generator,
+            count: int,
             truths: list[Array] = truths,
             model: tuple[Array, Array, Array] = model,  # the next signs' reader
             closed: bool = closed,
-        ) -> list[_Log]:
+        ) -> list[list[_Log]]:
+            # the draws' random numbers in turn, as one draw after another takes them: the
+            # noise on the currents (which the law answers where it closes the loop; on a
+            # coarse ADC the noise before the rounding stands for it), then the ADC's
+            noises, analogs = {}, {}
+            for draw in range(count):
+                for index, truth in enumerate(truths):
+                    if closed or lattice is None:
+                        noises[draw, index] = rng.standard_normal(truth.shape) @ root.T
+                    if lattice is not None:
+                        analogs[draw, index] = analog * rng.standard_normal((truth.shape[0], 3))
+            currents = [[truth] * count for truth in truths]
+            inputs = [[log.a] * count for log in logs]
+            if closed:  # the experiment re-run, the draws side by side
+                assert law is not None
+                for index, (log, angle, x0) in enumerate(zip(logs, rows, x0s, strict=True)):
+                    noise = np.array([noises[draw, index] for draw in range(count)])
+                    run = _simulated(model, log, (x0, angle), switching, (law, noise))
+                    currents[index], inputs[index] = list(run[0]), list(run[1])
             drawn = []
-            for truth, log, angle, x0 in zip(truths, logs, rows, x0s, strict=True):
-                inputs = log.a
-                if closed:  # the experiment re-run: the law answers the world's noise
-                    # (on a coarse ADC the noise before the rounding stands for it)
-                    noise = rng.standard_normal(truth.shape) @ root.T
-                    assert law is not None
-                    truth, inputs = _simulated(model, log, (x0, angle), switching, (law, noise))
-                if lattice is None:
-                    x = truth + (noise if closed else rng.standard_normal(truth.shape) @ root.T)
-                else:
-                    x = lattice.measure(
-                        truth, angle, analog * rng.standard_normal((truth.shape[0], 3))
-                    )
-                count = log.w.shape[0]
-                if next_sample:  # the signs as the log's fit took them
-                    held = next_signs(x, inputs, log.w[:, :q], angle[:count], model, R)
-                else:
-                    held = signs(x, angle)[:count]
-                drawn.append(_Log(x=x, a=inputs, w=np.hstack([log.w[:, :q], held])))
+            for draw in range(count):
+                logged = []
+                for index, (log, angle) in enumerate(zip(logs, rows, strict=True)):
+                    truth, applied = currents[index][draw], inputs[index][draw]
+                    if lattice is None:
+                        x = truth + noises[draw, index]
+                    else:
+                        x = lattice.measure(truth, angle, analogs[draw, index])
+                    count_ = log.w.shape[0]
+                    if next_sample:  # the signs as the log's fit took them
+                        held = next_signs(x, applied, log.w[:, :q], angle[:count_], model, R)
+                    else:
+                        held = signs(x, angle)[:count_]
+                    logged.append(_Log(x=x, a=applied, w=np.hstack([log.w[:, :q], held])))
+                drawn.append(logged)
             return drawn
 
         refitted = refits(
