@@ -223,3 +223,61 @@ def test_a_batch_too_short_for_its_noise_is_followed_by_the_one_the_learner_asks
     best = evaluate(result, motor, settings, drive).optimum.law.K
     error = np.linalg.norm(result.law.K - best) / np.linalg.norm(best)  # K's block, as stated
     assert error <= 3 * result.quality.K_relative_se
+
+
+SURFACE = "[motor]\nR_s = 0.2\nL_s = 2e-3\nphi_pm = 0.1\np = 4\n"
+INTERIOR = "[motor]\nR_s = 0.2\nL_d = 2e-3\nL_q = 5e-3\nphi_pm = 0.1\np = 4\n"
+DRIVE = "[drive]\nswitching_frequency = 10000.0\ndc_voltage = 540.0\n"
+
+
+@pytest.mark.parametrize(
+    ("motor", "speed", "torque", "extra", "algorithm", "key"),
+    [
+        (SURFACE, 100.0, 0.0, DRIVE, "offpolicy", "torque"),  # the steps: all references 0
+        (INTERIOR, 100.0, 0.0, DRIVE, "offpolicy", "torque"),
+        (SURFACE, 0.0, 2.0, DRIVE, "offpolicy", "speed"),  # the back-EMF's reference 0
+        (INTERIOR, 0.0, 2.0, DRIVE, "offpolicy", "speed"),
+        (SURFACE, 0.0, 2.0, "", "3", "speed"),  # Algorithm 3 reads the flux off it
+        (SURFACE, 100.0, 0.0, "", "3", "torque"),  # its flux step walks through +-T*
+    ],
+    ids=[
+        "surface-T0",
+        "interior-T0",
+        "surface-standstill",
+        "interior-standstill",
+        "algorithm3-standstill",
+        "algorithm3-T0",
+    ],
+)
+def test_an_operating_point_with_nothing_to_learn_from_is_refused_naming_its_key(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], motor: str, speed: float,
+    torque: float, extra: str, algorithm: str, key: str,
+) -> None:  # fmt: skip
+    """Before, the learner's rank check refused these in the regression's names (``w1 do
+    not vary independently``), which a motor file does not have."""
+    path = tmp_path / "motor.toml"
+    path.write_text(
+        f"{motor}[operating_point]\nspeed = {speed}\ntorque = {torque}\n{extra}"
+        "[learning]\nintegral_action = true\n"
+        if algorithm != "3"
+        else f"{motor}[operating_point]\nspeed = {speed}\ntorque = {torque}\n{extra}"
+    )
+    assert main(["tune", "--motor", str(path), "--algorithm", algorithm]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1
+    assert f"motor.toml: [operating_point] {key}: 0 " in error
+
+
+def test_standstill_is_learned_where_the_back_emf_reference_is_perturbed(
+    tmp_path: Path,
+) -> None:
+    """The paper's perturbation moves the back-EMF's reference too: on a [drive] at
+    standstill the law is learned (the check refuses only what cannot be)."""
+    path = tmp_path / "motor.toml"
+    path.write_text(
+        f"{SURFACE}[operating_point]\nspeed = 0.0\ntorque = 2.0\n{DRIVE}"
+        '[learning]\nintegral_action = true\nperturbation = "paper"\n'
+    )
+    out = tmp_path / "tune.json"
+    assert main(["tune", "--motor", str(path), "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["control_law"]["K_i"]

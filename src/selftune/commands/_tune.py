@@ -264,7 +264,7 @@ def tune_command(
     motor = config.surface_motor()
     if config.schedule is not None:
         return _tune_ramp(config, motor, seed, json_path, algorithm, target, report_dir)
-    settings = tuning_settings(config, seed, target)
+    settings = tuning_settings(config, seed, target, algorithm)
     with _numerics(config.source) as caught:
         result = run_algorithm(algorithm, motor, settings, drive=config.drive)  # type: ignore[arg-type]
         evaluation = evaluate(result, motor, settings, config.drive)

@@ -393,7 +393,7 @@ def _drive_defaults(config: MotorConfig, table: ConfigTable) -> _Defaults:
 
 
 def tuning_settings(
-    config: MotorConfig, seed: int = 0, target: str | None = None
+    config: MotorConfig, seed: int = 0, target: str | None = None, algorithm: str | None = None
 ) -> TuningSettings:
     """The self-tuning settings of a motor file: its operating point, cost and [learning].
 
@@ -419,6 +419,8 @@ def tuning_settings(
     target : {"continuous", "digital"}, optional
         Overrides the file's ``target`` (the command line's ``--target``); the digital
         target's controller updates every sample, so ``input_hold`` then defaults to 1.
+    algorithm : {"1", "2", "3", "offpolicy"}, optional
+        The session's algorithm (``selftune tune --algorithm``), where it runs one.
 
     Returns
     -------
@@ -427,7 +429,9 @@ def tuning_settings(
     Raises
     ------
     DataFileError
-        Naming the file and the key, for an unknown key or a bad value.
+        Naming the file and the key, for an unknown key or a bad value; or naming
+        ``[operating_point] torque`` or ``speed`` where the commissioning has nothing to
+        learn a part of the law from there (:func:`_check_learnable_point`).
     InputError
         If ``target`` is not one of the two.
     """
@@ -443,7 +447,7 @@ def tuning_settings(
     elif table.choice("target", ("continuous", "digital"), defaults.target) == "digital":
         defaults = replace(defaults, input_hold=1)
     try:
-        return TuningSettings(
+        settings = TuningSettings(
             speed=config.speed,
             torque=config.torque,
             Q=config.Q,
@@ -479,6 +483,50 @@ def tuning_settings(
         if key in TUNING_KEYS:
             raise table.error(key, reason) from None
         raise table.error(None, str(exc)) from None
+    _check_learnable_point(config, settings.perturbation, algorithm)
+    return settings
+
+
+def _check_learnable_point(
+    config: MotorConfig, perturbation: Perturbation, algorithm: str | None
+) -> None:
+    """Refuse an operating point whose commissioning has nothing to learn a part of the
+    law from, naming the ``[operating_point]`` key (the learner's rank check refused it
+    before, in the regression's own names, ``w1`` and ``w2``, which the file has not).
+
+    - T* = 0 where the torque reference walks through
+      :data:`~._knowledge.STEP_LEVELS` times T* (the ``"steps"`` perturbation, a
+      ``[drive]``'s default; the interior, saturating and staircase commissioning; the
+      flux step of Algorithm 3): every reference is then zero.
+    - Standstill where the back-EMF reference ``p speed phi_pm`` is not perturbed (a
+      ``[drive]``'s law learned at the operating speed, but a surface motor's staircase
+      over its ``[schedule]``; the ``"paper"`` perturbation perturbs it), and for
+      Algorithm 3, which reads the flux off the back-EMF: it is zero in every sample.
+    """
+    drive = config.drive is not None
+    session = config.saturation is None and not isinstance(config.motor, IPMSM)
+    staircase = session and config.schedule is not None
+    single = session and config.schedule is None  # the algorithm's own perturbation
+    flux = single and algorithm == "3"
+    table = ConfigTable(config.source, "operating_point", {}, ("speed", "torque"))
+    steps = drive and (not single or perturbation == "steps")
+    if config.torque == 0.0 and (steps or flux):
+        raise table.error(
+            "torque",
+            "0 N m: the commissioning walks the torque reference through +-T* (reversing "
+            "the current, so that the inverter's dead time cannot pass for back-EMF), and "
+            "T* = 0 leaves every reference at zero, so the controller's feedforward "
+            "cannot be learned; give the torque the drive runs at (its rated torque, say)",
+        )
+    unperturbed = drive and not staircase and (not single or perturbation != "paper")
+    if config.speed == 0.0 and (unperturbed or flux):
+        raise table.error(
+            "speed",
+            "0 rad/s: the law is learned at this speed, and at standstill the back-EMF "
+            "reference p speed phi_pm is zero in every sample, so its feedforward (and "
+            "Algorithm 3's flux) cannot be learned; tune at a speed the drive runs at (a "
+            "[schedule] table designs the law over a range of speeds down to standstill)",
+        )
 
 
 def _target(value: str) -> Target:
