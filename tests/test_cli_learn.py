@@ -316,3 +316,30 @@ def test_bad_data_and_weak_excitation_are_one_line(
     save_trajectory(no_w, tmp_path / "no_w.csv")
     assert main(["learn", str(tmp_path / "no_w.csv"), "--config", str(config)]) == 2
     assert "exogenous" in one_error_line(capsys)
+
+
+@pytest.mark.parametrize(("bus", "refused"), [(10.0, True), (48.0, True), (540.0, False)])
+def test_a_dc_bus_that_cannot_have_applied_the_logged_voltages_is_refused_naming_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], bus: float, refused: bool
+) -> None:
+    """The example log's voltages are about 53 V (its drive's bus 540 V); on 10 V or 48 V
+    (2 V_dc / pi: 6.4 V, 31 V) no inverter applies them. Before, 10 V was learned with
+    the flux's standard error 6,000 times the one on 540 V (the carrier's pulses computed
+    on duties far outside [0, 1])."""
+    examples = Path(__file__).resolve().parents[1] / "examples" / "data"
+    config = tmp_path / "learn.toml"
+    config.write_text(
+        (examples / "learn.toml").read_text()
+        + 'method = "identify"\nstructure = "spmsm"\nelectrical_speed = 150.0\n'
+        + f"dc_voltage = {bus}\n"
+    )
+    out = tmp_path / "out.json"
+    args = ["learn", str(examples / "drive_log.csv"), "--config", str(config), "--json", str(out)]
+    assert main(args) == (2 if refused else 0)
+    if refused:
+        line = one_error_line(capsys)
+        assert "drive_log.csv: dc_voltage: says" in line and "2 V_dc / pi" in line
+        assert not out.exists()
+    else:
+        motor = json.loads(out.read_text())["quality"]["motor"]
+        assert motor["phi_pm"] == pytest.approx(0.35, abs=3 * motor["phi_pm_se"] + 1e-4)

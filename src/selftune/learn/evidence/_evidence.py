@@ -78,7 +78,7 @@ from ._output_error import (
     SpmsmStructure,
     fit_output_error,
 )
-from ._pulses import holds_pulses, pulse_shift
+from ._pulses import check_bus, holds_pulses, pulse_shift
 from ._rounding import resolution_floor
 from ._sign_bias import OwnSimulation, without_sign_bias
 from ._structure_check import check_structure, structure_statistic
@@ -334,9 +334,11 @@ def gather_evidence(
     ModelMissesEffect
         If the model cannot explain the data (a ConsistencyError).
     ConfigurationMismatch
-        If the structure the options state explains the data worse than none (a
-        ConsistencyError).
+        If the structure the options state explains the data worse than none, or the
+        DC bus they state cannot have applied the logged voltages (a ConsistencyError).
     """
+    if options.dc_voltage is not None:
+        check_bus([episode.u for episode in episodes], options.dc_voltage)
     channels = _fitted(episodes, options)
     fitted = channels.episodes
     try:
