@@ -486,6 +486,17 @@ def test_follow_prints_the_live_events_from_a_file_or_standard_input(
          "the columns must be t,x1,x2,u1,u2,w1,w2,theta"),
         (lambda text: text.replace("\n", "\n0,nan,0,0,0,0,0,0\n", 1), "line 2"),
         (lambda text: "\n".join(text.splitlines()[:50] + text.splitlines()[40:]), "line 51"),
+        # ten rows lost, then a log of every other row: not the drive's period
+        (lambda text: "\n".join(text.splitlines()[:301] + text.splitlines()[311:]),
+         "line 302, column 1 (t): the step from the row before is 0.0011 s, not the "
+         "sampling period 0.0001 s"),
+        (lambda text: "\n".join(text.splitlines()[:1] + text.splitlines()[1::2]),
+         "line 3, column 1 (t): the step from the row before is 0.0002 s"),
+        # the angle in degrees: it turns 57 times too fast
+        (lambda text: "\n".join(text.splitlines()[:1] + [
+            line.rsplit(",", 1)[0] + f",{float(np.degrees(float(line.rsplit(',', 1)[1])))!r}"
+            for line in text.splitlines()[1:]]),
+         "lines 2-101: [operating_point] speed (times [motor] p): says"),
     ],
 )  # fmt: skip
 def test_follow_names_the_bad_line_and_column(

@@ -32,8 +32,10 @@ from typing import Literal
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..errors import DataFileError, InputError
+from ..errors import ConfigurationMismatch, DataFileError, InputError
 from ..learn import CsvHeader, LearningProblem
+from ..learn.evidence._alignment import SAMPLING_JITTER
+from ..learn.evidence._dead_time import check_angle
 from ..learn.online import OnlineSettings, OnlineTuner, TunerEvent
 from ..model import SPMSM
 from ..sim import DriveSettings, ParameterProfile, RealisticDrive
@@ -348,12 +350,15 @@ def follow(
     Raises
     ------
     DataFileError
-        Naming the log, if its columns are not those.
+        Naming the log, if its columns are not those; naming the line, where the time
+        steps by other than the sampling period or the angle is not the electrical one
+        in rad at the motor file's speed (:func:`_check_rows`).
     """
     tuner = OnlineTuner(settings, law)
     wanted = ",".join(LOG_COLUMNS if settings.dead_time else LOG_COLUMNS[:-1])
 
     def tables() -> Iterator[Array]:
+        line, before = 2, None  # the chunk's first line; the row before it
         for header, table in chunks:
             if (header.n, header.m, header.q) != (2, 2, 2) or (
                 settings.dead_time and not header.angle
@@ -362,9 +367,40 @@ def follow(
                 reason = "; the dead-time model needs theta" if settings.dead_time else ""
                 raise DataFileError(f"{source}: line 1: the columns must be {wanted}, got {got}"
                                     f"{reason}")  # fmt: skip
+            rows = table if before is None else np.vstack([before, table])
+            _check_rows(rows, settings, source, line - (0 if before is None else 1))
+            line, before = line + table.shape[0], table[-1]
             yield table
 
     yield from _events(tuner, tables(), settings.h)
+
+
+def _check_rows(rows: Array, settings: OnlineSettings, source: str, line: int) -> None:
+    """Refuse rows (the first at ``line`` of the log) the tuner would take for what they
+    are not: a time step that is not the drive's sampling period (rows lost, or a log of
+    every few samples: the tuner's model steps one period a row), within the rule of
+    :func:`~selftune.learn.evidence._alignment.sampling_period`; and, with dead time, an
+    angle that is not the electrical one in rad at the motor file's speed
+    (:func:`~selftune.learn.evidence._dead_time.check_angle`)."""
+    h = settings.h
+    steps = np.diff(rows[:, 0])
+    off = np.flatnonzero(np.abs(steps - h) > SAMPLING_JITTER * h)
+    if off.size:
+        k = int(off[0])
+        raise DataFileError(
+            f"{source}: line {line + k + 1}, column 1 (t): the step from the row before is "
+            f"{steps[k]:.6g} s, not the sampling period {h:.6g} s the motor file states "
+            "([drive] switching_frequency, or [learning] h): the online tuner needs every "
+            "sample at that period, so a log with rows lost or of every few samples cannot "
+            "be followed from there"
+        )
+    if settings.dead_time and rows.shape[0] > 2:
+        speed = "[operating_point] speed (times [motor] p)"
+        try:
+            check_angle(rows[:, 7], rows[:, 0], settings.electrical_speed, speed)
+        except (InputError, ConfigurationMismatch) as error:
+            last = line + rows.shape[0] - 1
+            raise DataFileError(f"{source}: lines {line}-{last}: {error}") from None
 
 
 def run_online(

@@ -90,7 +90,9 @@ SPEED_AGREEMENT = 0.1
 ANGLE_EVIDENCE = 3.0
 
 
-def check_angle(angle: Array, t: Array, electrical_speed: float | None) -> None:
+def check_angle(
+    angle: Array, t: Array, electrical_speed: float | None, key: str = "electrical_speed"
+) -> None:
     """Raise unless ``angle`` is an electrical rotor angle in rad, sampled at each row.
 
     Checked where the dead-time model uses it: finite and within :data:`ANGLE_LIMIT`;
@@ -105,6 +107,8 @@ def check_angle(angle: Array, t: Array, electrical_speed: float | None) -> None:
         The sample times, s.
     electrical_speed : float or None
         ``p speed`` the configuration states, rad/s.
+    key : str
+        Where the configuration states it, for the message.
 
     Raises
     ------
@@ -139,10 +143,10 @@ def check_angle(angle: Array, t: Array, electrical_speed: float | None) -> None:
     rate = middle / float(np.median(np.diff(t)))
     if abs(rate - electrical_speed) > SPEED_AGREEMENT * abs(electrical_speed) + 1e-9:
         raise ConfigurationMismatch(
-            f"electrical_speed: says {electrical_speed:.6g} rad/s, but the angle column theta "
-            f"turns at {rate:.6g} rad/s; check the speed's sign and the pole pairs (p speed), "
-            "or the angle's sign",
-            key="electrical_speed",
+            f"{key}: says {electrical_speed:.6g} rad/s, but the angle column theta turns at "
+            f"{rate:.6g} rad/s; check the speed's sign and the pole pairs (p speed), or the "
+            "angle's sign",
+            key=key,
         )
 
 
