@@ -16,7 +16,10 @@ import it (an import contract checks that); the learners see only sampled data.
 - :func:`design_schedule`: that optimum on a grid of speeds, as a :class:`SpeedSchedule`
   a drive interpolates linearly, checked between the grid speeds (:mod:`._schedule_design`);
 - :func:`design_current_schedule`: a saturating motor's optimum on a grid of q-axis
-  current references, as a :class:`CurrentSchedule`, by the same refinement.
+  current references, as a :class:`CurrentSchedule`, by the same refinement;
+- :func:`design_speed_current_schedule`: that optimum on a grid of speeds times
+  currents, as a :class:`SpeedCurrentSchedule` interpolated bilinearly, by the same rules
+  (:mod:`._speed_current`).
 """
 
 from __future__ import annotations
@@ -41,6 +44,12 @@ from ._schedule_design import (
     design_schedule,
     worst_excess,
 )
+from ._speed_current import (
+    SpeedCurrentCheck,
+    SpeedCurrentDesign,
+    SpeedCurrentSchedule,
+    design_speed_current_schedule,
+)
 
 #: A PMSM of either kind: the surface motor (the paper's) or the interior one.
 Motor = SPMSM | IPMSM
@@ -60,11 +69,15 @@ __all__ = [
     "ScheduleCheck",
     "ScheduleDesign",
     "ScheduledMotor",
+    "SpeedCurrentCheck",
+    "SpeedCurrentDesign",
+    "SpeedCurrentSchedule",
     "SpeedSchedule",
     "bandwidth",
     "check_covered",
     "design_current_schedule",
     "design_schedule",
+    "design_speed_current_schedule",
     "excess_over",
     "lqr",
     "motor_from_parameters",

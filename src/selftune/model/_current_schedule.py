@@ -18,11 +18,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..core import Array, positive_finite, positive_integer
-from ..errors import InputError
 from ._digital import solve_digital_regulation
 from ._optimum import ModelBasedSolution
 from ._problem import RegulationProblem
-from ._refine import EXCESS, FINE_POINTS, MAX_POINTS, ScheduleCheck, refine_grid
+from ._refine import EXCESS, FINE_POINTS, MAX_POINTS, ScheduleCheck, check_grid, refine_grid
 from ._schedule import CurrentSchedule
 
 __all__ = ["CurrentScheduleDesign", "PlantAt", "design_current_schedule"]
@@ -106,11 +105,7 @@ def design_current_schedule(
         If a pointwise optimum does not exist, or the grid would need more than
         ``max_points`` currents.
     """
-    grid = np.asarray(currents, dtype=float)
-    if grid.ndim != 1 or grid.size < 2 or not np.all(np.isfinite(grid)):
-        raise InputError(f"currents: needs at least two finite currents (A), got {currents!r}")
-    if not np.all(np.diff(grid) > 0.0):
-        raise InputError(f"currents: must increase strictly, got {grid.tolist()}")
+    grid = check_grid(currents, "currents", "currents (A)")
     weights = np.asarray(Q, float), np.asarray(R, float)
     servo = None if integral_weight is None else np.asarray(integral_weight, float)
 
@@ -122,7 +117,7 @@ def design_current_schedule(
         )  # fmt: skip
 
     refined = refine_grid(
-        optimum, grid.tolist(), CurrentSchedule, name="currents",
+        optimum, grid, CurrentSchedule, name="currents",
         points=positive_integer(fine_points, "fine_points"),
         excess=positive_finite(excess, "excess"),
         max_points=positive_integer(max_points, "max_points", minimum=2),

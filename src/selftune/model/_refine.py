@@ -18,7 +18,7 @@ from itertools import pairwise
 import numpy as np
 
 from ..core import Array, ControlLaw
-from ..errors import UnsolvableError
+from ..errors import InputError, UnsolvableError
 from ._optimum import ModelBasedSolution
 from ._schedule import GainSchedule
 
@@ -30,6 +30,8 @@ __all__ = [
     "MAX_POINTS",
     "RefinedGrid",
     "ScheduleCheck",
+    "check_grid",
+    "check_interval",
     "excess_over",
     "refine_grid",
     "worst_excess",
@@ -51,6 +53,32 @@ FEEDFORWARD_ERROR = 0.01
 
 #: The most grid speeds a schedule may need before the design gives up.
 MAX_POINTS = 65
+
+
+def check_grid(values: object, name: str, what: str) -> list[float]:
+    """A schedule's initial grid as floats, or an error naming ``name``: at least two
+    finite values, strictly increasing.
+
+    Parameters
+    ----------
+    values : array_like
+        The grid.
+    name : str
+        The argument it came from.
+    what : str
+        What its values are, with their unit (``"currents (A)"``).
+
+    Raises
+    ------
+    InputError
+        Naming ``name``.
+    """
+    grid = np.asarray(values, dtype=float)
+    if grid.ndim != 1 or grid.size < 2 or not np.all(np.isfinite(grid)):
+        raise InputError(f"{name}: needs at least two finite {what}, got {values!r}")
+    if not np.all(np.diff(grid) > 0.0):
+        raise InputError(f"{name}: must increase strictly, got {grid.tolist()}")
+    return [float(value) for value in grid]
 
 
 def worst_excess(P: Array, P_optimal: Array) -> Array:
@@ -161,14 +189,29 @@ def _relative(error: Array, reference: Array) -> Array:
     return np.asarray(np.linalg.norm(error, axis=(-2, -1)) / np.maximum(scale, 1e-300))
 
 
-def _check_interval(
+def check_interval(
     optimum: Callable[[float], ModelBasedSolution],
     schedule: GainSchedule,
     interval: tuple[float, float],
     points: int,
     limit: float,
 ) -> ScheduleCheck:
-    """The check at ``points`` points strictly between the interval's ends."""
+    """The check of ``schedule`` against ``optimum`` at ``points`` points strictly between
+    the interval's ends (of the schedule's variable; the one check of every schedule).
+
+    Parameters
+    ----------
+    optimum : callable
+        The digital optimum at one value of the variable.
+    schedule : GainSchedule
+        The interpolated laws (covering the interval).
+    interval : (float, float)
+        The two grid points.
+    points : int
+        How many points strictly between them.
+    limit : float
+        The largest excess cost allowed.
+    """
     low, high = interval
     speeds = np.linspace(low, high, points + 2)[1:-1]
     optima = tuple(optimum(float(speed)) for speed in speeds)
@@ -285,7 +328,7 @@ def refine_grid(
         failing = None
         for interval in pairwise(values):
             if interval not in checks:
-                checks[interval] = _check_interval(optimum, schedule, interval, points, excess)
+                checks[interval] = check_interval(optimum, schedule, interval, points, excess)
             if failing is None and not np.all(checks[interval].passed):
                 failing = interval
         if failing is None:

@@ -24,11 +24,22 @@ from numpy.typing import ArrayLike
 from ..core import Array, ControlLaw, finite_float
 from ..errors import InputError
 
-__all__ = ["CurrentSchedule", "GainSchedule", "SpeedSchedule"]
+__all__ = ["CurrentSchedule", "GainSchedule", "SpeedSchedule", "same_structure"]
 
 
-def _same(laws: Sequence[ControlLaw]) -> None:
-    """Raise unless the laws share their structure, C, F and h (only gains may vary)."""
+def same_structure(laws: Sequence[ControlLaw]) -> None:
+    """Raise unless the laws share their structure, C, F and h (only gains may vary).
+
+    Parameters
+    ----------
+    laws : sequence of ControlLaw
+        The laws of a schedule.
+
+    Raises
+    ------
+    InputError
+        Naming the first law that differs from the first.
+    """
     first = laws[0]
     for index, law in enumerate(laws[1:], start=1):
         shape = (law.n, law.m, law.q, law.r, law.history)
@@ -90,7 +101,7 @@ class GainSchedule:
             raise InputError(f"{self.variable}: must increase strictly, got {values.tolist()}")
         if len(laws) != values.size:
             raise InputError(f"laws: {len(laws)} laws for {values.size} {self.points}")
-        _same(laws)
+        same_structure(laws)
         values.setflags(write=False)
         tables = {
             name: np.array([getattr(law, name) for law in laws])
