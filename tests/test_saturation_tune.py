@@ -23,7 +23,13 @@ from selftune.cli import main
 from selftune.config import MotorConfig, load_motor_config
 from selftune.errors import ModelMissesEffect
 from selftune.learn import IncrementalStructure
-from selftune.model import IPMSM, SPMSM, RegulationProblem, design_current_schedule
+from selftune.model import (
+    IPMSM,
+    SPMSM,
+    RegulationProblem,
+    design_current_schedule,
+    design_speed_current_schedule,
+)
 from selftune.report import evaluate_current_schedule, report_files
 from selftune.report._saturation_report import current_document, current_lines
 from selftune.sim import DriveSettings, Saturation, SaturationModel
@@ -89,6 +95,55 @@ def test_tune_schedules_a_saturating_motor_over_its_current(
         document["drive"]["settings"]["voltage_hold"],
     )  # fmt: skip
     check_recomputed(document, levels, structure, document["cost"], document["input_delay"])
+
+
+@pytest.mark.slow
+def test_tune_schedules_a_saturating_motor_over_speed_and_current(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """With a [schedule] the law is scheduled over speed and i_q* together: within the
+    issue's 2% of the true pointwise optimum at 12 speeds over 5-100% of the range's top
+    times 10-100% of rated current, where the schedule over i_q* alone (designed at the
+    operating speed) is worse at the ends; the table recomputed from the JSON alone."""
+    path = tmp_path / "motor.toml"
+    path.write_text(MOTOR + DRIVE + SATURATION + "[schedule]\nspeed_range = [12.0, 240.0]\n")
+    out = tmp_path / "out.json"
+    assert main(["tune", "--motor", str(path), "--json", str(out)]) == 0
+    assert "Speed and current schedule: the digital optimum at" in capsys.readouterr().out
+    document = json.loads(out.read_text())
+    true = document["true_excess"]
+    both = np.array(true["speed_current_schedule"])
+    alone = np.array(true["current_schedule_over_speed"])
+    assert both.shape == alone.shape == (12, len(true["i_q"]))
+    assert float(np.max(both)) <= 0.02
+    assert float(np.max(alone)) > 10 * float(np.max(both))
+    levels = document["current_schedule_design"]["levels"]
+    currents = np.array([level["i_q"] for level in levels])
+    thetas = np.array([level["theta"] for level in levels])
+    structure = IncrementalStructure(
+        0.0, document["h"], False, document["drive"]["settings"]["voltage_hold"]
+    )
+    F = np.array(document["control_law"]["F"])
+
+    def plant(current: float, speed: float):  # type: ignore[no-untyped-def]
+        theta = np.array([np.interp(current, currents, column) for column in thetas.T])
+        at = replace(structure, electrical_speed=speed)
+        A, B, D = at.continuous(theta)
+        problem = RegulationProblem(A=A, B=B, C=np.eye(2), D=D, E=np.zeros((3, 3)), F=F)
+        return problem, at(theta)
+
+    cost = document["cost"]
+    expected = design_speed_current_schedule(
+        plant, currents, [3 * 12.0, 3 * 240.0], np.array(cost["Q"]), np.array(cost["R"]),
+        document["h"], input_delay=document["input_delay"], integral_weight=np.array(cost["Q_i"]),
+    )  # fmt: skip
+    schedule = document["speed_current_schedule"]
+    np.testing.assert_allclose(schedule["current"], expected.schedule.current)
+    np.testing.assert_allclose(schedule["electrical_speed"], expected.schedule.electrical_speed)
+    for name in ("K", "K_i", "U", "X"):
+        np.testing.assert_allclose(
+            schedule[name], expected.schedule.table(name), rtol=1e-9, atol=1e-12, err_msg=name
+        )
 
 
 def check_inductances(
@@ -161,10 +216,6 @@ def check_recomputed(
         (
             MOTOR + DRIVE + "temperature_rise = 20.0\n" + SATURATION,
             "[saturation]: [drive] temperature_rise = 20 K: a heated saturating motor",
-        ),
-        (
-            MOTOR + DRIVE + SATURATION + "[schedule]\nspeed_range = [10.0, 100.0]\n",
-            "[saturation]: with [schedule]: a schedule over speed and current together",
         ),
         (MOTOR + DRIVE + SATURATION.replace("0.15", "1.5"), "[saturation] drop: expected a share"),
         (MOTOR + DRIVE + SATURATION.replace("6.0", "-6.0"), "[saturation] i_sat: must be positive"),

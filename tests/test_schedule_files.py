@@ -157,7 +157,38 @@ def test_a_broken_schedule_in_a_json_is_refused_in_one_line(
     over_current["current_schedule"]["current"] = over_current["current_schedule"].pop(
         "electrical_speed"
     )
+    both = {"control_law": document["control_law"]}  # two rows of the speed tables
+    both["speed_current_schedule"] = {
+        **document["schedule"],
+        "current": [1.0, 2.0],
+        **{name: [document["schedule"][name]] * 2 for name in ("K", "K_i", "U", "X")},
+    }
     for key, change, message in [
+        (
+            "speed_current_schedule",
+            lambda s: s.pop("current"),
+            "speed_current_schedule.current: missing",
+        ),
+        (
+            "speed_current_schedule",
+            lambda s: s["K"].pop(),
+            "K: must list one row of matrices per current (2)",
+        ),
+        (
+            "speed_current_schedule",
+            lambda s: s["U"][1].pop(),
+            "speed_current_schedule (current 1).U: must list one matrix per speed (3)",
+        ),
+        (
+            "speed_current_schedule",
+            lambda s: s.update(current=[2.0, 1.0]),
+            "current: must increase strictly",
+        ),
+        (
+            "speed_current_schedule",
+            lambda s: None,
+            "looks i_q* up in w[2] of the current references",
+        ),
         ("schedule", lambda s: s.pop("K"), "schedule.K: missing"),
         ("schedule", lambda s: s["U"].pop(), "schedule.U: must list one matrix per speed (3)"),
         ("schedule", lambda s: s.update(electrical_speed=[1.0, 0.5, 2.0]), "increase strictly"),
@@ -165,7 +196,8 @@ def test_a_broken_schedule_in_a_json_is_refused_in_one_line(
         ("current_schedule", lambda s: s["X"].pop(), "X: must list one matrix per current (3)"),
         ("current_schedule", lambda s: None, "looks i_q* up in w[2] of the current references"),
     ]:
-        broken = json.loads(json.dumps(over_current if key == "current_schedule" else document))
+        source = {"current_schedule": over_current, "speed_current_schedule": both}
+        broken = json.loads(json.dumps(source.get(key, document)))
         change(broken[key])
         path = tmp_path / "broken.json"
         path.write_text(json.dumps(broken))
@@ -295,4 +327,61 @@ def test_a_current_schedule_runs_in_c_at_the_reference_current(tmp_path: Path) -
         omega = rng.uniform(-500.0, 500.0, count)  # unused
         expected, bound = _agrees(schedule, inside, compiled, x, w, omega, u_max)
     wrong = stepper_commands(schedule.laws[0], x, w, u_max)
+    assert np.max(np.hypot(*(wrong - expected).T)) > 1e3 * np.max(bound)
+
+
+@needs_compiler
+def test_a_speed_and_current_schedule_runs_in_c_at_both(tmp_path: Path) -> None:
+    """A JSON's ``speed_current_schedule`` (``tune`` with ``[saturation]`` and
+    ``[schedule]``) exports as tables over ``IQ_REF`` times ``OMEGA_E``, looked up at
+    ``i_q* = w[2]`` and ``omega_e``: on grid points, inside cells and clamped outside
+    either grid, the C law returns what the stepper computes with ``law_at`` of the
+    float32 values, within float32 rounding of the four neighbours' envelope."""
+    from selftune.model import SpeedCurrentSchedule
+
+    Q_i = np.diag([4e6, 4e6])
+    speeds, currents = [60.0, 300.0, 900.0], [1.0, 4.0, 10.0]
+
+    def law(current: float, speed: float) -> ControlLaw:  # a different motor per current
+        motor = IPMSM(R_s=0.3, L_d=3e-3, L_q=7e-3 * (1.0 - 0.03 * current), phi_pm=0.12, p=3)
+        return solve_digital_regulation(
+            motor.regulation_problem(speed / 3), 1e3 * np.eye(2), np.eye(2), 1e-4,
+            input_delay=1, integral_weight=Q_i,
+            plant=motor.sampled_plant(speed / 3, 1e-4, "stationary"),
+        ).law  # fmt: skip
+
+    schedule = SpeedCurrentSchedule(
+        speeds, currents, [[law(c, s) for s in speeds] for c in currents]
+    )
+    path = tmp_path / "saturating.json"
+    document = {"control_law": schedule.law(2, 0).document(), "h": 1e-4, "input_delay": 1,
+                "current_schedule": {"broken": True},  # read after the one over both
+                "speed_current_schedule": schedule.document()}  # fmt: skip
+    path.write_text(json.dumps(to_jsonable(document)))
+    result = load_law_result(path)
+    assert isinstance(result.schedule, SpeedCurrentSchedule) and result.scheduled
+    u_max = 150.0
+    compiled = CompiledLaw(path, u_max, tmp_path)
+    assert "K_TABLE[SELFTUNE_CURRENTS][SELFTUNE_SPEEDS][2][4]" in compiled.files.source
+    rng = np.random.default_rng(5)
+    count = 1000
+    points = [(900.0, 4.0), (180.0, 2.5), (600.0, 7.0), (30.0, 5.0), (2000.0, 0.2), (500.0, 14.0)]
+    for speed, current in points:
+        omega, i_q = float(np.float32(speed)), float(np.float32(current))
+        inside = (float(np.clip(omega, 60.0, 900.0)), float(np.clip(i_q, 1.0, 10.0)))
+        at = schedule.law_at(*inside)
+        w = np.c_[np.full(count, 0.36 * omega), np.full(count, -0.2 * i_q), np.full(count, i_q)]
+        x = w @ at.X.T + rng.normal(0, 0.5, (count, 2))
+        expected = stepper_commands(at, x, w, u_max)
+        u = compiled.run(x, w, np.full(count, omega))
+        c = min(int(np.searchsorted(currents, inside[1], side="right")) - 1, 1)
+        g = min(int(np.searchsorted(speeds, inside[0], side="right")) - 1, 1)
+        corners = [schedule.law(i, j) for i in (c, c + 1) for j in (g, g + 1)]
+        bound = rounding_bound(
+            envelope(envelope(corners[0], corners[1]), envelope(corners[2], corners[3])),
+            x, w, expected, u_max,
+        )  # fmt: skip
+        error = np.hypot(*(u - expected).T)
+        assert np.all(error <= bound), (speed, current, float(np.max(error / bound)))
+    wrong = stepper_commands(schedule.law(0, 0), x, w, u_max)
     assert np.max(np.hypot(*(wrong - expected).T)) > 1e3 * np.max(bound)

@@ -38,7 +38,9 @@ def export_command(result_path: str, out: str, u_max: float | None) -> int:
     from .. import __version__
     from ..config import load_law_result
     from ..errors import InputError
+    from ..model import SpeedCurrentSchedule
     from ..report import FIRMWARE_FILES, firmware, write_firmware
+    from ..report._firmware_tables import first_law
 
     check_output_directory(out, FIRMWARE_FILES, EXPORT_WHAT)
     result = load_law_result(result_path)
@@ -56,11 +58,19 @@ def export_command(result_path: str, out: str, u_max: float | None) -> int:
     date = datetime.now(UTC).strftime("%Y-%m-%d")
     files = firmware(result, limit, source=source, version=__version__, date=date)
     paths = write_firmware(files, out)
-    law = result.law if result.schedule is None else result.schedule.laws[0]
+    schedule = result.schedule
+    law = result.law if schedule is None else first_law(schedule)
     what = f"the law of {result_path} ({result.key})"
-    if result.schedule is not None:
-        low, high = result.schedule.covered
-        schedule = result.schedule
+    if isinstance(schedule, SpeedCurrentSchedule):
+        (low, high), (first, last) = schedule.covered
+        what = (
+            f"the schedule over speed and current of {result_path}: "
+            f"{schedule.current.size} currents, i_q* {first:g} to {last:g} A, times "
+            f"{schedule.electrical_speed.size} speeds, omega_e {low:g} to {high:g} rad/s "
+            "(bilinear, clamped outside)"
+        )
+    elif schedule is not None:
+        low, high = schedule.covered
         what = (
             f"the schedule of {result_path}: {schedule.grid.size} {schedule.points}, "
             f"{schedule.symbol} {low:g} to {high:g} {schedule.unit} (clamped outside)"

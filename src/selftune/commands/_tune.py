@@ -169,8 +169,9 @@ def _tune_saturating(
 ) -> int:
     """``selftune tune`` of a saturating motor (a ``[saturation]`` table): its incremental
     model learned at several current levels on the file's realistic drive, the law
-    scheduled over ``i_q*`` (:func:`selftune.tuning.commission_over_current`), judged
-    against the true motor's pointwise optimum."""
+    scheduled over ``i_q*`` (:func:`selftune.tuning.commission_over_current`) and, with a
+    ``[schedule]``, over speed and ``i_q*`` together, judged against the true motor's
+    pointwise optimum."""
     from tqdm import tqdm
 
     from ..report import current_document, current_lines, evaluate_current_schedule
@@ -195,6 +196,7 @@ def _tune_saturating(
         result = commission_over_current(
             motor, config.saturation, settings, config.drive, seed=seed,
             progress=lambda count: bar.update(count - bar.n),
+            speeds=None if config.schedule is None else config.schedule.speeds,
         )  # fmt: skip
         evaluation = evaluate_current_schedule(result, motor, config.saturation, settings)
     _check_numerics(config.source, caught, result.design.schedule.table("K"))
@@ -233,8 +235,8 @@ def tune_command(
     motor with a ``[schedule]`` table is commissioned over a staircase of the schedule's
     speeds and identified there, and the schedule designed on it (:func:`_tune_ramp`);
     without one, the session runs ``algorithm``. With a ``[saturation]`` table the motor
-    is learned at several current levels and its law scheduled over ``i_q*``
-    (:func:`_tune_saturating`).
+    is learned at several current levels and its law scheduled over ``i_q*``, and with a
+    ``[schedule]`` too over speed and ``i_q*`` together (:func:`_tune_saturating`).
 
     Parameters
     ----------

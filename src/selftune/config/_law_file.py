@@ -7,9 +7,10 @@ Every selftune JSON that carries a controller names it ``control_law`` with ever
 switched none. :func:`load_law_result` adds what the file says of the drive the law was
 made for (:class:`LawResult`), and the law's schedule where the file has one: over speed
 (``schedule``, :meth:`selftune.model.SpeedSchedule.document`: ``selftune solve`` and
-``tune`` with a ``[schedule]`` table) or over the q-axis current reference
-(``current_schedule``: ``tune`` with a ``[saturation]`` table). Every error is one line
-naming the file and the key.
+``tune`` with a ``[schedule]`` table), over the q-axis current reference
+(``current_schedule``: ``tune`` with a ``[saturation]`` table), or over both
+(``speed_current_schedule``: ``tune`` with both tables; read before the others). Every
+error is one line naming the file and the key.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from typing import Any
 from ..core import ControlLaw
 from ..core._atomic import read_regular_file
 from ..errors import DataFileError, InputError
-from ..model import CurrentSchedule, SpeedSchedule
+from ..model import CurrentSchedule, SpeedCurrentSchedule, SpeedSchedule
 
 __all__ = ["LawResult", "load_control_law", "load_law_result"]
 
@@ -69,9 +70,10 @@ class LawResult:
     dc_voltage : float or None
         The drive's DC bus, V (``tune --online``); None where the file does not say.
     scheduled : bool
-        Whether the file schedules the law (a ``schedule`` key over speed, or a
-        ``current_schedule`` over ``i_q*``, beside the law or at the top).
-    schedule : SpeedSchedule or CurrentSchedule or None
+        Whether the file schedules the law (a ``schedule`` key over speed, a
+        ``current_schedule`` over ``i_q*``, or a ``speed_current_schedule`` over both,
+        beside the law or at the top; the last is the one read where there are several).
+    schedule : SpeedSchedule or CurrentSchedule or SpeedCurrentSchedule or None
         That schedule (its laws in the convention of ``law``); None without one.
     """
 
@@ -82,7 +84,7 @@ class LawResult:
     motor: dict[str, float] | None
     dc_voltage: float | None
     scheduled: bool
-    schedule: SpeedSchedule | CurrentSchedule | None = None
+    schedule: SpeedSchedule | CurrentSchedule | SpeedCurrentSchedule | None = None
 
 
 def _read_document(path: str | os.PathLike[str]) -> Any:
@@ -166,8 +168,20 @@ def load_law_result(path: str | os.PathLike[str]) -> LawResult:
     law, mapping, key = _law_of(document, os.fspath(path))
     drive = document.get("drive")
     drive_settings = drive.get("settings", drive) if isinstance(drive, Mapping) else None
-    kind = "current_schedule" if _given(mapping, document, "current_schedule") else "schedule"
-    schedule = _schedule(mapping.get(kind, document.get(kind)), os.fspath(path), kind)
+    kind = next(
+        (
+            key
+            for key in ("speed_current_schedule", "current_schedule")
+            if _given(mapping, document, key)
+        ),
+        "schedule",
+    )
+    stated = mapping.get(kind, document.get(kind))
+    schedule: SpeedSchedule | CurrentSchedule | SpeedCurrentSchedule | None = (
+        _speed_current_schedule(stated, os.fspath(path))
+        if kind == "speed_current_schedule"
+        else _schedule(stated, os.fspath(path), kind)
+    )
     design = document.get(f"{kind}_design") if schedule is not None else None
     h = law.h
     for table in (design, document, document.get("settings")):
@@ -201,13 +215,15 @@ _SCHEDULES: dict[str, type[SpeedSchedule] | type[CurrentSchedule]] = {
 
 
 def _schedule(
-    table: Any, name: str, key: str = "schedule"
+    table: Any, name: str, key: str = "schedule", label: str | None = None
 ) -> SpeedSchedule | CurrentSchedule | None:
     """The schedule a JSON result's ``key`` states (None if it has none): ``schedule``
-    over ``electrical_speed``, ``current_schedule`` over ``current``."""
+    over ``electrical_speed``, ``current_schedule`` over ``current`` (messages name it
+    ``label``, default ``key``)."""
     if table is None:
         return None
     kind = _SCHEDULES[key]
+    key = key if label is None else label
     grid_key, points = kind.variable, kind.points
     if not isinstance(table, Mapping):
         raise DataFileError(f"{name}: {key}: must be an object, got {type(table).__name__}")
@@ -242,5 +258,45 @@ def _schedule(
                 )
             )
         return kind(grid, laws)
+    except (InputError, TypeError, ValueError) as exc:
+        raise DataFileError(f"{name}: {key}: {exc}") from None
+
+
+def _speed_current_schedule(table: Any, name: str) -> SpeedCurrentSchedule | None:
+    """The schedule over speed and current a JSON result's ``speed_current_schedule``
+    states (None if it has none): its matrices indexed ``[current][speed]``, each
+    current's row read as a ``schedule`` over ``electrical_speed``."""
+    if table is None:
+        return None
+    key = "speed_current_schedule"
+    if not isinstance(table, Mapping):
+        raise DataFileError(f"{name}: {key}: must be an object, got {type(table).__name__}")
+    for field in ("electrical_speed", "current", "K", "U", "X", "history"):
+        if field not in table:
+            raise DataFileError(f"{name}: {key}.{field}: missing")
+    currents = table["current"]
+    if not isinstance(currents, list):
+        raise DataFileError(f"{name}: {key}.current: must be a list of currents")
+    for field in ("K", "U", "X", "K_i"):
+        entries = table.get(field)
+        if (field != "K_i" or entries is not None) and (
+            not isinstance(entries, list) or len(entries) != len(currents)
+        ):
+            raise DataFileError(
+                f"{name}: {key}.{field}: must list one row of matrices per current "
+                f"({len(currents)})"
+            )
+    rows = []
+    for index in range(len(currents)):
+        row = {
+            **{field: table.get(field) for field in ("electrical_speed", "history", "C", "F", "h")},
+            **{field: table[field][index] for field in ("K", "U", "X") },
+            "K_i": None if table.get("K_i") is None else table["K_i"][index],
+        }  # fmt: skip
+        schedule = _schedule(row, name, "schedule", f"{key} (current {index})")
+        assert schedule is not None
+        rows.append(schedule.laws)
+    try:
+        return SpeedCurrentSchedule(table["electrical_speed"], currents, rows)
     except (InputError, TypeError, ValueError) as exc:
         raise DataFileError(f"{name}: {key}: {exc}") from None

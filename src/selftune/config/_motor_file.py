@@ -307,9 +307,7 @@ def load_motor_config(path: str | os.PathLike[str]) -> MotorConfig:
     schedule = schedule_config(config.table("schedule"), motor) if "schedule" in config else None
     saturation = None
     if "saturation" in config:
-        saturation = saturation_model(
-            config.table("saturation"), motor, drive, "schedule" in config
-        )
+        saturation = saturation_model(config.table("saturation"), motor, drive)
     try:
         raw = config.data.get("learning", {})  # as written: read with its names by the tuner
         return MotorConfig(

@@ -13,8 +13,9 @@ truth the simulated drive runs, never the learner's knowledge: ``selftune tune``
 commissions the motor over its current (:func:`selftune.tuning.commission_over_current`)
 and writes the law scheduled over the q-axis current reference. It needs a ``[drive]``
 table without ``temperature_rise`` (a heated saturating motor is not modelled: the flux
-linkages are given at the operating temperature) and no ``[schedule]`` table (a schedule
-over speed and current together is not done).
+linkages are given at the operating temperature). With a ``[schedule]`` table the law is
+also scheduled over speed and current together
+(:func:`selftune.model.design_speed_current_schedule`).
 
 A measured motor's saturation is a flux-map table instead (:class:`selftune.sim.FluxMap`)::
 
@@ -53,9 +54,7 @@ FLUX_MAP_KEYS = ("i_d", "i_q", "psi_d", "psi_q")
 SATURATION_KEYS = (*ANALYTIC_KEYS, *FLUX_MAP_KEYS)
 
 
-def saturation_model(
-    table: ConfigTable, motor: Motor, drive: DriveSettings | None, scheduled: bool
-) -> Saturation:
+def saturation_model(table: ConfigTable, motor: Motor, drive: DriveSettings | None) -> Saturation:
     """The saturation of a ``[saturation]`` table: the analytic model on ``motor``'s
     inductances and flux, or a flux map.
 
@@ -67,15 +66,12 @@ def saturation_model(
         The unsaturated motor of the ``[motor]`` table.
     drive : DriveSettings or None
         The ``[drive]`` table's drive (required).
-    scheduled : bool
-        Whether the file has a ``[schedule]`` table (refused beside this one).
 
     Raises
     ------
     DataFileError
         Naming the file, the table and the key: a missing or bad value, both forms' keys,
-        no ``[drive]`` table, a ``[drive] temperature_rise``, or a ``[schedule]`` table
-        beside it.
+        no ``[drive]`` table, or a ``[drive] temperature_rise``.
     """
     from ..sim import SaturationModel  # a saturating drive's file loads the simulator
 
@@ -91,12 +87,6 @@ def saturation_model(
             f"[drive] temperature_rise = {drive.temperature_rise:g} K: a heated saturating "
             "motor is not modelled; give the motor at its operating temperature and leave "
             "temperature_rise out",
-        )
-    if scheduled:
-        raise table.error(
-            None,
-            "with [schedule]: a schedule over speed and current together is not done; "
-            "leave out one of the two tables",
         )
     mapped = [key for key in FLUX_MAP_KEYS if key in table.data]
     if mapped:

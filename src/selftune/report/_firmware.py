@@ -43,10 +43,20 @@ from pathlib import Path
 import numpy as np
 
 from ..config import LawResult
-from ..core import Array, ControlLaw, positive_finite
+from ..core import ControlLaw, positive_finite
 from ..core._atomic import output_directory, write_text
 from ..errors import InputError
-from ..model import CurrentSchedule, SpeedSchedule, motor_from_parameters
+from ..model import CurrentSchedule, SpeedCurrentSchedule, motor_from_parameters
+from ._firmware_tables import (
+    Scheduled,
+    c_float,
+    c_matrix,
+    first_law,
+    grid_macros,
+    schedule_call,
+    schedule_key,
+    schedule_tables,
+)
 
 __all__ = ["ANTI_WINDUP", "FIRMWARE_FILES", "Firmware", "firmware", "write_firmware"]
 
@@ -81,57 +91,14 @@ class Firmware:
         return dict(zip(FIRMWARE_FILES, (self.header, self.source), strict=True))
 
 
-def _c_float(value: float, name: str) -> str:
-    """``value`` as a C float literal that reads back to its float32 (``%.9g``)."""
-    with np.errstate(over="ignore"):
-        single = np.float32(value)
-    if not np.isfinite(single):
-        raise InputError(f"{name}: {value!r} is not a finite float32")
-    text = f"{float(single):.9g}"
-    if not any(mark in text for mark in ".en"):
-        text += ".0"
-    return f"{text}f"
-
-
-def _c_matrix(name: str, matrix: Array, key: str, comment: str) -> str:
-    """``static const float NAME[rows][columns] = {...};`` with a comment above."""
-    rows = ["    {" + ", ".join(_c_float(value, key) for value in row) + "}" for row in matrix]
-    body = ",\n".join(rows)
-    return (
-        f"/* {comment} */\n"
-        f"static const float {name}[{matrix.shape[0]}][{matrix.shape[1]}] = {{\n{body}\n}};\n"
-    )
-
-
-@dataclass(frozen=True)
-class _Argument:
-    """What selects a scheduled law in C: the grid's table and size macro, the C value
-    looked up in it, and how the banner names them."""
-
-    grid: str
-    count: str
-    value: str
-    points: str
-    unit: str
-
-
-#: A schedule over speed reads omega_e; one over the q-axis current reads i_q* = w[2].
-_ARGUMENTS = {
-    SpeedSchedule: _Argument("OMEGA_E", "SELFTUNE_SPEEDS", "omega_e", "speeds", "rad/s"),
-    CurrentSchedule: _Argument("IQ_REF", "SELFTUNE_CURRENTS", "w[2]", "currents", "A"),
-}
-
-
 def _law(result: LawResult) -> ControlLaw:
     """The law whose structure the firmware runs: the schedule's where there is one."""
-    return result.law if result.schedule is None else result.schedule.laws[0]
+    return result.law if result.schedule is None else first_law(result.schedule)
 
 
 def _key(result: LawResult) -> str:
     """Where the file holds the law exported."""
-    if result.schedule is None:
-        return result.key
-    return "current_schedule" if isinstance(result.schedule, CurrentSchedule) else "schedule"
+    return result.key if result.schedule is None else schedule_key(result.schedule)
 
 
 def _check(result: LawResult, source: str) -> ControlLaw:
@@ -139,9 +106,9 @@ def _check(result: LawResult, source: str) -> ControlLaw:
     law = _law(result)
     if result.scheduled and result.schedule is None:
         raise InputError(f"{source}: schedule: the file names a schedule but states none")
-    if isinstance(result.schedule, CurrentSchedule) and law.q != 3:
+    if isinstance(result.schedule, CurrentSchedule | SpeedCurrentSchedule) and law.q != 3:
         raise InputError(
-            f"{source}: current_schedule: the firmware looks i_q* up in w[2] of the current "
+            f"{source}: {_key(result)}: the firmware looks i_q* up in w[2] of the current "
             f"references [p speed phi_pm, i_d*, i_q*]; this law has {law.q} reference channels"
         )
     if (law.n, law.m) != (2, 2):
@@ -230,12 +197,23 @@ def _omega_text(result: LawResult) -> str:
     schedule = result.schedule
     if schedule is None:
         return "omega_e, the electrical speed, rad/s, is unused (no schedule over speed)."
-    low, high = schedule.covered
     clamped = (
         "each entry interpolated linearly between the two neighbours; below the first "
         "the first law, above the last the last (clamped: the schedule was designed and "
         "checked within that range only)."
     )
+    if isinstance(schedule, SpeedCurrentSchedule):
+        (low, high), (first, last) = schedule.covered
+        return (
+            f"omega_e, the electrical speed, rad/s, and i_q* = w[2], A, select the law: K, "
+            f"K_i, U and X are tables over {schedule.current.size} q-axis current references "
+            f"from {first:.9g} to {last:.9g} A (IQ_REF) times {schedule.electrical_speed.size} "
+            f"speeds from {low:.9g} to {high:.9g} rad/s (OMEGA_E), each entry interpolated "
+            "bilinearly between the four neighbours; outside either grid its first or last "
+            "point's laws (clamped: the schedule was designed and checked within those "
+            "ranges only)."
+        )
+    low, high = schedule.covered
     if isinstance(schedule, CurrentSchedule):
         return (
             "omega_e, the electrical speed, rad/s, is unused (no schedule over speed); "
@@ -252,9 +230,9 @@ def _omega_text(result: LawResult) -> str:
 
 def _header(result: LawResult, u_max: float, source: str, version: str, date: str) -> str:
     law = _law(result)
-    u_max_c = _c_float(u_max, "--u-max")
+    u_max_c = c_float(u_max, "--u-max")
     u_max_text = f"{float(np.float32(u_max)):.9g} V"
-    h_c = _c_float(result.h, "h") if result.h is not None else None
+    h_c = c_float(result.h, "h") if result.h is not None else None
     members: list[str] = []
     if law.history:
         members.append(
@@ -281,13 +259,7 @@ def _header(result: LawResult, u_max: float, source: str, version: str, date: st
         + f"#define SELFTUNE_U_MAX {u_max_c} /* the limit on |u_dq|, V */\n"
         + f"#define SELFTUNE_HISTORY {law.history} /* d: past voltages fed back */\n"
         + f"#define SELFTUNE_INTEGRATORS {law.r} /* integrator states */\n"
-        + (
-            ""
-            if result.schedule is None
-            else f"#define {_ARGUMENTS[type(result.schedule)].count} "
-            f"{result.schedule.grid.size} /* grid {_ARGUMENTS[type(result.schedule)].points}"
-            f" of the schedule over {_ARGUMENTS[type(result.schedule)].value} */\n"
-        )
+        + ("" if result.schedule is None else grid_macros(result.schedule))
         + "\n/* Everything the law remembers between samples; set by selftune_init. */\n"
         + "struct selftune_state {\n"
         + "\n".join(members)
@@ -324,25 +296,21 @@ def _init_body(law: ControlLaw) -> list[str]:
     return body
 
 
-def _step_body(law: ControlLaw, argument: _Argument | None) -> list[str]:
+def _step_body(law: ControlLaw, schedule: Scheduled | None) -> list[str]:
     columns = law.K.shape[1]
-    if argument is not None:
+    if schedule is not None:
         tables = f"U[2][{law.q}], X[2][{law.q}], K[2][{columns}]" + (
             "" if law.K_i is None else ", K_I[2][SELFTUNE_INTEGRATORS]"
         )
-        unused = (
-            []
-            if argument.value == "omega_e"
-            else ["    (void)omega_e; /* no schedule over speed */"]
-        )
+        call = schedule_call(schedule)
+        unused = [] if "omega_e" in call else ["    (void)omega_e; /* no schedule over speed */"]
         speed = [
             f"    float {tables};",
             "    int i, j;",
             "",
             *unused,
-            f"    /* the law at {argument.value}: the tables interpolated (clamped at the ends) */",
-            f"    selftune_schedule({argument.value}, U, X, K"
-            + (", K_I);" if law.K_i is not None else ");"),
+            f"    /* the law at {call}: the tables interpolated (clamped at the ends) */",
+            f"    selftune_schedule({call}, U, X, K" + (", K_I);" if law.K_i is not None else ");"),
         ]
     else:
         speed = ["    int i, j;", "", "    (void)omega_e; /* no schedule over speed */"]
@@ -412,84 +380,7 @@ def _step_body(law: ControlLaw, argument: _Argument | None) -> list[str]:
     return body
 
 
-def _c_tables(name: str, tables: Array, key: str, comment: str, count: str) -> str:
-    """``static const float NAME[count][rows][columns]``: one matrix per grid point
-    (``count``: the grid's size macro)."""
-    blocks = [
-        "    {\n" + ",\n".join(
-            "        {" + ", ".join(_c_float(value, key) for value in row) + "}" for row in matrix
-        ) + "\n    }"
-        for matrix in tables
-    ]  # fmt: skip
-    rows, columns = tables.shape[1:]
-    return (
-        f"/* {comment} */\n"
-        f"static const float {name}[{count}][{rows}][{columns}] = {{\n"
-        + ",\n".join(blocks)
-        + "\n};\n"
-    )
-
-
-def _schedule_tables(schedule: SpeedSchedule | CurrentSchedule, state: str) -> list[str]:
-    """The tables over the schedule's grid and the function that interpolates them."""
-    arg = _ARGUMENTS[type(schedule)]
-    grid, count, point = arg.grid, arg.count, schedule.point
-    v = "omega_e" if isinstance(schedule, SpeedSchedule) else "i_q"  # the C parameter
-    key = "current_schedule" if isinstance(schedule, CurrentSchedule) else "schedule"
-    columns = schedule.table("K").shape[2]
-    integral = schedule.laws[0].K_i is not None
-    values = ", ".join(_c_float(value, f"{key}.{schedule.variable}") for value in schedule.grid)
-
-    def tables(name: str, table: str, comment: str) -> str:
-        return _c_tables(name, schedule.table(table), f"{key}.{table}", comment, count)
-
-    parts = [
-        f"/* {grid}: the schedule's {arg.points}, {arg.unit}, increasing */\n",
-        f"static const float {grid}[{count}] = {{{values}}};\n\n",
-        tables("U_TABLE", "U", f"U at each {point}: u_e = U w"),
-        "\n",
-        tables("X_TABLE", "X", f"X at each {point}: x_e = X w"),
-        "\n",
-        tables("K_TABLE", "K", f"K at each {point}: feedback on the deviations of [{state}]"),
-    ]
-    q = schedule.table("U").shape[2]
-    entries = [("U", str(q)), ("X", str(q)), ("K", str(columns))]
-    if integral:
-        parts += ["\n", tables("K_I_TABLE", "K_i", f"K_i at each {point}")]
-        entries.append(("K_I", "SELFTUNE_INTEGRATORS"))
-    arguments = ", ".join(f"float {name}[2][{size}]" for name, size in entries)
-    body = [
-        f"\n/* The law at {v}: each entry (1 - s) T[g] + s T[g + 1] between the neighbours",
-        f"   {grid}[g] <= {v} < {grid}[g + 1]; the first law below (and for a NaN), the",
-        "   last above. */",
-        f"static void selftune_schedule(float {v}, {arguments})",
-        "{",
-        "    int g = 0, i, j;",
-        "    float share = 0.0f;",
-        "",
-        f"    if ({v} >= {grid}[{count} - 1]) {{",
-        f"        g = {count} - 2;",
-        "        share = 1.0f;",
-        f"    }} else if ({v} > {grid}[0]) {{",
-        f"        while ({v} >= {grid}[g + 1]) {{",
-        "            ++g;",
-        "        }",
-        f"        share = ({v} - {grid}[g]) / ({grid}[g + 1] - {grid}[g]);",
-        "    }",
-        "    for (i = 0; i < 2; ++i) {",
-    ]
-    for name, size in entries:
-        body += [
-            f"        for (j = 0; j < {size}; ++j) {{",
-            f"            {name}[i][j] = (1.0f - share) * {name}_TABLE[g][i][j]",
-            f"                + share * {name}_TABLE[g + 1][i][j];",
-            "        }",
-        ]
-    body += ["    }", "}\n"]
-    return [*parts, "\n".join(body)]
-
-
-def _source(law: ControlLaw, key: str, schedule: SpeedSchedule | CurrentSchedule | None) -> str:
+def _source(law: ControlLaw, key: str, schedule: Scheduled | None) -> str:
     state = ", ".join(law.state[: law.K.shape[1]])
     parts = [
         "/* selftune_law.c: the control law of selftune_law.h (generated; see there). */\n",
@@ -497,25 +388,25 @@ def _source(law: ControlLaw, key: str, schedule: SpeedSchedule | CurrentSchedule
     ]
     if schedule is None:
         parts += [
-            _c_matrix("U", law.U, f"{key}.U", "U: feedforward map, u_e = U w (V per unit of w)"),
+            c_matrix("U", law.U, f"{key}.U", "U: feedforward map, u_e = U w (V per unit of w)"),
             "\n",
-            _c_matrix("X", law.X, f"{key}.X", "X: steady-state map, x_e = X w (A per unit of w)"),
+            c_matrix("X", law.X, f"{key}.X", "X: steady-state map, x_e = X w (A per unit of w)"),
             "\n",
-            _c_matrix("K", law.K, f"{key}.K", f"K: feedback on the deviations of [{state}]"),
+            c_matrix("K", law.K, f"{key}.K", f"K: feedback on the deviations of [{state}]"),
         ]
         if law.K_i is not None:
             parts += [
                 "\n",
-                _c_matrix("K_I", law.K_i, f"{key}.K_i", "K_i: integral gain, V/(A s)"),
+                c_matrix("K_I", law.K_i, f"{key}.K_i", "K_i: integral gain, V/(A s)"),
             ]
     else:
-        parts += _schedule_tables(schedule, state)
+        parts += schedule_tables(schedule, state)
     if law.K_i is not None and law.C is not None and law.F is not None:
         parts += [
             "\n",
-            _c_matrix("C", law.C, f"{key}.C", "C: the regulated error e = C x + F w"),
+            c_matrix("C", law.C, f"{key}.C", "C: the regulated error e = C x + F w"),
             "\n",
-            _c_matrix("F", law.F, f"{key}.F", "F: the regulated error's reference part"),
+            c_matrix("F", law.F, f"{key}.F", "F: the regulated error's reference part"),
         ]
     parts += [
         "\nvoid selftune_init(selftune_state *s)\n{\n",
@@ -523,7 +414,7 @@ def _source(law: ControlLaw, key: str, schedule: SpeedSchedule | CurrentSchedule
         "\n}\n\n",
         f"void selftune_step(selftune_state *s, const float i_dq[2], const float w[{law.q}],\n",
         "                   float omega_e, float u_dq[2])\n{\n",
-        "\n".join(_step_body(law, None if schedule is None else _ARGUMENTS[type(schedule)])),
+        "\n".join(_step_body(law, schedule)),
         "\n}\n",
     ]
     return "".join(parts)

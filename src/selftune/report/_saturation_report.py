@@ -15,7 +15,7 @@ calls the same functions.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -27,6 +27,7 @@ from ..model import (
     CurrentScheduleDesign,
     ModelBasedSolution,
     RegulationProblem,
+    SpeedCurrentDesign,
     excess_over,
     solve_digital_regulation,
 )
@@ -44,6 +45,7 @@ if TYPE_CHECKING:  # matplotlib is loaded only to draw
 __all__ = [
     "CURRENTS",
     "CURVATURE_NOTE",
+    "SPEEDS",
     "CurrentEvaluation",
     "check_entry",
     "current_document",
@@ -54,11 +56,15 @@ __all__ = [
     "level_document",
     "level_table",
     "schedule_check_lines",
+    "speed_current_lines",
     "true_current_optima",
 ]
 
 #: The currents judged between 10 % and 100 % of rated torque.
 CURRENTS = 24
+
+#: The speeds a schedule over speed and current is judged at, evenly over its range.
+SPEEDS = 12
 
 #: The levels' table notes the curvature's part of the inductances' standard errors where
 #: it is more than this many times the noise's at some level (the fit's average over the
@@ -141,6 +147,15 @@ class CurrentEvaluation:
         mean current, in standard errors.
     errors : ndarray, shape (levels, 3)
         The same errors relative to the true ``L_qq`` there.
+    electrical_speeds : ndarray, shape (S,)
+        With a schedule over speed and current: the judged speeds, rad/s (electrical),
+        :data:`SPEEDS` over its range; else empty.
+    speed_excess : ndarray, shape (S, N)
+        That schedule's excess over the true optimum at each judged speed and current
+        (empty without one).
+    current_only_excess : ndarray, shape (S, N)
+        The same of the schedule over ``i_q*`` alone, designed at the operating speed
+        (empty without a schedule over speed and current).
     """
 
     references: Array
@@ -149,6 +164,9 @@ class CurrentEvaluation:
     low_excess: Array
     z: Array
     errors: Array
+    electrical_speeds: Array = field(default_factory=lambda: np.zeros(0))
+    speed_excess: Array = field(default_factory=lambda: np.zeros((0, 0)))
+    current_only_excess: Array = field(default_factory=lambda: np.zeros((0, 0)))
 
 
 def evaluate_current_schedule(
@@ -186,14 +204,50 @@ def evaluate_current_schedule(
         np.asarray(excess_over(optima, law), dtype=float)
         for law in (schedule, result.levels[-1].learned.law, first)
     )
+    speeds, speed_excess, current_only = _speed_current_excess(
+        result, motor, saturation, settings, references
+    )
     z, errors = [], []
     for level in result.levels:
         truth = incremental_theta(saturation, motor.R_s, level.mean_current, motor.phi_pm)
         z.append(((level.theta - truth) / level.standard_errors)[1:4])
         errors.append((level.theta - truth)[1:4] / truth[2])
     return CurrentEvaluation(
-        references, schedule_excess, rated_excess, low_excess, np.array(z), np.array(errors)
-    )
+        references, schedule_excess, rated_excess, low_excess, np.array(z), np.array(errors),
+        speeds, speed_excess, current_only,
+    )  # fmt: skip
+
+
+def _speed_current_excess(
+    result: CurrentCommissioning, motor: IPMSM, saturation: Saturation,
+    settings: TuningSettings, references: Array,
+) -> tuple[Array, Array, Array]:  # fmt: skip
+    """The schedule over speed and current, and the one over ``i_q*`` alone (designed at
+    the operating speed), against the true optimum at :data:`SPEEDS` speeds over the
+    former's range times the judged currents (the end laws held beyond the grids'
+    currents, as the firmware does); empty arrays without one."""
+    design = result.speed_design
+    if design is None:
+        return np.zeros(0), np.zeros((0, 0)), np.zeros((0, 0))
+    schedule, alone = design.schedule, result.design.schedule
+    (low, high), (lowest, highest) = schedule.covered
+    first, last = alone.covered
+    speeds = np.linspace(low, high, SPEEDS)
+    weights = (settings.Q, settings.R, result.integral_weight)
+    delay = result.levels[0].learned.law.history
+    both, single = [], []
+    for speed in speeds:
+        optima = true_current_optima(
+            motor, saturation, float(speed) / motor.p, settings.h, references, weights, delay
+        )
+        laws = [
+            schedule.law_at(float(speed), float(np.clip(q, lowest, highest)))
+            for q in references[:, 1]
+        ]
+        both.append(np.asarray(excess_over(optima, laws), dtype=float))
+        laws = [alone.law_at(float(np.clip(q, first, last))) for q in references[:, 1]]
+        single.append(np.asarray(excess_over(optima, laws), dtype=float))
+    return speeds, np.array(both), np.array(single)
 
 
 def current_lines(
@@ -223,6 +277,7 @@ def current_lines(
             "share of rated", [f"{level.share:.0%}" for level in result.levels], result.levels
         ),
         *schedule_check_lines(result.design),
+        *speed_current_lines(result.speed_design),
         *([f"  note: levels {result.left_out_text}"] if result.left_out_text else []),
     ]
     rated, low = evaluation.rated_excess, evaluation.low_excess
@@ -231,6 +286,19 @@ def current_lines(
         f"compare): largest excess {float(np.max(evaluation.schedule_excess)):.3g}; one law "
         f"learned at rated current {float(np.max(rated)):.3g}, at the lowest level "
         f"{float(np.max(low)):.3g}",
+        *(
+            [
+                f"  the schedule over speed and current against the true motor's pointwise "
+                f"optimum at {evaluation.electrical_speeds.size} speeds from "
+                f"{evaluation.electrical_speeds[0]:.4g} to {evaluation.electrical_speeds[-1]:.4g}"
+                f" rad/s (electrical) times those currents (only to compare): largest excess "
+                f"{float(np.max(evaluation.speed_excess)):.3g}; the schedule over i_q* alone, "
+                "designed at the operating speed, "
+                f"{float(np.max(evaluation.current_only_excess)):.3g}"
+            ]
+            if evaluation.speed_excess.size
+            else []
+        ),
         f"  the identified inductances against the truth at each level's mean current: "
         f"{np.mean(np.abs(evaluation.z) <= 1.0):.0%} of {evaluation.z.size} within one "
         f"standard error, the largest {float(np.max(np.abs(evaluation.errors))):.2%} of L_qq",
@@ -302,6 +370,33 @@ def schedule_check_lines(design: CurrentScheduleDesign) -> list[str]:
         + " A",
         f"  worst excess cost {check.excess[worst]:.3g} at i_q* = {check.points[worst]:.4g} A "
         f"over the identified models' pointwise optimum (limit {check.limit:g})",
+    ]
+
+
+def speed_current_lines(design: SpeedCurrentDesign | None) -> list[str]:
+    """The schedule over speed and current: its grid and its worst excess cost over the
+    identified models' pointwise optimum (none without one).
+
+    Parameters
+    ----------
+    design : SpeedCurrentDesign or None
+        The schedule and its check.
+    """
+    if design is None:
+        return []
+    schedule, check = design.schedule, design.check
+    worst = check.worst
+    return [
+        f"Speed and current schedule: the digital optimum at {schedule.electrical_speed.size} "
+        "speeds omega_e = "
+        + ", ".join(f"{speed:.4g}" for speed in schedule.electrical_speed)
+        + f" rad/s times {schedule.current.size} currents i_q* = "
+        + ", ".join(f"{current:.4g}" for current in schedule.current)
+        + " A, interpolated bilinearly",
+        f"  worst excess cost {check.excess[worst]:.3g} at omega_e = "
+        f"{check.electrical_speed[worst]:.4g} rad/s, i_q* = {check.current[worst]:.4g} A over "
+        f"the identified models' pointwise optimum (limit {check.limit:g}; "
+        f"{check.excess.size} points on lines through every cell)",
     ]
 
 
@@ -431,7 +526,17 @@ def current_document(
             "schedule": evaluation.schedule_excess,
             "rated_law": evaluation.rated_excess,
             "low_law": evaluation.low_excess,
+            **(
+                {
+                    "electrical_speed": evaluation.electrical_speeds,
+                    "speed_current_schedule": evaluation.speed_excess,
+                    "current_schedule_over_speed": evaluation.current_only_excess,
+                }
+                if result.speed_design is not None
+                else {}
+            ),
         },
+        **_speed_current_entries(result.speed_design),
         "inductance_z": evaluation.z,
         "motor": motor,
         "saturation": _saturation_document(saturation),
@@ -441,6 +546,25 @@ def current_document(
         "h": settings.h,
         "input_delay": rated.learned.law.history,
     }
+
+
+def _speed_current_entries(design: SpeedCurrentDesign | None) -> dict[str, Any]:
+    """``speed_current_schedule`` (:meth:`~selftune.model.SpeedCurrentSchedule.document`)
+    and its design's check and added points, for the JSON (none without one)."""
+    if design is None:
+        return {}
+    check = design.check
+    return {
+        "speed_current_schedule": design.schedule.document(),
+        "speed_current_schedule_design": {
+            "check": {
+                "electrical_speed": check.electrical_speed, "i_q": check.current,
+                "excess": check.excess, "limit": check.limit,
+            },
+            "added_speeds": list(design.added_speeds),
+            "added_currents": list(design.added_currents),
+        },
+    }  # fmt: skip
 
 
 def _level_entry(level: CurrentLevel) -> dict[str, Any]:

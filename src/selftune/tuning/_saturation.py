@@ -54,9 +54,12 @@ from ..model import (
     IPMSM,
     CurrentScheduleDesign,
     RegulationProblem,
+    SpeedCurrentDesign,
     design_current_schedule,
+    design_speed_current_schedule,
     solve_digital_regulation,
 )
+from ..model._speed_current import PlantAt
 from ..sim import DriveSettings, RealisticDrive, Saturation, held, uniform
 from ._curvature import with_curvature
 from ._interior import CURRENT_REFERENCE_F, D_SHARE, check_current_range, current_steps
@@ -78,7 +81,9 @@ __all__ = [
     "inductances_move",
     "learn_level",
     "level_log",
+    "level_plants",
     "schedule_over_levels",
+    "schedule_over_speed_and_levels",
 ]
 
 #: The steps about each level's current reference, a share of the rated q current: small
@@ -180,6 +185,9 @@ class CurrentCommissioning:
     unlearned : tuple of float
         The lowest levels (shares of rated torque) whose every log was refused, below
         every level learned: the schedule starts above them (:data:`LEVEL_ATTEMPTS`).
+    speed_design : SpeedCurrentDesign or None
+        With the speeds of a ``[schedule]``: the law scheduled over speed and ``i_q*``
+        together on the same levels (:func:`schedule_over_speed_and_levels`).
     """
 
     levels: tuple[CurrentLevel, ...]
@@ -189,6 +197,7 @@ class CurrentCommissioning:
     left_out: tuple[CurrentLevel, ...] = ()
     left_out_text: str = ""
     unlearned: tuple[float, ...] = ()
+    speed_design: SpeedCurrentDesign | None = None
 
 
 def incremental_theta(saturation: Saturation, R_s: float, current: Array, flux: float) -> Array:
@@ -342,13 +351,39 @@ def inductances_move(low: Array, high: Array) -> bool:
     return bool(np.max(np.abs(high[1:4] - low[1:4])) > INDUCTANCE_MOVE * scale)
 
 
+def level_plants(currents: Array, thetas: Array, structure: IncrementalStructure) -> PlantAt:
+    """The plant at a current and an electrical speed from the levels' identified models,
+    interpolated linearly in ``i_q*`` between them (the structure's model at that speed).
+
+    Parameters
+    ----------
+    currents : ndarray, shape (g,)
+        The levels' ``i_q*``, A, strictly increasing.
+    thetas : ndarray, shape (g, 6)
+        Their identified parameters (:func:`incremental_parameters`).
+    structure : IncrementalStructure
+        The structure (sampling period, hold), without the dead-time channels.
+    """
+
+    def plant(current: float, speed: float) -> tuple[RegulationProblem, tuple[Array, Array, Array]]:
+        theta = np.array([np.interp(current, currents, column) for column in thetas.T])
+        at = replace(structure, electrical_speed=speed)
+        A, B, D = at.continuous(theta)
+        problem = RegulationProblem(
+            A=A, B=B, C=np.eye(2), D=D, E=np.zeros((3, 3)), F=CURRENT_REFERENCE_F
+        )
+        return problem, at(theta)
+
+    return plant
+
+
 def schedule_over_levels(
     currents: Array, thetas: Array, structure: IncrementalStructure, Q: Array, R: Array,
     *, input_delay: int, integral_weight: Array | None,
 ) -> CurrentScheduleDesign:  # fmt: skip
     """The digital optimum scheduled over ``i_q*`` on the levels' identified models,
-    interpolated linearly in ``i_q*`` between them
-    (:func:`~selftune.model.design_current_schedule`).
+    interpolated linearly in ``i_q*`` between them (:func:`level_plants`,
+    :func:`~selftune.model.design_current_schedule`).
 
     Parameters
     ----------
@@ -366,18 +401,36 @@ def schedule_over_levels(
     integral_weight : ndarray or None
         ``Q_i`` (None: no integral action).
     """
+    plants = level_plants(currents, thetas, structure)
 
     def plant(current: float) -> tuple[RegulationProblem, tuple[Array, Array, Array]]:
-        theta = np.array([np.interp(current, currents, column) for column in thetas.T])
-        A, B, D = structure.continuous(theta)
-        problem = RegulationProblem(
-            A=A, B=B, C=np.eye(2), D=D, E=np.zeros((3, 3)), F=CURRENT_REFERENCE_F
-        )
-        return problem, structure(theta)
+        return plants(current, structure.electrical_speed)
 
     return design_current_schedule(
         plant, currents, Q, R, structure.h, input_delay=input_delay,
         integral_weight=integral_weight,
+    )  # fmt: skip
+
+
+def schedule_over_speed_and_levels(
+    currents: Array, thetas: Array, structure: IncrementalStructure, Q: Array, R: Array,
+    electrical_speeds: Sequence[float], *, input_delay: int, integral_weight: Array | None,
+) -> SpeedCurrentDesign:  # fmt: skip
+    """The digital optimum scheduled over speed and ``i_q*`` together on the levels'
+    identified models (:func:`level_plants`; the incremental structure's model at each
+    speed), :func:`~selftune.model.design_speed_current_schedule` from the levels'
+    currents times ``electrical_speeds``.
+
+    Parameters
+    ----------
+    currents, thetas, structure, Q, R, input_delay, integral_weight
+        As :func:`schedule_over_levels`.
+    electrical_speeds : sequence of float
+        The initial speed grid, rad/s (electrical), strictly increasing.
+    """
+    return design_speed_current_schedule(
+        level_plants(currents, thetas, structure), currents, electrical_speeds, Q, R,
+        structure.h, input_delay=input_delay, integral_weight=integral_weight,
     )  # fmt: skip
 
 
@@ -399,6 +452,7 @@ def commission_over_current(
     seconds: float = 0.4,
     seed: int = 0,
     progress: Callable[[int], None] | None = None,
+    speeds: Sequence[float] | None = None,
 ) -> CurrentCommissioning:
     """The levels learned, refined where the inductance moves, and the schedule over
     ``i_q*`` designed on them (see the module docstring).
@@ -422,6 +476,11 @@ def commission_over_current(
     progress : callable, optional
         Called with the number of levels learned so far, after each (at most
         :data:`MAX_LEVELS`).
+    speeds : sequence of float, optional
+        Mechanical speeds, rad/s, strictly increasing (a ``[schedule]``'s grid, or its
+        range's ends): the law is also scheduled over speed and ``i_q*`` together
+        (:attr:`CurrentCommissioning.speed_design`), the levels learned at the
+        operating speed.
 
     Raises
     ------
@@ -497,6 +556,13 @@ def commission_over_current(
         currents, thetas, structure, settings.Q, settings.R,
         input_delay=found[-1].learned.law.history, integral_weight=integral_weight,
     )  # fmt: skip
+    speed_design = None
+    if speeds is not None:
+        speed_design = schedule_over_speed_and_levels(
+            currents, thetas, structure, settings.Q, settings.R,
+            [motor.p * float(speed) for speed in speeds],
+            input_delay=found[-1].learned.law.history, integral_weight=integral_weight,
+        )  # fmt: skip
     left_out = tuple(level for k, level in enumerate(learned_levels) if k not in kept)
     if unlearned:
         cause = str(unlearned[-1][1]).split(":")[0]
@@ -509,5 +575,5 @@ def commission_over_current(
         why = f"{note}; {why}" if why else note
     return CurrentCommissioning(
         found, design, integral_weight, tuple(refusals), left_out, why,
-        tuple(share for share, _ in unlearned),
+        tuple(share for share, _ in unlearned), speed_design,
     )  # fmt: skip
