@@ -107,9 +107,10 @@ def test_tune_schedules_a_saturating_motor_over_speed_and_current(
     operating speed) is worse at the ends; the table recomputed from the JSON alone."""
     path = tmp_path / "motor.toml"
     path.write_text(MOTOR + DRIVE + SATURATION + "[schedule]\nspeed_range = [12.0, 240.0]\n")
-    out = tmp_path / "out.json"
-    assert main(["tune", "--motor", str(path), "--json", str(out)]) == 0
+    out, report = tmp_path / "out.json", tmp_path / "report"
+    assert main(["tune", "--motor", str(path), "--json", str(out), "--report", str(report)]) == 0
     assert "Speed and current schedule: the digital optimum at" in capsys.readouterr().out
+    assert sorted(p.name for p in report.iterdir()) == sorted(report_files(scheduled=True))
     document = json.loads(out.read_text())
     true = document["true_excess"]
     both = np.array(true["speed_current_schedule"])

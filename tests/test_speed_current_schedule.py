@@ -163,3 +163,25 @@ def test_outside_the_grid_and_bad_grids_are_refused(design) -> None:  # type: ig
     laws = [[schedule.law(0, 0), schedule.law(0, 1)]]
     with pytest.raises(InputError, match="at least two"):
         SpeedCurrentSchedule(schedule.electrical_speed[:2], [1.0], laws)
+
+
+def test_the_figure_draws_each_grid_current_against_speed(design) -> None:  # type: ignore[no-untyped-def]
+    """One line per grid current on the gains' panels, their dots the grid laws' entries;
+    the excess panel the two true-motor curves given."""
+    from selftune.report._schedule_figure import figure_speed_current
+
+    schedule = design.schedule
+    speeds = np.linspace(*schedule.covered[0], 5)
+    both, alone = np.full((5, 3), 1e-4), np.full((5, 3), 0.05)
+    figure = figure_speed_current(design, speeds, both, alone)
+    gains, integral, rate, excess = figure.axes
+    dots = [line for line in gains.lines if line.get_marker() == "o"]
+    assert len(dots) == 2 * schedule.current.size  # d on d and q on q per current
+    np.testing.assert_allclose(dots[0].get_ydata(), schedule.table("K")[0, :, 0, 0])
+    np.testing.assert_allclose(dots[1].get_ydata(), schedule.table("K")[0, :, 1, 1])
+    integral_dots = [line for line in integral.lines if line.get_marker() == "o"]
+    np.testing.assert_allclose(integral_dots[-1].get_ydata(), schedule.table("K_i")[-1, :, 1, 1])
+    curves_of_rate = [line for line in rate.lines if len(line.get_xdata()) > 2]  # not the grid's
+    assert len(curves_of_rate) == 2 * schedule.current.size
+    curves = {line.get_label(): line for line in excess.lines}
+    np.testing.assert_allclose(curves["schedule over $i_q^*$ alone, true motor"].get_ydata(), 0.05)

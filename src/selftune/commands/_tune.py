@@ -207,7 +207,14 @@ def _tune_saturating(
         )
         _write_json(json_path, document)
     rated, figure = result.levels[-1], None  # the report: the law learned at rated current
-    if report_dir is not None:  # and the schedule beside that one law
+    if report_dir is not None and result.speed_design is not None:  # and the schedule
+        from ..report._schedule_figure import figure_speed_current
+
+        figure = figure_speed_current(
+            result.speed_design, evaluation.electrical_speeds, evaluation.speed_excess,
+            evaluation.current_only_excess,
+        )  # fmt: skip
+    elif report_dir is not None:  # beside that one law
         from ..report._saturation_report import current_schedule_figure
 
         figure = current_schedule_figure(
