@@ -19,7 +19,10 @@ on the true incremental plant at that current (``saturation.incremental`` and th
 offset there, :func:`~selftune.tuning._saturation.incremental_theta`), of the schedule,
 of the one law learned at rated current and of the one learned at 10 %. Also, per level,
 the identified incremental inductances against the truth at the level's mean current, in
-standard errors.
+standard errors. The law is also scheduled over speed and current together, from 5 % to
+100 % of the motor's speed (:data:`SPEED_SHARES`), and judged likewise at
+:data:`~selftune.report._saturation_report.SPEEDS` speeds over that range times those
+currents, beside the schedule over ``i_q*`` alone there.
 """
 
 from __future__ import annotations
@@ -33,7 +36,12 @@ import numpy as np
 from ..config import MotorConfig
 from ..errors import SelftuneError
 from ..model import IPMSM
-from ..report._saturation_report import CURRENTS, evaluate_current_schedule, judged_references
+from ..report._saturation_report import (
+    CURRENTS,
+    SPEEDS,
+    evaluate_current_schedule,
+    judged_references,
+)
 from ..sim import DriveSettings, SaturationModel
 from ..tuning import commission_over_current, tuning_settings
 from ._common import table, with_progress
@@ -64,6 +72,9 @@ SATURATING_MOTORS: tuple[tuple[IPMSM, float, float, float, float, float], ...] =
 #: Cross-saturation of every motor.
 CROSS = 0.1
 
+#: The schedule over speed and current spans these shares of the motor's speed.
+SPEED_SHARES = (0.05, 1.0)
+
 
 @dataclass(frozen=True)
 class SaturationCase:
@@ -91,6 +102,11 @@ class SaturationCase:
     errors_percent : tuple of float
         The same errors relative to the true ``L_qq``, %.
     wall_seconds : float
+    speed_excess_percent : float
+        The schedule over speed and current's largest excess over the true pointwise
+        optimum at the judged speeds and currents, %.
+    alone_excess_percent : float
+        That of the schedule over ``i_q*`` alone (designed at the motor's speed) there, %.
     """
 
     motor_text: str
@@ -105,6 +121,8 @@ class SaturationCase:
     z: tuple[float, ...]
     errors_percent: tuple[float, ...]
     wall_seconds: float
+    speed_excess_percent: float = float("nan")
+    alone_excess_percent: float = float("nan")
 
     @property
     def learned(self) -> bool:
@@ -148,7 +166,10 @@ def _case(index: int, seed: int, pwm: Pwm = "average") -> SaturationCase:
     label = f"{index + 1}: {type(motor).__name__} {motor.L_d * 1e3:g}/{motor.L_q * 1e3:g} mH"
     started = time.perf_counter()
     try:
-        result = commission_over_current(motor, saturation, settings, drive, seed=seed)
+        result = commission_over_current(
+            motor, saturation, settings, drive, seed=seed,
+            speeds=[share * speed for share in SPEED_SHARES],
+        )  # fmt: skip
     except SelftuneError as error:
         nan = float("nan")
         return SaturationCase(
@@ -166,6 +187,8 @@ def _case(index: int, seed: int, pwm: Pwm = "average") -> SaturationCase:
         label, seed, "", fall, len(result.levels), len(result.refusals), 100.0 * excess[0],
         100.0 * excess[1],
         100.0 * excess[2], tuple(z), tuple(errors), time.perf_counter() - started,
+        100.0 * float(np.max(evaluation.speed_excess)),
+        100.0 * float(np.max(evaluation.current_only_excess)),
     )  # fmt: skip
 
 
@@ -211,13 +234,14 @@ def markdown_saturation(study: SaturationStudy) -> list[str]:
     for case in study.cases:
         if not case.learned:
             rows.append([case.motor_text, str(case.seed), f"{case.L_qq_fall_percent:.0f}",
-                         "refused: " + case.refusal_text, "-", "-", "-", "-",
+                         "refused: " + case.refusal_text, "-", "-", "-", "-", "-", "-",
                          f"{case.wall_seconds:.0f}"])  # fmt: skip
             continue
         rows.append([case.motor_text, str(case.seed), f"{case.L_qq_fall_percent:.0f}",
                      f"{case.levels} ({case.refused_logs})", f"{case.schedule_excess_percent:.3f}",
                      f"{case.rated_excess_percent:.3f}", f"{case.low_excess_percent:.3f}",
                      f"{max(abs(e) for e in case.errors_percent):.3f}",
+                     f"{case.speed_excess_percent:.3f}", f"{case.alone_excess_percent:.3f}",
                      f"{case.wall_seconds:.0f}"])  # fmt: skip
     learned = [case for case in study.cases if case.learned]
     return [
@@ -226,8 +250,10 @@ def markdown_saturation(study: SaturationStudy) -> list[str]:
         f"Excess cost over the true pointwise digital optimum at {CURRENTS} currents from "
         f"10% to 100% of rated on {study.pwm} PWM, largest (target <= 2%); incremental "
         f"inductances learned within one standard error of the truth: {_within_one(learned)} "
-        "(68% expected). "
-        f"{study.wall_seconds:.0f} s.",
+        "(68% expected). Over speed and current: the schedule over both from "
+        f"{SPEED_SHARES[0]:.0%} to {SPEED_SHARES[1]:.0%} of the motor's speed, judged at "
+        f"{SPEEDS} speeds over that range times those currents, and the schedule over i_q* "
+        f"alone (designed at the motor's speed) there. {study.wall_seconds:.0f} s.",
         "",
         *table(
             [
@@ -239,6 +265,8 @@ def markdown_saturation(study: SaturationStudy) -> list[str]:
                 "law at rated %",
                 "law at 10% %",
                 "largest L error % of L_qq",
+                "over speed and current %",
+                "i_q* schedule alone over speed %",
                 "s",
             ],
             rows,

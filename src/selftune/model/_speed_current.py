@@ -104,7 +104,15 @@ class SpeedCurrentSchedule:
         return self.rows[0].covered, (float(self.current[0]), float(self.current[-1]))
 
     def law(self, index: int, speed_index: int) -> ControlLaw:
-        """The grid's law at ``current[index]`` and ``electrical_speed[speed_index]``."""
+        """The grid's law at ``current[index]`` and ``electrical_speed[speed_index]``.
+
+        Parameters
+        ----------
+        index : int
+            The grid current's index.
+        speed_index : int
+            The grid speed's index.
+        """
         return self.rows[index].laws[speed_index]
 
     def column(self, electrical_speed: float) -> CurrentSchedule:
