@@ -276,6 +276,9 @@ def test_the_command_s_errors_are_one_line(
     manifest.write_text("path,drive,learning.electrical_speed\na.csv,a,150\nb.csv,,150\n")
     line = _fail(["fleet", str(manifest), "--config", fleet.config, "--out", out], capsys)
     assert f"{manifest}: row 3, column drive: empty" in line
+    manifest.write_text("path,drive\na.csv,a\nb.csv,b\n./a.csv,c\n")
+    line = _fail(["fleet", str(manifest), "--config", fleet.config, "--out", out], capsys)
+    assert f"{manifest}: row 4, column path: ./a.csv is row 2's log too" in line
     manifest.write_text("path,drive,learning.speed\na.csv,a,150\n")
     line = _fail(["fleet", str(manifest), "--config", fleet.config, "--out", out], capsys)
     assert "column 'learning.speed': no key of the configuration" in line
@@ -299,6 +302,9 @@ def test_a_manifest_s_overrides_reach_the_configuration(fleet: FleetTruth) -> No
     assert jobs[0].overridden_by == f"{fleet.manifest} row 2"
     directory = find_jobs([str(Path(fleet.manifest).parent / "logs")], fleet.config)
     assert [(j.drive, j.group) for j in directory] == [(j.drive, j.group) for j in jobs]
+    again = find_jobs([directory[0].path, str(Path(fleet.manifest).parent / "logs")],
+                      fleet.config)  # fmt: skip
+    assert [j.path for j in again] == [j.path for j in directory]  # each log once
 
 
 def test_an_unreachable_scheduler_is_one_line_without_a_hang(

@@ -132,7 +132,8 @@ def read_manifest(path: str, config: str) -> list[LogJob]:
     Raises
     ------
     DataFileError
-        One line naming the manifest, and the row and column where there is one.
+        One line naming the manifest, and the row and column where there is one (a log
+        on two rows is one: each log is one drive's).
     """
     raw = read_regular_file(path, MANIFEST_BYTES, "a manifest")
     try:
@@ -154,6 +155,7 @@ def read_manifest(path: str, config: str) -> list[LogJob]:
     }
     home = Path(path).parent
     jobs = []
+    rows_of: dict[str, int] = {}  # each log's row: a log is one drive's, once
     for number, values in enumerate(rows[1:], start=2):
         if not any(value.strip() for value in values):
             continue
@@ -170,6 +172,13 @@ def read_manifest(path: str, config: str) -> list[LogJob]:
                 value = _cell(values[index].strip(), f"{where}, column {header[index]}")
                 settings.setdefault(table, {})[key] = value
         log = home / cells["path"]
+        key = os.path.normcase(os.path.abspath(log))
+        if key in rows_of:
+            raise DataFileError(
+                f"{where}, column path: {cells['path']} is row {rows_of[key]}'s log too: each "
+                "log is one drive's and is learned once"
+            )
+        rows_of[key] = number
         jobs.append(
             LogJob(
                 path=os.fspath(log),
@@ -197,6 +206,7 @@ def find_jobs(logs: Sequence[str], config: str) -> list[LogJob]:
     :func:`read_manifest`), a log file, a directory (its ``.csv`` and ``.npz`` logs,
     recursively, manifests and hidden files left out) or a glob. Without a manifest the
     drive's id is the file's name without its extension, its group the directory's name.
+    A log that several arguments name is learned once, as the first names it.
 
     Parameters
     ----------
@@ -233,7 +243,20 @@ def find_jobs(logs: Sequence[str], config: str) -> list[LogJob]:
             "LOGS: no log found (give .csv or .npz logs, directories of them, globs or a"
             " manifest CSV)"
         )
-    return jobs
+    return _once(jobs)
+
+
+def _once(jobs: list[LogJob]) -> list[LogJob]:
+    """Each log's first job: arguments that overlap (a directory and a log in it, two
+    globs) name it again, and a drive learned twice would count twice in its group."""
+    seen: set[str] = set()
+    kept = []
+    for job in jobs:
+        key = os.path.normcase(os.path.abspath(job.path))
+        if key not in seen:
+            seen.add(key)
+            kept.append(job)
+    return kept
 
 
 def _matrix(value: Any) -> str:
