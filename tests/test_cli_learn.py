@@ -343,3 +343,27 @@ def test_a_dc_bus_that_cannot_have_applied_the_logged_voltages_is_refused_naming
     else:
         motor = json.loads(out.read_text())["quality"]["motor"]
         assert motor["phi_pm"] == pytest.approx(0.35, abs=3 * motor["phi_pm_se"] + 1e-4)
+
+
+@pytest.mark.parametrize(("nameplate", "refused"), [(0.6, False), (6.0, True), (0.06, False)])
+def test_a_nameplate_resistance_refuses_a_fit_far_from_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], nameplate: float, refused: bool
+) -> None:
+    """``[learning] nameplate_resistance``: the example log's motor (0.6 ohm, 8 mH, fitted
+    0.65 ohm) is learned against its own nameplate; against 6 ohm (10 times, moving the
+    sampled plant's pole by 7%) refused naming the key; against 0.06 ohm, 10 times the
+    other way but a gap of 0.8% of the pole, where the law barely depends on R_s, learned
+    (the rule of tune's commissionings)."""
+    examples = Path(__file__).resolve().parents[1] / "examples" / "data"
+    config = tmp_path / "learn.toml"
+    config.write_text(
+        (examples / "learn.toml").read_text()
+        + 'method = "identify"\nstructure = "spmsm"\nelectrical_speed = 150.0\n'
+        + f"nameplate_resistance = {nameplate}\n"
+    )
+    args = ["learn", str(examples / "drive_log.csv"), "--config", str(config)]
+    assert main(args) == (2 if refused else 0)
+    if refused:
+        line = one_error_line(capsys)
+        assert "is 0.108 times the nameplate's 6 ohm" in line
+        assert "[learning] nameplate_resistance is wrong: check it" in line

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from itertools import pairwise
 from typing import TYPE_CHECKING, Any
 
@@ -398,12 +398,17 @@ def learn_levels(
     loaded, config, columns = _loaded(data_paths, config_path)
     speed = float(config.options["electrical_speed"])  # type: ignore[arg-type]
     flux = _checked_logs(loaded, speed, columns)
+    # a level whose R_s is far from the nameplate's is left out, not the whole schedule
+    nameplate = config.options.get("nameplate_resistance")
+    each = replace(config, options={
+        key: value for key, value in config.options.items() if key != "nameplate_resistance"
+    })  # fmt: skip
     levels = []
     for path, data in tqdm(
         loaded, desc="current levels", unit=" log", file=sys.stderr,
         disable=None if progress else True, leave=False,
     ):  # fmt: skip
-        learned = learn_with_config(data, config, path)
+        learned = learn_with_config(data, each, path)
         reference, w1 = _level_of(data, speed, path)
         theta, errors = incremental_parameters(learned, w1 / speed)  # the fit's own kappa
         mean, spread = np.mean(data.x, axis=0), np.std(data.x, axis=0)
@@ -413,7 +418,10 @@ def learn_levels(
     names = [level.source for level in learned_levels]
     thetas = np.array([level.theta for level in learned_levels])
     errors = np.array([level.standard_errors for level in learned_levels])
-    kept, left_out = kept_levels(names, thetas, errors)
+    h = learned_levels[0].learned.h
+    assert h is not None  # identify-then-design reads h off the log
+    stated = float(nameplate) if isinstance(nameplate, int | float) else None
+    kept, left_out = kept_levels(names, thetas, errors, stated, h)
     found = with_curvature([learned_levels[k] for k in kept])
     problem = learning_problem(config)
     integral_weight = problem.integral_weight if config.integral_action else None

@@ -39,6 +39,7 @@ LEARN_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
             "voltage_hold",
             "max_relative_error",
             "dc_voltage",
+            "nameplate_resistance",
         ),
         "log": LOG_KEYS,
         "schedule": (*SCHEDULE_KEYS, "pole_pairs"),
@@ -71,7 +72,7 @@ class LearnConfig:
         :class:`selftune.learn.LearningOptions`: target, method, input_delay,
         logged_input, dead_time, noise, structure (``"incremental"``: a saturating
         motor's :class:`selftune.learn.IncrementalStructure`), electrical_speed,
-        voltage_hold, max_relative_error, dc_voltage.
+        voltage_hold, max_relative_error, dc_voltage, nameplate_resistance.
     integral_action : bool
         Learn the optimal servo controller (integral action on ``e = C x + F w``).
     Q_i : ndarray, shape (r, r), or None
@@ -154,6 +155,9 @@ def load_learn_config(
                               # dead_time and a surface or interior structure, the
                               # reported motor's standard errors hold its pulses' shift
                               # and the next sample's signs' fit may be reported
+        nameplate_resistance = 0.6  # optional, ohm: the nameplate's R_s; a motor
+                              # structure's fit whose R_s is beyond 2 times it either
+                              # way (moving the sampled plant) is refused
         [log]                 # optional: the log's own columns, units and frame
                               # (selftune.config._log_table); then n = m = 2 and q is
                               # the number of references w1..wq it names
@@ -313,6 +317,8 @@ def _options(
         values["electrical_speed"] = learning.number("electrical_speed")
     if "dc_voltage" in learning:
         values["dc_voltage"] = learning.ranged("dc_voltage")
+    if "nameplate_resistance" in learning:
+        values["nameplate_resistance"] = learning.ranged("nameplate_resistance", limits="R_s")
     own = {"electrical_speed": 1.0} if over_speeds and "electrical_speed" not in values else {}
     try:
         LearningOptions(

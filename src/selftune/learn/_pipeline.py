@@ -62,6 +62,7 @@ from .learners._digital import (
 from .learners._moments import IntervalMoments, WKind, interval_moments
 from .learners._policy_iteration import IterationRecord
 from .learners._servo import servo_from_moments
+from .verdict._nameplate import check_fit_against_nameplate
 from .verdict._quality import check_precision, check_safety, largest_radius
 from .verdict._verdict import (
     ROUNDING_FLOOR,
@@ -388,6 +389,8 @@ def _prepared(
             "(E = 0); with an exosystem use target = 'continuous', method = 'adp'"
         )
     evidence = gather_evidence(episodes, problem, options)
+    if options.nameplate_resistance is not None:
+        check_fit_against_nameplate(evidence, options.nameplate_resistance)
     known = reduced_problem(problem, evidence.extra)
     errors = model_errors(evidence, (known, problem.q), options)
     return evidence, known, errors

@@ -339,6 +339,12 @@ class LearningOptions:
         model does not carry (:mod:`selftune.learn.evidence._pulses`), and the fit on the
         phase signs the next sample shows is reported where it explains the data better
         and passes the tests (:func:`~selftune.learn.evidence._model_signs.reported_next_signs`).
+    nameplate_resistance : float, optional
+        The motor's nameplate R_s, ohm, if known: a structured fit whose R_s is beyond 2
+        times it either way, by enough to move the sampled plant, is refused
+        (:func:`~selftune.learn.verdict._nameplate.check_fit_against_nameplate`): the fit
+        took something else for resistance, most likely the dead time near zero current,
+        and its inductances with it (the commissionings of ``selftune tune`` check so).
     """
 
     target: Target = "continuous"
@@ -355,6 +361,7 @@ class LearningOptions:
     noise: Literal["smoothed", "instruments", "none"] = "smoothed"
     max_relative_error: float = 0.05
     dc_voltage: float | None = None
+    nameplate_resistance: float | None = None
 
     def __post_init__(self) -> None:
         if self.target not in ("continuous", "digital"):
@@ -385,6 +392,8 @@ class LearningOptions:
         positive_finite(self.max_relative_error, "max_relative_error")
         if self.dc_voltage is not None:
             positive_finite(self.dc_voltage, "dc_voltage")
+        if self.nameplate_resistance is not None:
+            positive_finite(self.nameplate_resistance, "nameplate_resistance")
         if self.electrical_speed is not None:
             finite_float(self.electrical_speed, "electrical_speed")
         if self.structure != "none":
