@@ -104,9 +104,12 @@ def test_tune_schedules_a_saturating_motor_over_speed_and_current(
     """With a [schedule] the law is scheduled over speed and i_q* together: within the
     issue's 2% of the true pointwise optimum at 12 speeds over 5-100% of the range's top
     times 10-100% of rated current, where the schedule over i_q* alone (designed at the
-    operating speed) is worse at the ends; the table recomputed from the JSON alone."""
-    path = tmp_path / "motor.toml"
-    path.write_text(MOTOR + DRIVE + SATURATION + "[schedule]\nspeed_range = [12.0, 240.0]\n")
+    operating speed) is worse at the ends; the table recomputed from the JSON alone. The
+    file is examples/saturating_motor.toml (this module's motor, drive and saturation,
+    with speed_range = [12, 240] rad/s), run as docs/saturation.md runs it."""
+    path = Path(__file__).resolve().parents[1] / "examples" / "saturating_motor.toml"
+    config = load_motor_config(str(path))
+    assert config.schedule is not None and config.schedule.speeds == (12.0, 240.0)
     out, report = tmp_path / "out.json", tmp_path / "report"
     assert main(["tune", "--motor", str(path), "--json", str(out), "--report", str(report)]) == 0
     assert "Speed and current schedule: the digital optimum at" in capsys.readouterr().out
