@@ -172,7 +172,8 @@ def solve_command(config: MotorConfig, json_path: str | None, report_dir: str | 
         whose = "nameplate" if isinstance(config.saturation, FluxMap) else "unsaturated"
         lines.append(
             f"note: [saturation] is the simulated drive's; this is the optimum of the {whose}"
-            " [motor] (selftune tune schedules the saturating motor's over its current)"
+            " [motor] (selftune tune schedules the saturating motor's over its current"
+            + (", and with [schedule] over speed and current together)" if run else ")")
         )
     if run is not None:
         _check_numerics(config.source, caught, run.design.schedule.table("K"))
