@@ -95,6 +95,11 @@ def learn_command(
     if levels is not None:
         schedule = levels
         lines += levels.lines()
+    elif learned.speeds is not None and config.options["method"] == "adp":
+        from ._adp_schedule import adp_schedule
+
+        schedule = adp_schedule(learned.speeds, config, result)
+        lines += schedule.lines(learned.speeds)
     elif learned.speeds is not None:
         schedule = learned_schedule(learned.speeds, config, result)
         lines += _schedule_lines(learned.speeds, schedule.motor, schedule.design)
@@ -115,6 +120,7 @@ def _schedule_lines(speeds: SpeedsLearned, motor: Motor, design: ScheduleDesign)
     check = design.check
     low, high = speeds.covered
     worst = check.worst
+    assert speeds.motor is not None  # identify-then-design combines the parts' motors
     return [
         "",
         f"learned at {len(speeds.parts)} held speeds, covering {low:g} to {high:g} rad/s "

@@ -26,7 +26,14 @@ import numpy as np
 from ..config import LearnConfig, MotorConfig
 from ..core import Array, ControlLaw, cost_document
 from ..errors import SelftuneError
-from ..model import ModelBasedSolution, Motor, ScheduleDesign, bandwidth, design_schedule
+from ..model import (
+    ModelBasedSolution,
+    Motor,
+    ScheduleCheck,
+    ScheduleDesign,
+    bandwidth,
+    design_schedule,
+)
 
 if TYPE_CHECKING:  # selftune solve loads no learner, and matplotlib only to draw
     from matplotlib.figure import Figure
@@ -230,18 +237,17 @@ def schedule_lines(run: ScheduleRun, operating_speed: float) -> list[str]:
     return lines
 
 
-def check_document(design: ScheduleDesign, single_excess: Array) -> dict[str, Any]:
+def check_document(check: ScheduleCheck, single_excess: Array) -> dict[str, Any]:
     """The JSON of a schedule's check at the fine speeds, with a single-speed law's
     excess at each (``schedule_design.check``).
 
     Parameters
     ----------
-    design : ScheduleDesign
-        The schedule and its check.
+    check : ScheduleCheck
+        The schedule's check.
     single_excess : ndarray
         The single-speed law's excess cost at each fine speed.
     """
-    check = design.check
     return {
         "electrical_speed": check.electrical_speed,
         "excess": check.excess,
@@ -280,6 +286,7 @@ def learned_schedule(
     from ..tuning._interior import motor_of
 
     assert config.schedule is not None and config.pole_pairs is not None
+    assert speeds.motor is not None  # identify-then-design combines the parts' motors
     motor, _ = motor_of(speeds.motor, config.pole_pairs)
     problem = learning_problem(config)
     Q_i = problem.integral_weight if config.integral_action else None
@@ -308,7 +315,7 @@ def learned_schedule(
             config.schedule.key: list(config.schedule.speeds),
             "added": list(design.added),
             "excess_limit": design.check.limit,
-            "check": check_document(design, single_excess),
+            "check": check_document(design.check, single_excess),
         },
     }
     return LearnedSchedule(motor, design, single_excess, speeds.top[0], document)
@@ -343,7 +350,7 @@ def schedule_document(run: ScheduleRun, config: MotorConfig) -> dict[str, Any]:
             **({} if run.covered is None else {"covered": list(run.covered)}),
             "added": list(design.added),
             "excess_limit": check.limit,
-            "check": check_document(design, run.single_excess),
+            "check": check_document(design.check, run.single_excess),
             "single_speed": {
                 "speed": config.speed,
                 "electrical_speed": config.motor.p * config.speed,

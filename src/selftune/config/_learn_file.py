@@ -245,15 +245,16 @@ def _schedule(
     """``[schedule]``: its speeds and pole pairs; it needs identify-then-design with a
     motor's structure whose parameters hold at every speed (a surface or interior motor:
     the incremental structure's hold at one operating current, and the schedule's motor
-    has no cross-saturation or q flux offset)."""
+    has no cross-saturation or q flux offset), or ADP (the law learned at each held
+    speed)."""
     if "schedule" not in config:
         return None, None
     table = config.table("schedule")
-    if options["method"] != "identify" or options["structure"] == "none":
+    if options["method"] == "identify" and options["structure"] == "none":
         raise table.error(
             None,
-            'a schedule is designed on the motor learned: set [learning] method = "identify" '
-            'and structure = "spmsm" or "ipmsm"',
+            "identify-then-design schedules the motor learned: set [learning] structure = "
+            '"spmsm" or "ipmsm" (or method = "adp": the law learned at each held speed)',
         )
     if options["structure"] == "incremental":
         raise table.error(

@@ -174,8 +174,9 @@ class SpeedsLearned:
     parts : tuple of (float, LearnedController)
         Each held speed (electrical, rad/s) and the law learned there, with its verdict
         and its identified motor (``quality.motor``).
-    motor : MotorEstimate
-        The parts' motors combined (:func:`combined_estimate`).
+    motor : MotorEstimate or None
+        The parts' motors combined (:func:`combined_estimate`); None from ADP, which
+        learns no motor.
     covered : (float, float)
         The lowest and highest electrical speed of the data, rad/s.
     standstill : bool
@@ -185,7 +186,7 @@ class SpeedsLearned:
     """
 
     parts: tuple[tuple[float, LearnedController], ...]
-    motor: MotorEstimate
+    motor: MotorEstimate | None
     covered: tuple[float, float]
     standstill: bool = False
 
@@ -241,22 +242,26 @@ def learn_over_speeds(
         The feedback the log ran under.
     options : LearningOptions
         How to learn: identify-then-design with a motor's structure (its
-        ``electrical_speed`` is each part's).
+        ``electrical_speed`` is each part's), or the paper's ADP (``method = "adp"``),
+        each part's law learned from that part alone (no motor combined; a part too
+        imprecise for its own law is refused, since that law is the one scheduled).
 
     Raises
     ------
     InputError
-        If the options have no motor structure, or :func:`speed_segments` refuses the log.
+        If identify-then-design has no motor structure, or :func:`speed_segments` refuses
+        the log.
     SelftuneError
         The learner's refusal of a part, naming its speed (of a part below the top speed,
         not for its own law's precision alone), and the speeds the other parts were
         learned at: every part is tried first.
     """
-    if options.structure == "none" or options.method != "identify":
+    adp = options.method == "adp"
+    if options.structure == "none" and not adp:
         raise InputError(
             'structure: a log over several speeds is learned by method = "identify" with a '
             'motor\'s structure ("spmsm" or "ipmsm"), whose parameters do not depend on '
-            "the speed"
+            'the speed, or by method = "adp", the law at each held speed'
         )
     parts: list[tuple[float, LearnedController]] = []
     refused: list[tuple[float, SelftuneError]] = []
@@ -277,7 +282,7 @@ def learn_over_speeds(
             try:
                 learned = learn_controller(part, problem, K0, own)
             except TooLittleData as imprecise:
-                if abs(speed) == top:
+                if abs(speed) == top or adp:  # ADP schedules each part's own law
                     raise
                 learned = _imprecise_part(part, problem, K0, own, imprecise)
         except SelftuneError as error:  # every part is tried, so the refusal can say
@@ -291,7 +296,7 @@ def learn_over_speeds(
     speeds = [speed for speed, _ in parts] + ([0.0] if standstill else [])
     return SpeedsLearned(
         tuple(parts),
-        _combined([learned for _, learned in parts]),
+        None if adp else _combined([learned for _, learned in parts]),
         (min(speeds), max(speeds)),
         standstill,
     )

@@ -14,11 +14,13 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from itertools import pairwise
+from typing import Protocol
 
 import numpy as np
 
 from ..core import Array, ControlLaw
 from ..errors import InputError, UnsolvableError
+from ..loop import SampledLoop
 from ._optimum import ModelBasedSolution
 from ._schedule import GainSchedule
 
@@ -28,11 +30,13 @@ __all__ = [
     "FINE_POINTS",
     "MARGIN_FRACTION",
     "MAX_POINTS",
+    "PointOptimum",
     "RefinedGrid",
     "ScheduleCheck",
     "check_grid",
     "check_interval",
     "excess_over",
+    "joined_checks",
     "refine_grid",
     "worst_excess",
 ]
@@ -53,6 +57,52 @@ FEEDFORWARD_ERROR = 0.01
 
 #: The most grid speeds a schedule may need before the design gives up.
 MAX_POINTS = 65
+
+
+class PointOptimum(Protocol):
+    """What the check reads of a pointwise optimum (a
+    :class:`~selftune.model.ModelBasedSolution`, or an optimum designed on an identified
+    sampled plant): its loop, continuous weights, sampled plant, value and law."""
+
+    @property
+    def loop(self) -> SampledLoop:
+        """The sampled loop (period, delay, integral action)."""
+        ...
+
+    @property
+    def Q(self) -> Array:
+        """The state weight."""
+        ...
+
+    @property
+    def R(self) -> Array:
+        """The input weight."""
+        ...
+
+    @property
+    def P(self) -> Array:
+        """The optimal value over the loop's state."""
+        ...
+
+    @property
+    def law(self) -> ControlLaw:
+        """The optimal law."""
+        ...
+
+    @property
+    def sampled_plant(self) -> tuple[Array, Array, Array]:
+        """``(Ad, Bd, Ed)``."""
+        ...
+
+    @property
+    def U(self) -> Array:
+        """The law's feedforward."""
+        ...
+
+    @property
+    def X(self) -> Array:
+        """The law's steady-state map."""
+        ...
 
 
 def check_grid(values: object, name: str, what: str) -> list[float]:
@@ -136,7 +186,7 @@ class ScheduleCheck:
     radius: Array
     optimal_radius: Array
     feedforward_error: Array
-    optima: tuple[ModelBasedSolution, ...] = field(repr=False)
+    optima: tuple[PointOptimum, ...] = field(repr=False)
     limit: float = EXCESS
 
     @property
@@ -159,8 +209,20 @@ class ScheduleCheck:
         """The index of the fine point with the largest excess cost."""
         return int(np.argmax(self.excess))
 
+    def shortfall(self) -> str:
+        """What the check found against its rules, in words: the largest excess, the
+        smallest share of the optimum's margin and the largest feedforward error, each with
+        its limit (a refusal's text)."""
+        margin = (1.0 - self.radius) / (1.0 - self.optimal_radius)
+        return (
+            f"an excess cost up to {np.max(self.excess):.3g} (limit {self.limit:g}), "
+            f"1 - rho down to {np.min(margin):.3g} of the optimum's (limit "
+            f"{MARGIN_FRACTION:g}) and a feedforward error up to "
+            f"{np.max(self.feedforward_error):.3g} (limit {FEEDFORWARD_ERROR:g})"
+        )
 
-def excess_over(optima: Sequence[ModelBasedSolution], laws: ControlLaw | list[ControlLaw]) -> Array:
+
+def excess_over(optima: Sequence[PointOptimum], laws: ControlLaw | list[ControlLaw]) -> Array:
     """The excess cost (:func:`worst_excess`) of ``laws`` (one for all, or one each) on
     the plants of ``optima`` (pointwise optima of one loop) over those optima.
 
@@ -190,7 +252,7 @@ def _relative(error: Array, reference: Array) -> Array:
 
 
 def check_interval(
-    optimum: Callable[[float], ModelBasedSolution],
+    optimum: Callable[[float], PointOptimum],
     schedule: GainSchedule,
     interval: tuple[float, float],
     points: int,
@@ -244,7 +306,7 @@ def check_interval(
     )
 
 
-def _joined(checks: Sequence[ScheduleCheck]) -> ScheduleCheck:
+def joined_checks(checks: Sequence[ScheduleCheck]) -> ScheduleCheck:
     """The checks of consecutive intervals as one."""
     arrays = {
         name: np.concatenate([getattr(check, name) for check in checks])
@@ -336,14 +398,10 @@ def refine_grid(
         low, high = failing
         check = checks.pop(failing)
         if len(values) >= max_points:
-            margin = (1.0 - check.radius) / (1.0 - check.optimal_radius)
             raise UnsolvableError(
                 f"{name}: the schedule needs more than max_points = {max_points} {kind.points}: "
                 f"between {low:g} and {high:g} {kind.unit}{kind.frame} the interpolated law "
-                f"still has an excess cost up to {np.max(check.excess):.3g} (limit {excess:g}), "
-                f"1 - rho down to {np.min(margin):.3g} of the optimum's (limit "
-                f"{MARGIN_FRACTION:g}) and a feedforward error up to "
-                f"{np.max(check.feedforward_error):.3g} (limit {FEEDFORWARD_ERROR:g})"
+                f"still has {check.shortfall()}"
             )
         middle = 0.5 * (low + high)
         optima[middle] = optimum(middle)
@@ -352,6 +410,6 @@ def refine_grid(
     return RefinedGrid(
         schedule=schedule,
         optima=tuple(optima[value] for value in values),
-        check=_joined([checks[interval] for interval in pairwise(values)]),
+        check=joined_checks([checks[interval] for interval in pairwise(values)]),
         added=tuple(added),
     )

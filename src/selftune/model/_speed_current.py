@@ -328,7 +328,7 @@ def design_speed_current_schedule(
         _, _, axis, (low, high) = failing
         if len(grids[axis]) >= limit:
             check = next(check for line, check in lines if line == failing)
-            raise _too_many(axis, (low, high), check, limit, allowed)
+            raise _too_many(axis, (low, high), check, limit)
         middle = 0.5 * (low + high)
         grids[axis] = sorted([*grids[axis], middle])
         added[axis].append(middle)
@@ -425,16 +425,13 @@ def _joined(lines: list[tuple[_Line, ScheduleCheck]], allowed: float) -> SpeedCu
 
 
 def _too_many(
-    axis: str, interval: tuple[float, float], check: ScheduleCheck, limit: int, allowed: float
+    axis: str, interval: tuple[float, float], check: ScheduleCheck, limit: int
 ) -> UnsolvableError:
     """The refusal when a grid would need more than ``limit`` points."""
     low, high = interval
     unit, what = ("rad/s (electrical)", "speeds") if axis == "speed" else ("A (i_q*)", "currents")
-    margin = (1.0 - check.radius) / (1.0 - check.optimal_radius)
     return UnsolvableError(
         f"{what}: the schedule over speed and current needs more than max_points = {limit} "
-        f"{what}: between {low:g} and {high:g} {unit} the interpolated law still has an "
-        f"excess cost up to {np.max(check.excess):.3g} (limit {allowed:g}), 1 - rho down to "
-        f"{np.min(margin):.3g} of the optimum's (limit {MARGIN_FRACTION:g}) and a feedforward "
-        f"error up to {np.max(check.feedforward_error):.3g} (limit {FEEDFORWARD_ERROR:g})"
+        f"{what}: between {low:g} and {high:g} {unit} the interpolated law still has "
+        f"{check.shortfall()}"
     )

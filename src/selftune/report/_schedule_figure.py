@@ -24,6 +24,7 @@ the reproduction's (:mod:`._figures`); :func:`~selftune.report.save_figure` writ
 from __future__ import annotations
 
 from itertools import product
+from typing import Protocol
 
 import numpy as np
 from matplotlib import colormaps
@@ -32,7 +33,15 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..core import Array
-from ..model import CurrentScheduleDesign, ScheduleDesign, SpeedCurrentDesign, bandwidth
+from ..loop import SampledLoop
+from ..model import (
+    CurrentScheduleDesign,
+    ScheduleCheck,
+    ScheduleDesign,
+    SpeedCurrentDesign,
+    SpeedSchedule,
+    bandwidth,
+)
 
 __all__ = ["figure_schedule", "figure_speed_current"]
 
@@ -54,8 +63,33 @@ def _panels() -> tuple[Figure, list[Axes]]:
     return figure, axes
 
 
+class DrawnSchedule(Protocol):
+    """What :func:`figure_schedule` draws of a schedule that is not a designed one (a
+    law learned at each held speed): the schedule, its check, its loop and hold."""
+
+    @property
+    def schedule(self) -> SpeedSchedule:
+        """The laws at the grid speeds."""
+        ...
+
+    @property
+    def check(self) -> ScheduleCheck:
+        """The check at the fine speeds."""
+        ...
+
+    @property
+    def loop(self) -> SampledLoop:
+        """The sampled loop."""
+        ...
+
+    @property
+    def hold(self) -> str:
+        """What the drive holds over a sample."""
+        ...
+
+
 def figure_schedule(
-    design: ScheduleDesign | CurrentScheduleDesign,
+    design: ScheduleDesign | CurrentScheduleDesign | DrawnSchedule,
     single_excess: Array,
     single_speed: float | None = None,
     single_label: str | None = None,
@@ -84,7 +118,7 @@ def figure_schedule(
     Figure
     """
     schedule, check = design.schedule, design.check
-    over_speed = isinstance(design, ScheduleDesign)
+    over_speed = isinstance(schedule, SpeedSchedule)
     grid = schedule.grid
     speeds = np.unique(np.concatenate([grid, check.points]))
     laws = [schedule.law_at(float(speed)) for speed in speeds]
@@ -106,7 +140,7 @@ def figure_schedule(
                       ha="center", va="center")  # fmt: skip
     else:
         integral.legend(loc="best", fontsize="small")
-    h = design.loop.h if isinstance(design, ScheduleDesign) else schedule.laws[0].h
+    h = design.loop.h if not isinstance(design, CurrentScheduleDesign) else schedule.laws[0].h
     assert h is not None  # a current schedule's laws are servo laws, with their h
     rate.plot(check.points, bandwidth(check.radius, h), color=_SCHEDULE,
               label="interpolated schedule")  # fmt: skip
@@ -137,7 +171,7 @@ def figure_schedule(
             panel.axvline(point, color="grey", linewidth=0.5, alpha=0.5)
     loop = (
         f"delay {design.loop.input_delay}, {design.hold} hold"
-        if isinstance(design, ScheduleDesign)
+        if not isinstance(design, CurrentScheduleDesign)
         else f"{schedule.laws[0].history} past voltage(s) fed back"
     )
     figure.suptitle(

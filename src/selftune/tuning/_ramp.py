@@ -171,6 +171,7 @@ def commission_ramp(
         structure="ipmsm" if interior else "spmsm", dc_voltage=pulse_bus(drive),
     )  # fmt: skip
     learned = learn_over_speeds(log, problem, settings.K0, base)
+    assert learned.motor is not None  # identify-then-design combines the parts' motors
     found, errors = motor_of(learned.motor, motor.p)
     check_against_nameplate(
         found.R_s, found.L_d, found.L_q, motor.R_s, h,
