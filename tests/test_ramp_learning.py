@@ -252,7 +252,7 @@ def test_learn_writes_the_schedule_of_the_motor_learned_over_speeds(
 
 
 def test_learn_by_adp_schedules_the_laws_learned_at_the_held_speeds(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """``method = "adp"`` with a [schedule]: the grid is the log's held speeds, each law
     the one ADP learned from its part alone; against the TRUE motor's pointwise digital
@@ -297,6 +297,15 @@ def test_learn_by_adp_schedules_the_laws_learned_at_the_held_speeds(
     assert (
         "wide.toml: [schedule] speeds: 200 rad/s (electrical) is no held speed of the log" in said
     )
+    # where the interpolated laws fail the check (here: a limit of 1e-12), ADP cannot add
+    # a grid speed without data: refused, naming the speed to log
+    import selftune.commands._adp_schedule as adp_schedule
+
+    monkeypatch.setattr(adp_schedule, "EXCESS", 1e-12)
+    assert main(["learn", str(log), "--config", str(toml)]) == 2
+    said = capsys.readouterr().err
+    assert "between the held speeds 20 and 400 rad/s (electrical)" in said
+    assert "log a held speed near 210 rad/s" in said and said.count("\n") == 1
 
 
 @pytest.mark.parametrize(
