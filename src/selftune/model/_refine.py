@@ -30,6 +30,7 @@ __all__ = [
     "FINE_POINTS",
     "MARGIN_FRACTION",
     "MAX_POINTS",
+    "CheckRules",
     "PointOptimum",
     "RefinedGrid",
     "ScheduleCheck",
@@ -157,8 +158,47 @@ def worst_excess(P: Array, P_optimal: Array) -> Array:
     return np.asarray(np.where(finite, largest - 1.0, np.inf), dtype=float)
 
 
+class CheckRules:
+    """The rules every schedule's check applies at its fine points, for a check that has
+    ``excess``, ``radius``, ``optimal_radius``, ``feedforward_error`` (arrays) and
+    ``limit`` (:class:`ScheduleCheck`, :class:`~._speed_current.SpeedCurrentCheck`)."""
+
+    excess: Array
+    radius: Array
+    optimal_radius: Array
+    feedforward_error: Array
+    limit: float
+
+    @property
+    def passed(self) -> Array:
+        """Whether each fine point meets :attr:`limit`, :data:`MARGIN_FRACTION` and
+        :data:`FEEDFORWARD_ERROR`."""
+        return np.asarray(
+            (self.excess <= self.limit)
+            & (1.0 - self.radius >= MARGIN_FRACTION * (1.0 - self.optimal_radius))
+            & (self.feedforward_error <= FEEDFORWARD_ERROR)
+        )
+
+    @property
+    def worst(self) -> int:
+        """The index of the fine point with the largest excess cost."""
+        return int(np.argmax(self.excess))
+
+    def shortfall(self) -> str:
+        """What the check found against its rules, in words: the largest excess, the
+        smallest share of the optimum's margin and the largest feedforward error, each with
+        its limit (a refusal's text)."""
+        margin = (1.0 - self.radius) / (1.0 - self.optimal_radius)
+        return (
+            f"an excess cost up to {np.max(self.excess):.3g} (limit {self.limit:g}), "
+            f"1 - rho down to {np.min(margin):.3g} of the optimum's (limit "
+            f"{MARGIN_FRACTION:g}) and a feedforward error up to "
+            f"{np.max(self.feedforward_error):.3g} (limit {FEEDFORWARD_ERROR:g})"
+        )
+
+
 @dataclass(frozen=True, eq=False)
-class ScheduleCheck:
+class ScheduleCheck(CheckRules):
     """The interpolated schedule against the pointwise optimum on the fine grid.
 
     Attributes
@@ -193,33 +233,6 @@ class ScheduleCheck:
     def electrical_speed(self) -> Array:
         """The fine speeds of a speed schedule's check, rad/s (electrical): :attr:`points`."""
         return self.points
-
-    @property
-    def passed(self) -> Array:
-        """Whether each fine speed meets :attr:`limit`, :data:`MARGIN_FRACTION` and
-        :data:`FEEDFORWARD_ERROR`."""
-        return np.asarray(
-            (self.excess <= self.limit)
-            & (1.0 - self.radius >= MARGIN_FRACTION * (1.0 - self.optimal_radius))
-            & (self.feedforward_error <= FEEDFORWARD_ERROR)
-        )
-
-    @property
-    def worst(self) -> int:
-        """The index of the fine point with the largest excess cost."""
-        return int(np.argmax(self.excess))
-
-    def shortfall(self) -> str:
-        """What the check found against its rules, in words: the largest excess, the
-        smallest share of the optimum's margin and the largest feedforward error, each with
-        its limit (a refusal's text)."""
-        margin = (1.0 - self.radius) / (1.0 - self.optimal_radius)
-        return (
-            f"an excess cost up to {np.max(self.excess):.3g} (limit {self.limit:g}), "
-            f"1 - rho down to {np.min(margin):.3g} of the optimum's (limit "
-            f"{MARGIN_FRACTION:g}) and a feedforward error up to "
-            f"{np.max(self.feedforward_error):.3g} (limit {FEEDFORWARD_ERROR:g})"
-        )
 
 
 def excess_over(optima: Sequence[PointOptimum], laws: ControlLaw | list[ControlLaw]) -> Array:

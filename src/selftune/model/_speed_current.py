@@ -44,15 +44,14 @@ from ._optimum import ModelBasedSolution
 from ._problem import RegulationProblem
 from ._refine import (
     EXCESS,
-    FEEDFORWARD_ERROR,
     FINE_POINTS,
-    MARGIN_FRACTION,
     MAX_POINTS,
+    CheckRules,
     ScheduleCheck,
     check_grid,
     check_interval,
 )
-from ._schedule import CurrentSchedule, SpeedSchedule, same_structure
+from ._schedule import CurrentSchedule, GainSchedule, SpeedSchedule, same_structure
 
 __all__ = [
     "SpeedCurrentCheck",
@@ -177,7 +176,7 @@ class SpeedCurrentSchedule:
 
 
 @dataclass(frozen=True, eq=False)
-class SpeedCurrentCheck:
+class SpeedCurrentCheck(CheckRules):
     """The interpolated schedule against the pointwise optimum at the fine points of the
     lines through its cells (see the module).
 
@@ -202,20 +201,6 @@ class SpeedCurrentCheck:
     optimal_radius: Array
     feedforward_error: Array
     limit: float = EXCESS
-
-    @property
-    def passed(self) -> Array:
-        """Whether each fine point meets the rules."""
-        return np.asarray(
-            (self.excess <= self.limit)
-            & (1.0 - self.radius >= MARGIN_FRACTION * (1.0 - self.optimal_radius))
-            & (self.feedforward_error <= FEEDFORWARD_ERROR)
-        )
-
-    @property
-    def worst(self) -> int:
-        """The index of the fine point with the largest excess cost."""
-        return int(np.argmax(self.excess))
 
 
 @dataclass(frozen=True, eq=False)
@@ -353,44 +338,36 @@ def _lines(
     current, the speed interval; along a grid speed or inside a cell, the current's."""
     speeds, currents = grids["speed"], grids["current"]
     found = []
+
+    def judged(line: _Line, interval: tuple[float, float], laws: list[ControlLaw]) -> None:
+        along, fixed, _, _ = line
+        key = (*line, interval)
+        if key not in checks:
+            schedule: GainSchedule
+            if along == "speed":
+                at, schedule = partial(_at_current, optimum, fixed), SpeedSchedule(interval, laws)
+            else:
+                at, schedule = partial(_at_speed, optimum, fixed), CurrentSchedule(interval, laws)
+            checks[key] = (line, check_interval(at, schedule, interval, points, allowed))
+        found.append(checks[key])
+
     for current in currents:  # along each grid current
         for interval in pairwise(speeds):
-            key: tuple[object, ...] = ("row", current, interval)
-            if key not in checks:
-                laws = [optimum(current, s).law for s in interval]
-                check = check_interval(
-                    partial(_at_current, optimum, current), SpeedSchedule(interval, laws),
-                    interval, points, allowed,
-                )  # fmt: skip
-                checks[key] = (("speed", current, "speed", interval), check)
-            found.append(checks[key])
+            laws = [optimum(current, speed).law for speed in interval]
+            judged(("speed", current, "speed", interval), interval, laws)
     for speed in speeds:  # along each grid speed
         for interval in pairwise(currents):
-            key = ("column", speed, interval)
-            if key not in checks:
-                laws = [optimum(c, speed).law for c in interval]
-                check = check_interval(
-                    partial(_at_speed, optimum, speed), CurrentSchedule(interval, laws),
-                    interval, points, allowed,
-                )  # fmt: skip
-                checks[key] = (("current", speed, "current", interval), check)
-            found.append(checks[key])
-    for low, high in pairwise(currents):  # inside each cell: along its middle current
-        middle = 0.5 * (low + high)
+            laws = [optimum(current, speed).law for current in interval]
+            judged(("current", speed, "current", interval), interval, laws)
+    for cell in pairwise(currents):  # inside each cell: along its middle current
+        middle = 0.5 * (cell[0] + cell[1])
         for interval in pairwise(speeds):
-            key = ("inside", (low, high), interval)
-            if key not in checks:
-                laws = [
-                    CurrentSchedule((low, high), [optimum(c, s).law for c in (low, high)])
-                    .law_at(middle)
-                    for s in interval
-                ]  # fmt: skip
-                check = check_interval(
-                    partial(_at_current, optimum, middle), SpeedSchedule(interval, laws),
-                    interval, points, allowed,
-                )  # fmt: skip
-                checks[key] = (("speed", middle, "current", (low, high)), check)
-            found.append(checks[key])
+            laws = [  # each end's laws interpolated in the current, as bilinearly
+                CurrentSchedule(cell, [optimum(current, speed).law for current in cell])
+                .law_at(middle)
+                for speed in interval
+            ]  # fmt: skip
+            judged(("speed", middle, "current", cell), interval, laws)
     return found
 
 

@@ -242,7 +242,8 @@ def schedule_tables(schedule: Scheduled, state: str) -> list[str]:
         ("X", "X", f"X at each {point}: x_e = X w"),
         ("K", "K", f"K at each {point}: feedback on the deviations of [{state}]"),
     ]
-    if first_law(schedule).K_i is not None:
+    law = first_law(schedule)
+    if law.K_i is not None:
         entries.append(("K_I", "K_i", f"K_i at each {point}"))
     for index, (name, table, comment) in enumerate(entries):
         values = schedule.table(table)
@@ -251,8 +252,8 @@ def schedule_tables(schedule: Scheduled, state: str) -> list[str]:
             f"/* {comment} */\nstatic const float {name}_TABLE{_dimensions(values, counts)} = "
             f"{_braces(values, f'{key}.{table}', 0)};\n",
         ]
-    sizes = {"U": str(first_law(schedule).q), "X": str(first_law(schedule).q),
-             "K": str(first_law(schedule).K.shape[1]), "K_I": "SELFTUNE_INTEGRATORS"}  # fmt: skip
+    sizes = {"U": str(law.q), "X": str(law.q), "K": str(law.K.shape[1]),
+             "K_I": "SELFTUNE_INTEGRATORS"}  # fmt: skip
     arguments = ", ".join(f"float {name}[2][{sizes[name]}]" for name, _, _ in entries)
     parameters = ", ".join(f"float {argument.parameter}" for argument, _ in grids)
     body = [

@@ -495,11 +495,11 @@ def without_sign_bias(
                         x = truth + noises[draw, index]
                     else:
                         x = lattice.measure(truth, angle, analogs[draw, index])
-                    count_ = log.w.shape[0]
+                    samples = log.w.shape[0]
                     if next_sample:  # the signs as the log's fit took them
-                        held = next_signs(x, applied, log.w[:, :q], angle[:count_], model, R)
+                        held = next_signs(x, applied, log.w[:, :q], angle[:samples], model, R)
                     else:
-                        held = signs(x, angle)[:count_]
+                        held = signs(x, angle)[:samples]
                     logged.append(_Log(x=x, a=applied, w=np.hstack([log.w[:, :q], held])))
                 drawn.append(logged)
             return drawn
