@@ -189,6 +189,14 @@ def test_a_broken_schedule_in_a_json_is_refused_in_one_line(
             lambda s: None,
             "looks i_q* up in w[2] of the current references",
         ),
+        (
+            "speed_current_schedule",
+            lambda s: s.pop("K_i"),
+            "speed_current_schedule: its first law has (n, m, q, r, d) = (2, 2, 2, 0, 1), "
+            "control_law (2, 2, 2, 2, 1): a schedule's laws have the form of control_law",
+        ),
+        ("schedule", lambda s: s.pop("K_i"), "schedule: its first law has (n, m, q, r, d)"),
+        ("schedule", lambda s: s.update(h=2 * s["h"]), "schedule: its first law has h = "),
         ("schedule", lambda s: s.pop("K"), "schedule.K: missing"),
         ("schedule", lambda s: s["U"].pop(), "schedule.U: must list one matrix per speed (3)"),
         ("schedule", lambda s: s.update(electrical_speed=[1.0, 0.5, 2.0]), "increase strictly"),
@@ -355,8 +363,13 @@ def test_a_speed_and_current_schedule_runs_in_c_at_both(tmp_path: Path) -> None:
     )
     path = tmp_path / "saturating.json"
     document = {"control_law": schedule.law(2, 0).document(), "h": 1e-4, "input_delay": 1,
-                "current_schedule": {"broken": True},  # read after the one over both
+                "current_schedule": {"broken": True},
                 "speed_current_schedule": schedule.document()}  # fmt: skip
+    path.write_text(json.dumps(to_jsonable(document)))
+    # every table the file states is read, the one not exported too
+    with pytest.raises(DataFileError, match=r"current_schedule\.current: missing"):
+        load_law_result(path)
+    del document["current_schedule"]
     path.write_text(json.dumps(to_jsonable(document)))
     result = load_law_result(path)
     assert isinstance(result.schedule, SpeedCurrentSchedule) and result.scheduled

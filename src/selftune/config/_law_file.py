@@ -9,8 +9,10 @@ made for (:class:`LawResult`), and the law's schedule where the file has one: ov
 (``schedule``, :meth:`selftune.model.SpeedSchedule.document`: ``selftune solve`` and
 ``tune`` with a ``[schedule]`` table), over the q-axis current reference
 (``current_schedule``: ``tune`` with a ``[saturation]`` table), or over both
-(``speed_current_schedule``: ``tune`` with both tables; read before the others). Every
-error is one line naming the file and the key.
+(``speed_current_schedule``: ``tune`` with both tables; the one used where a file has
+several). Every schedule the file states is read, and refused unless its laws have the
+form of the law (only the gains vary). Every error is one line naming the file and the
+key.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from ..core import ControlLaw
 from ..core._atomic import read_regular_file
 from ..errors import DataFileError, InputError
 from ..model import CurrentSchedule, SpeedCurrentSchedule, SpeedSchedule
+from ..model._schedule import same_structure
 
 __all__ = ["LawResult", "load_control_law", "load_law_result"]
 
@@ -168,20 +171,9 @@ def load_law_result(path: str | os.PathLike[str]) -> LawResult:
     law, mapping, key = _law_of(document, os.fspath(path))
     drive = document.get("drive")
     drive_settings = drive.get("settings", drive) if isinstance(drive, Mapping) else None
-    kind = next(
-        (
-            key
-            for key in ("speed_current_schedule", "current_schedule")
-            if _given(mapping, document, key)
-        ),
-        "schedule",
-    )
-    stated = mapping.get(kind, document.get(kind))
-    schedule: SpeedSchedule | CurrentSchedule | SpeedCurrentSchedule | None = (
-        _speed_current_schedule(stated, os.fspath(path))
-        if kind == "speed_current_schedule"
-        else _schedule(stated, os.fspath(path), kind)
-    )
+    stated = _stated_schedules(document, mapping, os.fspath(path), law, key)
+    kind = next(iter(stated), "schedule")  # the first: the one the firmware runs
+    schedule = stated.get(kind)
     design = document.get(f"{kind}_design") if schedule is not None else None
     h = law.h
     for table in (design, document, document.get("settings")):
@@ -200,6 +192,44 @@ def load_law_result(path: str | os.PathLike[str]) -> LawResult:
         scheduled=_given(mapping, document, kind),
         schedule=schedule,
     )
+
+
+#: The schedule keys a JSON result may hold, the one read first first.
+_SCHEDULE_KEYS = ("speed_current_schedule", "current_schedule", "schedule")
+
+
+def _stated_schedules(
+    document: Any, mapping: Mapping[str, Any], name: str, law: ControlLaw, key: str
+) -> dict[str, SpeedSchedule | CurrentSchedule | SpeedCurrentSchedule | None]:
+    """Every schedule the file states (beside the law or at the top), in the order of
+    :data:`_SCHEDULE_KEYS` (None: the key holds null), each read whole and refused unless
+    its laws have the form of the law at ``key`` (only the gains may vary): a file whose
+    tables disagree is not one result, whichever of them is exported."""
+    stated: dict[str, SpeedSchedule | CurrentSchedule | SpeedCurrentSchedule | None] = {}
+    for kind in _SCHEDULE_KEYS:
+        if not _given(mapping, document, kind):
+            continue
+        table = mapping.get(kind, document.get(kind))
+        schedule: SpeedSchedule | CurrentSchedule | SpeedCurrentSchedule | None = (
+            _speed_current_schedule(table, name)
+            if kind == "speed_current_schedule"
+            else _schedule(table, name, kind)
+        )
+        if schedule is not None:
+            first = (
+                schedule.law(0, 0)
+                if isinstance(schedule, SpeedCurrentSchedule)
+                else schedule.laws[0]
+            )
+            try:
+                same_structure([law, first], [key, "its first law"])
+            except InputError as exc:
+                raise DataFileError(
+                    f"{name}: {kind}: {str(exc).removeprefix('laws: ')}: a schedule's laws "
+                    f"have the form of {key} (only the gains vary)"
+                ) from None
+        stated[kind] = schedule
+    return stated
 
 
 def _given(mapping: Mapping[str, Any], document: Any, key: str) -> bool:

@@ -27,33 +27,36 @@ from ..errors import InputError
 __all__ = ["CurrentSchedule", "GainSchedule", "SpeedSchedule", "same_structure"]
 
 
-def same_structure(laws: Sequence[ControlLaw]) -> None:
+def same_structure(laws: Sequence[ControlLaw], names: Sequence[str] | None = None) -> None:
     """Raise unless the laws share their structure, C, F and h (only gains may vary).
 
     Parameters
     ----------
     laws : sequence of ControlLaw
         The laws of a schedule.
+    names : sequence of str, optional
+        What each law is called in the message (default ``law 0``, ``law 1``, ...).
 
     Raises
     ------
     InputError
         Naming the first law that differs from the first.
     """
+    label = list(names) if names is not None else [f"law {index}" for index in range(len(laws))]
     first = laws[0]
     for index, law in enumerate(laws[1:], start=1):
         shape = (law.n, law.m, law.q, law.r, law.history)
         if shape != (first.n, first.m, first.q, first.r, first.history):
             raise InputError(
-                f"laws: law {index} has (n, m, q, r, d) = {shape}, law 0 "
+                f"laws: {label[index]} has (n, m, q, r, d) = {shape}, {label[0]} "
                 f"{(first.n, first.m, first.q, first.r, first.history)}"
             )
         for name in ("C", "F"):
             mine, theirs = getattr(law, name), getattr(first, name)
             if mine is not None and theirs is not None and not np.array_equal(mine, theirs):
-                raise InputError(f"laws: law {index} has another {name} than law 0")
+                raise InputError(f"laws: {label[index]} has another {name} than {label[0]}")
         if law.h != first.h:
-            raise InputError(f"laws: law {index} has h = {law.h}, law 0 h = {first.h}")
+            raise InputError(f"laws: {label[index]} has h = {law.h}, {label[0]} h = {first.h}")
 
 
 @dataclass(frozen=True, init=False, eq=False)
