@@ -37,7 +37,7 @@ from selftune.sim import (
 from selftune.sim._inverter import MotorBatch, phasor_mean
 from selftune.sim._linear import stack_motors
 from selftune.sim._pwm import carrier_segments
-from selftune.sim._saturation import STEP_RATE
+from selftune.sim._saturation import NARROWEST_KNEE, STEP_RATE
 
 Array = NDArray[np.float64]
 H = 1e-4  # 10 kHz
@@ -71,14 +71,16 @@ AVERAGE_DEAD_TIME = dataclasses.replace(
 
 @st.composite
 def models(draw: st.DrawFn) -> SaturationModel:
-    """Models over four decades of inductance and two of ``i_s``; the cross weight capped
-    so that ``L_dinf >= 0.1 L_d``."""
+    """Models over four decades of inductance and two of ``i_s`` (at least the model's
+    floor, a share of ``phi_pm / L_d``); the cross weight capped so that ``L_dinf >= 0.1
+    L_d``."""
     L_d, L_q = draw(st.floats(1e-4, 1e-2)), draw(st.floats(1e-4, 1e-2))
     drop, cross = draw(st.floats(0.0, 0.9)), draw(st.floats(0.0, 0.5))
     if drop * L_q > 0.0:  # (a subnormal drop times L_q can round to 0)
         cross = min(cross, 0.9 * L_d / (drop * L_q))
-    return SaturationModel(L_d, L_q, draw(st.floats(0.0, 0.5)), draw(st.floats(0.5, 50.0)),
-                           drop, cross)  # fmt: skip
+    phi_pm = draw(st.floats(0.0, 0.5))
+    i_sat = max(draw(st.floats(0.5, 50.0)), NARROWEST_KNEE * phi_pm / L_d)  # the model's floor
+    return SaturationModel(L_d, L_q, phi_pm, i_sat, drop, cross)
 
 
 currents = st.floats(-100.0, 100.0)
@@ -226,7 +228,8 @@ def test_currents_outside_the_table_are_refused() -> None:
 @pytest.mark.parametrize(
     ("fields", "name"),
     [({"drop": 1.0}, "drop"), ({"cross": -0.1}, "cross"), ({"cross": 1.0}, "cross"),
-     ({"i_sat": 0.0}, "i_sat"), ({"L_q": np.inf}, "L_q")],
+     ({"i_sat": 0.0}, "i_sat"), ({"L_q": np.inf}, "L_q"),
+     ({"i_sat": 0.99 * NARROWEST_KNEE * abs(SATURATION.phi_pm) / SATURATION.L_d}, "i_sat")],
 )  # fmt: skip
 def test_bad_models_are_refused_naming_the_field(fields: dict[str, float], name: str) -> None:
     with pytest.raises(InputError, match=f"^{name}:"):

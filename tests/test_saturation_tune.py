@@ -224,6 +224,11 @@ def check_recomputed(
         (MOTOR + DRIVE + SATURATION.replace("0.15", "1.5"), "[saturation] drop: expected a share"),
         (MOTOR + DRIVE + SATURATION.replace("6.0", "-6.0"), "[saturation] i_sat: must be positive"),
         (MOTOR + DRIVE + "[saturation]\ndrop = 0.2\n", "[saturation] i_sat: "),
+        (  # a knee at a microampere: no iron's, and a simulation that would not end
+            MOTOR + DRIVE + SATURATION.replace("6.0", "1e-6"),
+            "[saturation] i_sat: 1e-06 A is below 1% of the motor's characteristic current "
+            "phi_pm / L_d = 40 A",
+        ),
         (MOTOR + DRIVE + SATURATION + "knee = 1.0\n", "[saturation] knee"),
     ],
 )

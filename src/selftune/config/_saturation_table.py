@@ -3,7 +3,7 @@
 ::
 
     [saturation]
-    i_sat = 3.2     # A: the current scale of the knee
+    i_sat = 3.2     # A: the current scale of the knee (at least 1% of phi_pm / L_d)
     drop = 0.4      # the share of L_q that saturates, in [0, 1)
     cross = 0.1     # optional, >= 0: how much i_d loads the saturating path (default 0)
 
