@@ -192,9 +192,10 @@ def test_the_table_interpolates_the_model_it_samples() -> None:
         ({"psi_d": "reversed"}, "psi_d"),
         ({"psi_q": "nan"}, "psi_q"),
         ({"psi_q": "shape"}, "psi_q"),
+        ({"i_d": np.r_[GRID[0], GRID[0] + 1e-9, GRID[2:]]}, "i_d"),
     ],
     ids=["decreasing grid", "short grid", "non-finite grid", "non-monotonic map",
-         "non-finite map", "wrong shape"],
+         "non-finite map", "wrong shape", "two currents a hair apart"],
 )  # fmt: skip
 def test_bad_tables_are_refused_naming_the_argument(change: dict[str, object], name: str) -> None:
     table = FluxMap.sampled(SATURATION, GRID, GRID)

@@ -90,6 +90,11 @@ STEP_RATE = 0.05
 #: 1e-6 A, which this refuses.
 NARROWEST_KNEE = 0.01
 
+#: A flux map's smallest grid spacing, a share of the grid's span: the step rule resolves
+#: the finest cell, so a sample costs about ``1 / spacing``, as for the analytic knee (a
+#: measured map has tens of currents an axis; a pair of nodes 1e-9 A apart would not end).
+FINEST_SPACING = 0.002
+
 #: Below this ``x = m / i_s`` the series of ``f`` and ``q`` replace their closed forms,
 #: whose error in ``q`` is ``eps / x^2`` (below 3e-12 above it; the series' below 1e-17).
 _SERIES_BELOW = 1e-2
@@ -300,6 +305,15 @@ def _grid(values: ArrayLike, name: str) -> Array:
         raise InputError(f"{name}: expected a 1-D grid of at least 4 currents, got {grid.shape}")
     if not np.all(np.isfinite(grid)) or not np.all(np.diff(grid) > 0.0):
         raise InputError(f"{name}: expected finite, strictly increasing currents")
+    span, spacing = float(grid[-1] - grid[0]), float(np.min(np.diff(grid)))
+    if spacing < FINEST_SPACING * span:
+        at = int(np.argmin(np.diff(grid)))
+        raise InputError(
+            f"{name}: the currents {grid[at]:.6g} and {grid[at + 1]:.6g} A are "
+            f"{spacing:.3g} A apart, below {FINEST_SPACING:.1%} of the grid's span "
+            f"({span:.6g} A): finer than any measured map, and the simulated motor's "
+            "integration steps resolve its finest cell; leave one of the two out"
+        )
     return grid
 
 
@@ -310,7 +324,8 @@ class FluxMap(_Magnetics):
     Attributes
     ----------
     i_d, i_q : ndarray, shapes (M,) and (N,)
-        The grid, A, strictly increasing (at least 4 each).
+        The grid, A, strictly increasing (at least 4 each; no two currents closer than
+        :data:`FINEST_SPACING` of the span).
     psi_d, psi_q : ndarray, shape (M, N)
         The flux linkages at the nodes, Wb: ``psi_d`` strictly rising along ``i_d``,
         ``psi_q`` along ``i_q``.
