@@ -562,3 +562,57 @@ def test_a_ramp_from_standstill_covers_it_without_learning_it(tmp_path: Path) ->
     with pytest.raises(InputError, match="standstill only"):
         options = LearningOptions(method="identify", structure="ipmsm", electrical_speed=1.0)
         learn_over_speeds(standing, LearningProblem(tuning.Q, tuning.R), tuning.K0, options)
+
+
+def test_an_encoders_angle_is_read_as_the_speeds_it_holds(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A drive logs its encoder's angle, in whole counts: the speed over one sample is 0, 1
+    or 2 counts, never the speed held. The two-speed log with its angle rounded to a
+    4,096-count encoder (1.5 mrad electrical a count on 4 pole pairs; at 20 rad/s the
+    angle moves 2 mrad a sample) is cut at the same sample into the same two speeds
+    (each to a count over its part), and ``selftune learn`` gives the motor within 4
+    standard errors of the truth, as on the exact angle; the angle's median step (one
+    count) read 15 rad/s at 20 rad/s before, and the speeds' exact changes a part a
+    sample."""
+    tuning, result, _ = two_speed_log(tmp_path, 100.0)
+    exact = speed_segments(result.log)
+    count = 2 * np.pi * MOTOR.p / 4096  # one count, electrical rad
+    angle = result.log.angle
+    assert angle is not None
+    encoder = dataclasses.replace(result.log, angle=np.round(angle / count) * count)
+    steps = np.unique(np.round(np.diff(encoder.angle[:100]) / count))
+    assert set(steps.tolist()) <= {0.0, 1.0, 2.0}  # whole counts at 20 rad/s
+    segments = speed_segments(encoder)
+    assert [(a, b) for a, b, _ in segments] == [(a, b) for a, b, _ in exact]
+    for (first, last, speed), (_, _, truth) in zip(segments, exact, strict=True):
+        length = float(encoder.t[last] - encoder.t[first])  # read to a count over the part
+        assert abs(speed - truth) <= count / length, (speed, truth)
+    log = tmp_path / "encoder.npz"
+    save_trajectory(encoder, log)
+    toml = learn_config(
+        tmp_path / "learn.toml", tuning, "[schedule]\npole_pairs = 4\nspeed_range = [5.0, 100.0]\n"
+    )
+    out = tmp_path / "out.json"
+    assert main(["learn", str(log), "--config", str(toml), "--json", str(out)]) == 0, (
+        capsys.readouterr().err
+    )
+    design = json.loads(out.read_text())["schedule_design"]
+    learned = IPMSM(**{key: value for key, value in design["motor"].items() if key != "J"})
+    for name, se in result.standard_errors.items():
+        assert abs(getattr(learned, name) - getattr(MOTOR, name)) <= 4.0 * se, name
+
+
+def test_the_changes_between_held_speeds_are_left_out() -> None:
+    """A staircase whose speed ramps for 5 ms between its steps (a speed loop's
+    transition) is cut into its held speeds, the ramps left out; a log that is mostly
+    ramp is refused."""
+    held = ramp_speeds(10.0, 100.0, 1500, levels=3)
+    speeds = held.copy()
+    for edge in (500, 1000):  # 5 ms of linear change, ending at the edge
+        speeds[edge - 50 : edge] = np.linspace(held[edge - 51], held[edge], 52)[1:-1]
+    segments = speed_segments(staircase_log(speeds))
+    assert len(segments) == 3
+    for (first, last, speed), level in zip(segments, [10.0, 55.0, 100.0], strict=True):
+        assert np.all(speeds[first:last] == level) and speed == pytest.approx(4 * level)
+    assert sum(last - first for first, last, _ in segments) >= 1500 - 2 * 100

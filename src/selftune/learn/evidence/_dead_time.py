@@ -140,7 +140,9 @@ def check_angle(
         )
     if electrical_speed is None:
         return
-    rate = middle / float(np.median(np.diff(t)))
+    # the mean step, not the median: an encoder's angle steps by whole counts, and the
+    # median of steps of 0 and 1 count is one of them, not the speed
+    rate = float(np.mean(wrapped)) / float(np.mean(np.diff(t)))
     if abs(rate - electrical_speed) > SPEED_AGREEMENT * abs(electrical_speed) + 1e-9:
         raise ConfigurationMismatch(
             f"{key}: says {electrical_speed:.6g} rad/s, but the angle column theta turns at "
