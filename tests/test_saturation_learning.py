@@ -16,7 +16,12 @@ from selftune.model import IPMSM, CurrentSchedule, RegulationProblem, design_cur
 from selftune.sim import DriveSettings, SaturationModel
 from selftune.tuning import TuningSettings, tuning_settings
 from selftune.tuning._interior import CURRENT_REFERENCE_F
-from selftune.tuning._saturation import incremental_theta, learn_level
+from selftune.tuning._saturation import (
+    incremental_theta,
+    learn_level,
+    level_plants,
+    schedule_over_levels,
+)
 
 MOTOR = IPMSM(R_s=0.2, L_d=2e-3, L_q=6e-3, phi_pm=0.1, p=4)
 SPEED, TORQUE, H = 100.0, 5.0, 1e-4
@@ -154,3 +159,31 @@ def test_the_current_schedule_refuses_a_current_outside_its_levels() -> None:
         schedule.law_at(9.5)
     with pytest.raises(InputError, match=r"^current: 0\.5 A is outside"):
         schedule.law_at(0.5)
+
+
+def test_a_negative_torques_levels_are_scheduled_in_rising_current() -> None:
+    """Levels learned by rising share of a negative torque have falling ``i_q*``: the
+    schedule's grid and the interpolation between the levels take them rising (before,
+    ``tune`` with ``torque = -6.0`` and a ``[saturation]`` stopped at ``currents: must
+    increase strictly``, and ``np.interp`` over falling currents would have read the
+    wrong level's model). The same levels in either order give the same schedule."""
+    settings, _ = _settings()
+    currents = -np.array([0.1, 0.55, 1.0]) * RATED  # by rising share: falling
+    thetas = np.array(
+        [incremental_theta(SATURATION, MOTOR.R_s, np.array([0.0, c]), MOTOR.phi_pm)
+         for c in currents]
+    )  # fmt: skip
+    structure = IncrementalStructure(W_E, H, False, "stationary")
+    falling, rising = (
+        schedule_over_levels(
+            c, t, structure, settings.Q, settings.R, input_delay=1, integral_weight=None
+        )
+        for c, t in ((currents, thetas), (currents[::-1], thetas[::-1]))
+    )
+    np.testing.assert_array_equal(falling.schedule.current, np.sort(currents))
+    np.testing.assert_array_equal(falling.schedule.table("K"), rising.schedule.table("K"))
+    plant = level_plants(currents, thetas, structure)
+    middle = 0.5 * (currents[0] + currents[1])  # between the two lowest shares' levels
+    expected = replace(structure, electrical_speed=W_E)(0.5 * (thetas[0] + thetas[1]))
+    for got, want in zip(plant(middle, W_E)[1], expected, strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-12)

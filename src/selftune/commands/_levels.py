@@ -120,7 +120,8 @@ class LearnedLevels:
     config : LearnConfig
         The learning configuration.
     levels : tuple of LearnedLevel
-        By rising ``i_q*``.
+        By rising ``|i_q*|`` (the last, the highest load, is the law reported; a negative
+        torque's levels are scheduled in rising ``i_q*``).
     top_data : Trajectory
         The highest level's log (whose law ``selftune learn`` reports in full).
     design : CurrentScheduleDesign
@@ -413,7 +414,7 @@ def learn_levels(
         theta, errors = incremental_parameters(learned, w1 / speed)  # the fit's own kappa
         mean, spread = np.mean(data.x, axis=0), np.std(data.x, axis=0)
         levels.append(LearnedLevel(path, reference, mean, theta, errors, learned, spread))
-    order = np.argsort([level.reference[1] for level in levels])
+    order = np.argsort([abs(level.reference[1]) for level in levels])
     learned_levels = [levels[index] for index in order]
     names = [level.source for level in learned_levels]
     thetas = np.array([level.theta for level in learned_levels])

@@ -351,6 +351,22 @@ def inductances_move(low: Array, high: Array) -> bool:
     return bool(np.max(np.abs(high[1:4] - low[1:4])) > INDUCTANCE_MOVE * scale)
 
 
+def by_current(currents: Array, thetas: Array) -> tuple[Array, Array]:
+    """The levels' ``i_q*`` (A) and parameters in rising ``i_q*``, as a schedule's grid
+    and an interpolation need (a negative torque's levels, by rising share, fall).
+
+    Parameters
+    ----------
+    currents : ndarray, shape (g,)
+        The levels' ``i_q*``, A, distinct.
+    thetas : ndarray, shape (g, 6)
+        Their identified parameters, row by row.
+    """
+    current, theta = np.asarray(currents, dtype=float), np.asarray(thetas, dtype=float)
+    order = np.argsort(current)
+    return current[order], theta[order]
+
+
 def level_plants(currents: Array, thetas: Array, structure: IncrementalStructure) -> PlantAt:
     """The plant at a current and an electrical speed from the levels' identified models,
     interpolated linearly in ``i_q*`` between them (the structure's model at that speed).
@@ -358,12 +374,13 @@ def level_plants(currents: Array, thetas: Array, structure: IncrementalStructure
     Parameters
     ----------
     currents : ndarray, shape (g,)
-        The levels' ``i_q*``, A, strictly increasing.
+        The levels' ``i_q*``, A, distinct, in any order (:func:`by_current`).
     thetas : ndarray, shape (g, 6)
         Their identified parameters (:func:`incremental_parameters`).
     structure : IncrementalStructure
         The structure (sampling period, hold), without the dead-time channels.
     """
+    currents, thetas = by_current(currents, thetas)
 
     def plant(current: float, speed: float) -> tuple[RegulationProblem, tuple[Array, Array, Array]]:
         theta = np.array([np.interp(current, currents, column) for column in thetas.T])
@@ -388,7 +405,8 @@ def schedule_over_levels(
     Parameters
     ----------
     currents : ndarray, shape (g,)
-        The levels' ``i_q*``, A, strictly increasing.
+        The levels' ``i_q*``, A, distinct, in any order (the grid is them rising,
+        :func:`by_current`).
     thetas : ndarray, shape (g, 6)
         Their identified parameters (:func:`incremental_parameters`).
     structure : IncrementalStructure
@@ -401,6 +419,7 @@ def schedule_over_levels(
     integral_weight : ndarray or None
         ``Q_i`` (None: no integral action).
     """
+    currents, thetas = by_current(currents, thetas)
     plants = level_plants(currents, thetas, structure)
 
     def plant(current: float) -> tuple[RegulationProblem, tuple[Array, Array, Array]]:
@@ -428,6 +447,7 @@ def schedule_over_speed_and_levels(
     electrical_speeds : sequence of float
         The initial speed grid, rad/s (electrical), strictly increasing.
     """
+    currents, thetas = by_current(currents, thetas)
     return design_speed_current_schedule(
         level_plants(currents, thetas, structure), currents, electrical_speeds, Q, R,
         structure.h, input_delay=input_delay, integral_weight=integral_weight,
