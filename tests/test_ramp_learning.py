@@ -84,6 +84,15 @@ def test_a_speed_that_changes_every_sample_is_refused_saying_why() -> None:
     short = ramp_speeds(10.0, 100.0, round(3 * MIN_SEGMENT / H), levels=6)
     with pytest.raises(InputError, match=f"at least {MIN_SEGMENT:g} s"):
         speed_segments(staircase_log(short))
+    # a slower ramp's 10 ms blocks stay within the band for 70 ms at a time: they trend
+    slow = staircase_log(ramp_speeds(10.0, 12.0, 3000))
+    with pytest.raises(InputError, match=r"holds \(within .* without trending\).* \(a ramp\)"):
+        speed_segments(slow)
+    held = staircase_log(ramp_speeds(10.0, 100.0, 1500, levels=3))
+    assert held.angle is not None
+    degrees = dataclasses.replace(held, angle=np.degrees(np.angle(np.exp(1j * held.angle))))
+    with pytest.raises(InputError, match=r"as an angle in degrees wraps; give it in rad"):
+        speed_segments(degrees)
 
 
 def test_speeds_the_data_do_not_cover_are_refused_by_name() -> None:

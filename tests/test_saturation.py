@@ -79,7 +79,8 @@ def models(draw: st.DrawFn) -> SaturationModel:
     if drop * L_q > 0.0:  # (a subnormal drop times L_q can round to 0)
         cross = min(cross, 0.9 * L_d / (drop * L_q))
     phi_pm = draw(st.floats(0.0, 0.5))
-    i_sat = max(draw(st.floats(0.5, 50.0)), NARROWEST_KNEE * phi_pm / L_d)  # the model's floor
+    floor = NARROWEST_KNEE * (phi_pm / L_d) * (1.0 + 1e-9)  # the model's, past its rounding
+    i_sat = max(draw(st.floats(0.5, 50.0)), floor)
     return SaturationModel(L_d, L_q, phi_pm, i_sat, drop, cross)
 
 

@@ -38,6 +38,7 @@ from ._pipeline import learn_controller
 from ._problem import LearningOptions, LearningProblem
 from ._result import LearnedController
 from .data._trajectory import Trajectory
+from .evidence._dead_time import check_angle
 from .verdict._quality import MotorEstimate
 from .verdict._verdict import motor_estimate
 
@@ -103,6 +104,24 @@ def _block_noise(angle: Array, edges: Array, blocks: Array, t: Array) -> float:
     return min(scatter, resolution)
 
 
+#: The most a held part's speed may trend over its length (its blocks' least-squares
+#: line's change), a share of the band: a linear ramp's parts trend by about twice the
+#: band (a part ends where a block leaves the band about the part's mean), so none is
+#: held; a speed held, with an encoder's counts or a ripple about it, trends by the
+#: noise alone.
+MOST_TREND = 0.5
+
+
+def _trend(times: Array, speeds: Array) -> float:
+    """The change of the least-squares line through ``speeds`` (rad/s) at ``times`` (s)
+    over their span, rad/s (zero for one point)."""
+    if times.size < 2:
+        return 0.0
+    centred = times - np.mean(times)
+    slope = float(centred @ (speeds - np.mean(speeds))) / float(centred @ centred)
+    return abs(slope) * float(times[-1] - times[0])
+
+
 def _blocks(log: Trajectory) -> tuple[Array, Array, Array]:
     """The log's unwrapped angle from 0 (rad), its blocks' edges (sample indices; the
     last block takes a short tail) and their speeds (rad/s): the angle's change over each
@@ -145,9 +164,11 @@ def speed_segments(log: Trajectory) -> list[tuple[int, int, float]]:
     block further than :data:`HELD_BAND` of the log's largest speed (or
     :data:`NOISE_BANDS` times the blocks' own scatter, :func:`_block_noise`, where that
     is wider) from its part's mean starts a new part. A part shorter than
-    :data:`MIN_SEGMENT` is the speed changing from one held speed to the next, and is left
-    out, up to :data:`MOST_BETWEEN` of the log. A log of exactly held speeds whose changes
-    fall on block edges is cut exactly there.
+    :data:`MIN_SEGMENT`, or whose speed trends by more than :data:`MOST_TREND` of the band
+    over it, is the speed changing from one held speed to the next, and is left out, up
+    to :data:`MOST_BETWEEN` of the log. The angle is checked first (in rad, advancing
+    smoothly: :func:`~selftune.learn.evidence._dead_time.check_angle`). A log of exactly
+    held speeds whose changes fall on block edges is cut exactly there.
 
     Parameters
     ----------
@@ -169,6 +190,7 @@ def speed_segments(log: Trajectory) -> list[tuple[int, int, float]]:
     """
     if log.angle is None:
         raise InputError("angle: a log over several speeds needs its angle column theta")
+    check_angle(log.angle, log.t, None)  # in rad, advancing smoothly: else said so here
     angle, edges, blocks = _blocks(log)
     count = edges[-1]
     band = max(
@@ -182,15 +204,21 @@ def speed_segments(log: Trajectory) -> list[tuple[int, int, float]]:
             groups.append([])
         groups[-1].append(index)
     parts = [(int(edges[group[0]]), int(edges[group[-1] + 1])) for group in groups]
-    held = [(a, b) for a, b in parts if log.t[b] - log.t[a] >= MIN_SEGMENT * (1.0 - 1e-9)]
+    middles = 0.5 * (log.t[edges[:-1]] + log.t[edges[1:]])
+    held = [
+        (a, b)
+        for (a, b), group in zip(parts, groups, strict=True)
+        if log.t[b] - log.t[a] >= MIN_SEGMENT * (1.0 - 1e-9)
+        and _trend(middles[group], blocks[group]) <= MOST_TREND * band
+    ]
     between = count - sum(b - a for a, b in held)
     if not held or between > MOST_BETWEEN * count:
-        shortest = min(float(log.t[b] - log.t[a]) for a, b in parts)
         raise InputError(
-            f"angle: the speed holds for as little as {shortest:.3g} s (at least "
-            f"{MIN_SEGMENT:g} s a speed is needed, over {1 - MOST_BETWEEN:.0%} of the log): the "
-            "identification fits one plant at a held speed per part and cannot fit a speed "
-            "that changes every sample; log a staircase of held speeds"
+            f"angle: the speed holds (within {band:.3g} rad/s, without trending) for at least "
+            f"{MIN_SEGMENT:g} s at a time over {1 - between / count:.0%} of the log, and "
+            f"{1 - MOST_BETWEEN:.0%} is needed: the identification fits one plant at a held "
+            "speed per part and cannot fit a speed that changes every sample (a ramp); log a "
+            "staircase of held speeds"
         )
     return [(a, b, float((angle[b] - angle[a]) / (log.t[b] - log.t[a]))) for a, b in held]
 
