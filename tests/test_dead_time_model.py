@@ -19,7 +19,7 @@ from selftune.learn import (
     learn_controller,
     load_trajectory,
 )
-from selftune.learn.evidence._dead_time import with_dead_time
+from selftune.learn.evidence._dead_time import check_angle, with_dead_time
 from selftune.learn.evidence._discrete_model import Transitions, fit_discrete_model
 
 MOTOR = """[motor]
@@ -230,3 +230,17 @@ def test_the_measured_signs_near_zero_current_are_no_refusal(tmp_path: Path) -> 
     for name, se in (("R_s", "R_s_se"), ("L_s", "L_s_se"), ("phi_pm", "phi_pm_se")):
         error = getattr(identified, name) - getattr(motor, name)
         assert abs(error) <= 3.0 * getattr(identified, se), (name, error, getattr(identified, se))
+
+
+def test_an_encoders_angle_turns_at_its_mean_step() -> None:
+    """An encoder's angle moves by whole counts: at 130 rad/s, 10 kHz and a count of 0.01
+    rad, 1 count in most samples and 2 in the others, whose median (1 count, 100 rad/s)
+    contradicted ``electrical_speed = 130``. Its mean step is the speed."""
+    t = np.arange(2001) * 1e-4
+    count = 0.01
+    angle = np.round(130.0 * t / count) * count
+    steps = np.round(np.diff(angle) / count)
+    assert set(steps.tolist()) == {1.0, 2.0} and np.median(steps) == 1.0
+    check_angle(angle, t, 130.0)
+    with pytest.raises(ConfigurationMismatch, match="turns at 130 rad/s"):
+        check_angle(angle, t, 150.0)
