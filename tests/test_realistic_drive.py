@@ -21,6 +21,7 @@ Agreement found (paper motor at 100 rad/s, h = 100 us, 10 kHz):
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import numpy as np
@@ -375,6 +376,27 @@ def test_adc_quantizes_to_the_lsb_and_clips_at_the_range() -> None:
     np.testing.assert_allclose(measured[1], [lsb * np.round(0.011 / lsb), 0.0, 0.0])
 
 
+def test_an_encoder_logs_the_angle_in_whole_counts_and_changes_nothing_else() -> None:
+    """With ``encoder_counts`` the log's angle is the exact one rounded to whole counts of
+    ``2 pi p / counts`` (within half a count of it); every other column, the true currents
+    and the commands are the exact-angle run's to the bit (the drive turns its command
+    with the exact angle)."""
+    settings = DriveSettings.hardware_like()
+    exact = carrier_run(settings, 500)
+    counted = carrier_run(dataclasses.replace(settings, encoder_counts=1024), 500)
+    count = 2 * np.pi * MOTOR.p / 1024
+    angle, truth = counted.trajectory.angle, exact.trajectory.angle
+    assert angle is not None and truth is not None
+    np.testing.assert_allclose(angle / count, np.round(angle / count), atol=1e-9)
+    assert np.max(np.abs(angle - truth)) <= 0.5 * count + 1e-12
+    assert np.max(np.abs(angle - truth)) > 0.1 * count  # the counts are seen
+    for name in ("x", "u", "w", "t"):
+        np.testing.assert_array_equal(
+            getattr(counted.trajectory, name), getattr(exact.trajectory, name)
+        )
+    np.testing.assert_array_equal(counted.true_currents, exact.true_currents)
+
+
 @pytest.mark.parametrize("pwm", ["average", "carrier"])
 def test_the_voltage_never_exceeds_the_linear_range(pwm: str) -> None:
     settings = DriveSettings(pwm=pwm, dc_voltage=120.0)  # type: ignore[arg-type]
@@ -491,6 +513,8 @@ def test_a_batch_equals_single_runs() -> None:
         ({"logged_input": "computed"}, "logged_input"),
         ({"angle_compensation": 1}, "angle_compensation"),
         ({"voltage_hold": "rotor", "pwm": "carrier", "dc_voltage": 540.0}, "voltage_hold"),
+        ({"encoder_counts": 2}, "encoder_counts"),
+        ({"encoder_counts": 4096.0}, "encoder_counts"),
     ],
 )
 def test_bad_settings_name_the_field(fields: dict[str, object], name: str) -> None:

@@ -194,6 +194,8 @@ def test_tune_with_a_drive_table_writes_the_law_a_drive_runs(tmp_path: Path) -> 
     [
         ("switching_frequency = 1e12", "[drive] switching_frequency: must be between"),
         ("dc_voltage = 1e9", "[drive] dc_voltage: must be between"),
+        ("encoder_counts = 2", "[drive] encoder_counts: "),
+        ("encoder_counts = 1024.5", "[drive] encoder_counts: must be a whole number"),
     ],
 )
 def test_a_drive_value_out_of_range_is_named_by_its_own_key(

@@ -25,7 +25,7 @@ surface motors (25 uH to 60 mH, 2 to 10 pole pairs).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -122,10 +122,13 @@ class RampStudy:
     ----------
     cases : tuple of RampCase
     wall_seconds : float
+    encoder_counts : int or None
+        The logs' angle in an encoder's counts a turn (None: exact).
     """
 
     cases: tuple[RampCase, ...]
     wall_seconds: float
+    encoder_counts: int | None = None
 
 
 def _label(motor: Motor) -> str:
@@ -142,18 +145,20 @@ def _errors(evaluation: RampEvaluation) -> tuple[float, float]:
     return float(relative), float(max(abs(evaluation.z[name]) for name in names))
 
 
-def _case(index: int, seed: int) -> RampCase:
+def _case(index: int, seed: int, encoder_counts: int | None = None) -> RampCase:
     motor, speed, torque, bus = RAMP_MOTORS[index]
-    return _run(motor, speed, torque, bus, seed, f"{index + 1}: {_label(motor)}")
+    label = f"{index + 1}: {_label(motor)}"
+    return _run(motor, speed, torque, bus, seed, label, encoder_counts=encoder_counts)
 
 
 def _run(
     motor: Motor, speed: float, torque: float, bus: float, seed: int, label: str,
-    adc_range: float | None = None,
+    adc_range: float | None = None, encoder_counts: int | None = None,
 ) -> RampCase:  # fmt: skip
     """One ramp commissioning judged against the truth (``adc_range``, A: the
-    hardware-like drive's 50 A unless given)."""
-    drive = study_drive(bus, adc_range)
+    hardware-like drive's 50 A unless given; ``encoder_counts``: the log's angle an
+    encoder's of that many counts a turn, None: exact)."""
+    drive = replace(study_drive(bus, adc_range), encoder_counts=encoder_counts)
     config = MotorConfig(
         motor=motor, speed=speed, torque=torque, drive=drive, drive_h=1e-4,
         learning={"integral_action": True}, source=label,
@@ -191,7 +196,9 @@ def _run(
     )  # fmt: skip
 
 
-def measure_ramp(quick: bool, progress: bool = True, seeds: int = 3) -> RampStudy:
+def measure_ramp(
+    quick: bool, progress: bool = True, seeds: int = 3, encoder_counts: int | None = None
+) -> RampStudy:
     """The study (see the module).
 
     Parameters
@@ -203,13 +210,18 @@ def measure_ramp(quick: bool, progress: bool = True, seeds: int = 3) -> RampStud
         Show a progress bar.
     seeds : int
         Seeds per motor in the full run.
+    encoder_counts : int, optional
+        The logs' angle as an encoder of that many counts a mechanical turn reads it
+        (:class:`~selftune.sim.DriveSettings`); None: the exact angle.
     """
     cases = [(0, 0), (7, 0)] if quick else [
         (index, seed) for index in range(len(RAMP_MOTORS)) for seed in range(seeds)
     ]  # fmt: skip
     started = time.perf_counter()
-    results = with_progress(cases, lambda case: _case(*case), "ramp", progress)
-    return RampStudy(tuple(results), time.perf_counter() - started)
+    results = with_progress(
+        cases, lambda case: _case(*case, encoder_counts=encoder_counts), "ramp", progress
+    )
+    return RampStudy(tuple(results), time.perf_counter() - started, encoder_counts)
 
 
 def measure_ramp_draws(count: int = 60, seed: int = 11, progress: bool = True) -> RampStudy:
@@ -273,8 +285,14 @@ def markdown_ramp(study: RampStudy) -> list[str]:
         if learned
         else f"0 of {len(study.cases)} learned"
     )
+    angle = (
+        ""
+        if study.encoder_counts is None
+        else f", the angle a {study.encoder_counts}-count encoder's"
+    )
     return [
-        "## Speed schedules from 1 s over 5-100% of rated speed (hardware-like drive, 20 K warm)",
+        "## Speed schedules from 1 s over 5-100% of rated speed (hardware-like drive, 20 K "
+        f"warm{angle})",
         "",
         f"{summary}. {study.wall_seconds:.0f} s.",
         "",

@@ -17,6 +17,7 @@ set; every key is optional and an absent key leaves its effect out::
     temperature_rise = 0.0       # K above the nameplate's: R_s +0.39%/K, phi_pm -0.1%/K
     logged_input = "applied"     # or "commanded": what row k of the drive's log holds
     voltage_hold = "stationary"  # or "rotor": what the inverter holds over a sample
+    encoder_counts = 4096        # counts a mechanical turn: the log's angle in whole counts
 """
 
 from __future__ import annotations
@@ -82,6 +83,11 @@ def drive_settings(table: ConfigTable) -> tuple[DriveSettings, float | None]:
         "temperature_rise": table.number("temperature_rise", 0.0),
         "logged_input": table.choice("logged_input", ("applied", "commanded"), "applied"),
         "voltage_hold": table.choice("voltage_hold", ("stationary", "rotor"), "stationary"),
+        "encoder_counts": (
+            table.positive_integer("encoder_counts", maximum=2**32)
+            if "encoder_counts" in table
+            else None
+        ),
     }
     h = None
     if "switching_frequency" in table:

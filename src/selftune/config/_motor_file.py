@@ -124,6 +124,7 @@ MOTOR_TABLES: Mapping[str, tuple[str, ...]] = MappingProxyType(
             "temperature_rise",
             "logged_input",
             "voltage_hold",
+            "encoder_counts",
         ),
         "schedule": SCHEDULE_KEYS,
         "saturation": SATURATION_KEYS,

@@ -74,6 +74,11 @@ class DriveSettings:
         DC-bus limit scales its command (conditional integration, as the C code of
         ``selftune export`` does; :mod:`selftune.core._voltage_limit`); False: they
         integrate regardless. It acts only with ``dc_voltage``.
+    encoder_counts : int or None
+        The logged angle column is an encoder's reading: the electrical angle in whole
+        counts of ``2 pi p / encoder_counts`` (counts a mechanical turn, 4 to 2**32);
+        None: the exact angle. The controller turns its command with the exact angle
+        (the drive's own angle observer is not modelled): only the log is quantized.
 
     Raises
     ------
@@ -94,6 +99,7 @@ class DriveSettings:
     logged_input: Literal["applied", "commanded"] = "applied"
     voltage_hold: Literal["stationary", "rotor"] = "stationary"
     anti_windup: bool = False
+    encoder_counts: int | None = None
 
     def __post_init__(self) -> None:
         delay = positive_integer(self.input_delay, "input_delay", minimum=0)
@@ -118,6 +124,11 @@ class DriveSettings:
         if self.voltage_hold == "rotor" and self.pwm == "carrier":
             raise InputError('voltage_hold: "rotor" needs pwm = "average" (a carrier holds duties)')
         self._check_adc()
+        if self.encoder_counts is not None:
+            counts = positive_integer(self.encoder_counts, "encoder_counts", minimum=4)
+            if counts > 2**32:
+                raise InputError(f"encoder_counts: at most 2**32 counts a turn, got {counts}")
+            object.__setattr__(self, "encoder_counts", counts)
         rise = finite_float(self.temperature_rise, "temperature_rise")
         if 1.0 + COPPER_COEFFICIENT * rise <= 0.0 or 1.0 - MAGNET_COEFFICIENT * rise <= 0.0:
             raise InputError(
