@@ -40,7 +40,6 @@ def export_command(result_path: str, out: str, u_max: float | None) -> int:
     from ..errors import InputError
     from ..model import SpeedCurrentSchedule
     from ..report import FIRMWARE_FILES, firmware, write_firmware
-    from ..report._firmware_tables import first_law
 
     check_output_directory(out, FIRMWARE_FILES, EXPORT_WHAT)
     result = load_law_result(result_path)
@@ -59,7 +58,7 @@ def export_command(result_path: str, out: str, u_max: float | None) -> int:
     files = firmware(result, limit, source=source, version=__version__, date=date)
     paths = write_firmware(files, out)
     schedule = result.schedule
-    law = result.law if schedule is None else first_law(schedule)
+    law = result.law if schedule is None else schedule.first_law
     what = f"the law of {result_path} ({result.key})"
     if isinstance(schedule, SpeedCurrentSchedule):
         (low, high), (first, last) = schedule.covered

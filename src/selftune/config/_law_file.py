@@ -216,13 +216,8 @@ def _stated_schedules(
             else _schedule(table, name, kind)
         )
         if schedule is not None:
-            first = (
-                schedule.law(0, 0)
-                if isinstance(schedule, SpeedCurrentSchedule)
-                else schedule.laws[0]
-            )
             try:
-                same_structure([law, first], [key, "its first law"])
+                same_structure([law, schedule.first_law], [key, "its first law"])
             except InputError as exc:
                 raise DataFileError(
                     f"{name}: {kind}: {str(exc).removeprefix('laws: ')}: a schedule's laws "

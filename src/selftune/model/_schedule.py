@@ -120,6 +120,11 @@ class GainSchedule:
         """The range the schedule covers: its first and last grid point."""
         return float(self.grid[0]), float(self.grid[-1])
 
+    @property
+    def first_law(self) -> ControlLaw:
+        """The law at the grid's first point (its structure is every law's)."""
+        return self.laws[0]
+
     def document(self) -> dict[str, object]:
         """The schedule for a JSON result: the grid under :attr:`variable`'s name
         (``electrical_speed``, rad/s; ``current``, A) and, per grid point, ``K``, ``K_i``

@@ -102,6 +102,11 @@ class SpeedCurrentSchedule:
         """The speeds (rad/s, electrical) and the currents (A) the schedule covers."""
         return self.rows[0].covered, (float(self.current[0]), float(self.current[-1]))
 
+    @property
+    def first_law(self) -> ControlLaw:
+        """The law at the first point of both grids (its structure is every law's)."""
+        return self.rows[0].first_law
+
     def law(self, index: int, speed_index: int) -> ControlLaw:
         """The grid's law at ``current[index]`` and ``electrical_speed[speed_index]``.
 
@@ -160,7 +165,7 @@ class SpeedCurrentSchedule:
         indexed ``[current][speed]`` in the convention of
         :meth:`~selftune.core.ControlLaw.document`, with what every entry shares."""
         first = self.rows[0].document()
-        integral = self.rows[0].laws[0].K_i is not None
+        integral = self.first_law.K_i is not None
         return {
             "electrical_speed": self.electrical_speed,
             "current": self.current,
@@ -169,7 +174,7 @@ class SpeedCurrentSchedule:
             "U": self.table("U"),
             "X": self.table("X"),
             **{key: first[key] for key in ("history", "C", "F", "h", "state")},
-            "equations": self.rows[0].laws[0].equations() + "; each matrix bilinear in "
+            "equations": self.first_law.equations() + "; each matrix bilinear in "
             "omega_e and i_q* between the neighbouring speeds of electrical_speed and "
             "currents of current, indexed [current][speed]",
         }

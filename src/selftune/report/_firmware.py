@@ -51,7 +51,6 @@ from ._firmware_tables import (
     Scheduled,
     c_float,
     c_matrix,
-    first_law,
     grid_macros,
     schedule_call,
     schedule_key,
@@ -93,7 +92,7 @@ class Firmware:
 
 def _law(result: LawResult) -> ControlLaw:
     """The law whose structure the firmware runs: the schedule's where there is one."""
-    return result.law if result.schedule is None else first_law(result.schedule)
+    return result.law if result.schedule is None else result.schedule.first_law
 
 
 def _key(result: LawResult) -> str:

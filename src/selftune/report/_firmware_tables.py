@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import Array, ControlLaw
+from ..core import Array
 from ..errors import InputError
 from ..model import CurrentSchedule, SpeedCurrentSchedule, SpeedSchedule
 
@@ -25,7 +25,6 @@ __all__ = [
     "axes",
     "c_float",
     "c_matrix",
-    "first_law",
     "grid_macros",
     "schedule_call",
     "schedule_key",
@@ -141,17 +140,6 @@ def schedule_key(schedule: Scheduled) -> str:
     return "current_schedule" if isinstance(schedule, CurrentSchedule) else "schedule"
 
 
-def first_law(schedule: Scheduled) -> ControlLaw:
-    """The law at the first point of every grid (its structure is every law's).
-
-    Parameters
-    ----------
-    schedule : SpeedSchedule, CurrentSchedule or SpeedCurrentSchedule
-        The schedule.
-    """
-    return schedule.law(0, 0) if isinstance(schedule, SpeedCurrentSchedule) else schedule.laws[0]
-
-
 def schedule_call(schedule: Scheduled) -> str:
     """The values ``selftune_step`` passes ``selftune_schedule``, in its grids' order.
 
@@ -242,7 +230,7 @@ def schedule_tables(schedule: Scheduled, state: str) -> list[str]:
         ("X", "X", f"X at each {point}: x_e = X w"),
         ("K", "K", f"K at each {point}: feedback on the deviations of [{state}]"),
     ]
-    law = first_law(schedule)
+    law = schedule.first_law
     if law.K_i is not None:
         entries.append(("K_I", "K_i", f"K_i at each {point}"))
     for index, (name, table, comment) in enumerate(entries):

@@ -212,7 +212,7 @@ def figure_speed_current(
     """
     schedule, check = design.schedule, design.check
     speeds = np.unique(np.concatenate([schedule.electrical_speed, check.electrical_speed]))
-    first = schedule.law(0, 0)
+    first = schedule.first_law
     h = first.h
     assert h is not None  # the laws are servo laws, with their h
     figure, axes = _panels()
