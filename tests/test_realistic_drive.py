@@ -378,18 +378,23 @@ def test_adc_quantizes_to_the_lsb_and_clips_at_the_range() -> None:
 
 def test_an_encoder_logs_the_angle_in_whole_counts_and_changes_nothing_else() -> None:
     """With ``encoder_counts`` the log's angle is the exact one rounded to whole counts of
-    ``2 pi p / counts`` (within half a count of it); every other column, the true currents
-    and the commands are the exact-angle run's to the bit (the drive turns its command
-    with the exact angle)."""
+    ``2 pi p / counts`` as it turns (p times the mechanical angle's counts; within half a
+    count of it), wrapped; every other column, the true currents and the commands are the
+    exact-angle run's to the bit (the drive turns its command with the exact angle)."""
     settings = DriveSettings.hardware_like()
     exact = carrier_run(settings, 500)
-    counted = carrier_run(dataclasses.replace(settings, encoder_counts=1024), 500)
-    count = 2 * np.pi * MOTOR.p / 1024
+    # 1001 counts on 2 pole pairs: 500.5 counts an electrical turn, so the counts' grid
+    # moves by half a count from one electrical turn to the next
+    counted = carrier_run(dataclasses.replace(settings, encoder_counts=1001), 500)
+    count = 2 * np.pi * MOTOR.p / 1001
     angle, truth = counted.trajectory.angle, exact.trajectory.angle
     assert angle is not None and truth is not None
-    np.testing.assert_allclose(angle / count, np.round(angle / count), atol=1e-9)
-    assert np.max(np.abs(angle - truth)) <= 0.5 * count + 1e-12
-    assert np.max(np.abs(angle - truth)) > 0.1 * count  # the counts are seen
+    turned = np.unwrap(angle) / count
+    np.testing.assert_allclose(turned, np.round(turned), atol=1e-9)
+    assert np.all(np.abs(angle) <= np.pi)
+    error = np.abs(np.angle(np.exp(1j * (angle - truth))))
+    assert np.max(error) <= 0.5 * count + 1e-12
+    assert np.max(error) > 0.1 * count  # the counts are seen
     for name in ("x", "u", "w", "t"):
         np.testing.assert_array_equal(
             getattr(counted.trajectory, name), getattr(exact.trajectory, name)

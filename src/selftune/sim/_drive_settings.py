@@ -75,10 +75,11 @@ class DriveSettings:
         ``selftune export`` does; :mod:`selftune.core._voltage_limit`); False: they
         integrate regardless. It acts only with ``dc_voltage``.
     encoder_counts : int or None
-        The logged angle column is an encoder's reading: the electrical angle in whole
-        counts of ``2 pi p / encoder_counts`` (counts a mechanical turn, 4 to 2**32);
-        None: the exact angle. The controller turns its command with the exact angle
-        (the drive's own angle observer is not modelled): only the log is quantized.
+        The logged angle column is an encoder's reading: p times the mechanical angle in
+        whole counts of ``2 pi / encoder_counts`` (counts a mechanical turn, 4 to
+        2**32), wrapped; None: the exact angle. The controller turns its command with
+        the exact angle (the drive's own angle observer is not modelled): only the log
+        is quantized.
 
     Raises
     ------

@@ -465,9 +465,12 @@ def _records(
     applied, torque = _as_pairs(outputs.applied), inputs.motor.torque(true_dq.imag, true_dq.real)
     w = np.broadcast_to(inputs.w, (true_dq.shape[0], *inputs.w.shape[1:]))
     angles = np.angle(inputs.rotor)  # the rotor angle at each sample, in (-pi, pi]
-    if settings.encoder_counts is not None:  # the log's angle in whole counts
+    if settings.encoder_counts is not None:  # the log's angle in whole counts of the turn
         count = 2.0 * np.pi * np.asarray(inputs.motor.p, dtype=float) / settings.encoder_counts
-        angles = np.round(angles / count[:, np.newaxis]) * count[:, np.newaxis]
+        turned = np.unwrap(angles, axis=-1)  # p turns of the count grid a mechanical turn
+        angles = np.angle(
+            np.exp(1j * np.round(turned / count[:, np.newaxis]) * count[:, np.newaxis])
+        )
     records = []
     for index in range(true_dq.shape[0]):
         trajectory = Trajectory(

@@ -44,6 +44,7 @@ from ...core._phases import (
 from ...errors import ConfigurationMismatch, InputError
 from ..data._trajectory import Trajectory
 from ._alignment import aligned_transitions
+from ._encoder import read_angle
 
 __all__ = [
     "OFFSET_GRID",
@@ -462,6 +463,7 @@ def with_dead_time(
     if len(angles) == len(episodes):
         for episode, angle in zip(episodes, angles, strict=True):
             check_angle(angle, episode.t, electrical_speed)
+        angles = [read_angle(angle) for angle in angles]  # an encoder's, within its count
         model: DeadTimeModel = "phase signs"
     elif electrical_speed is not None:
         angles = [
