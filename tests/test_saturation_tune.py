@@ -34,7 +34,12 @@ from selftune.report import evaluate_current_schedule, report_files
 from selftune.report._saturation_report import current_document, current_lines
 from selftune.sim import DriveSettings, Saturation, SaturationModel
 from selftune.tuning import TuningSettings, commission_over_current, tuning_settings
-from selftune.tuning._resistance import disagreeing_levels, kept_levels, left_out_text
+from selftune.tuning._resistance import (
+    disagreeing_levels,
+    kept_levels,
+    left_out_text,
+    small_levels,
+)
 from selftune.tuning._saturation import LEVEL_ATTEMPTS, incremental_theta
 
 MOTOR = """[motor]
@@ -426,6 +431,13 @@ def test_levels_far_from_the_nameplate_resistance_are_left_out_or_refused() -> N
     with pytest.raises(ModelMissesEffect, match="too few levels agree on R_s") as refusal:
         kept_levels(names, thetas, errors, nameplate=0.186, h=1e-4)
     assert "100%: 1.29 ohm" in str(refusal.value)
+    assert "[operating_point] torque" not in str(refusal.value)  # not the tuner's levels
+    # the tuner's levels: the refusal names the user's torque and the highest current
+    small = small_levels(0.21, 0.05)
+    with pytest.raises(ModelMissesEffect, match="too few levels agree on R_s") as refusal:
+        kept_levels(names, thetas, errors, nameplate=0.186, h=1e-4, small=small)
+    assert "its 0.21 A may be too small" in str(refusal.value)
+    assert "[operating_point] torque = 0.05 N m" in str(refusal.value)
     # twice the nameplate's R_s on a 40 uH motor moves the pole by 0.4%: kept
     thetas[:, 0] = [3.3e-3, 3.2e-3, 3.3e-3, 3.26e-3]
     thetas[:, 1:3] = 40e-6

@@ -39,6 +39,7 @@ __all__ = [
     "kept_levels",
     "left_out_text",
     "misled_levels",
+    "small_levels",
     "too_few_levels",
 ]
 
@@ -143,15 +144,38 @@ def left_out_text(
     )
 
 
+def small_levels(current: float, torque: float) -> str:
+    """What :func:`too_few_levels` says of commissioned levels whose highest is far from
+    the nameplate's R_s: its current (A) may be small against the dead time, and the
+    levels are shares of the stated rated ``torque`` (N m), the user's to raise.
+
+    Parameters
+    ----------
+    current : float
+        The highest level's current reference's magnitude, A.
+    torque : float
+        ``[operating_point] torque``, N m.
+    """
+    return (
+        f"its {current:.3g} A may be too small against the dead time; the levels are "
+        f"shares of [operating_point] torque = {torque:g} N m, which should be the "
+        "motor's rated torque"
+    )
+
+
 def too_few_levels(
     names: Sequence[str], thetas: Array, errors: Array, left: Sequence[int],
-    nameplate: float | None = None,
+    nameplate: float | None = None, small: str = "",
 ) -> ModelMissesEffect:  # fmt: skip
     """The refusal when fewer than two levels, the highest among them, are kept
-    (arguments as :func:`left_out_text`'s)."""
+    (arguments as :func:`left_out_text`'s; ``small``: where the highest level is left
+    out too, what says that its current is the user's to raise, appended)."""
+    top_too = bool(small) and len(names) - 1 in left
+    raise_it = f"; the highest level's R_s is far from the nameplate's too: {small}"
     return ModelMissesEffect(
         "too few levels agree on R_s for a schedule (at least two, the highest among "
-        f"them): {left_out_text(names, thetas, errors, left, nameplate)}",
+        f"them): {left_out_text(names, thetas, errors, left, nameplate)}"
+        + (raise_it if top_too else ""),
         statistic=float(len(names) - len(left)), threshold=2.0,
         causes=("the inverter's dead time near zero current", "a coarse ADC"),
     )  # fmt: skip
@@ -159,7 +183,7 @@ def too_few_levels(
 
 def kept_levels(
     names: Sequence[str], thetas: Array, errors: Array, nameplate: float | None = None,
-    h: float = 0.0,
+    h: float = 0.0, small: str = "",
 ) -> tuple[list[int], str]:  # fmt: skip
     """The levels a schedule is designed on and why the others were left out
     (:func:`misled_levels`; "" when none were).
@@ -170,6 +194,9 @@ def kept_levels(
         As :func:`left_out_text` takes them.
     h : float
         Sampling period, s (with ``nameplate``).
+    small : str
+        What the refusal says where the highest level is far from the nameplate too
+        (:func:`too_few_levels`).
 
     Returns
     -------
@@ -186,5 +213,5 @@ def kept_levels(
     left = misled_levels(thetas, errors, nameplate, h)
     kept = [k for k in range(len(names)) if k not in left]
     if len(kept) < 2 or len(names) - 1 in left:
-        raise too_few_levels(names, thetas, errors, left, nameplate)
+        raise too_few_levels(names, thetas, errors, left, nameplate, small)
     return kept, left_out_text(names, thetas, errors, left, nameplate) if left else ""

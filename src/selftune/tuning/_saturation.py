@@ -64,7 +64,7 @@ from ..sim import DriveSettings, RealisticDrive, Saturation, held, uniform
 from ._curvature import with_curvature
 from ._interior import CURRENT_REFERENCE_F, D_SHARE, check_current_range, current_steps
 from ._learning import learning_options, longer_batch
-from ._resistance import kept_levels
+from ._resistance import kept_levels, small_levels
 from ._settings import TuningSettings
 
 __all__ = [
@@ -566,6 +566,7 @@ def commission_over_current(
     kept, why = kept_levels(
         names, np.array([level.theta for level in learned_levels]),
         np.array([level.standard_errors for level in learned_levels]), motor.R_s, settings.h,
+        small_levels(float(np.hypot(*learned_levels[-1].reference)), settings.torque),
     )  # fmt: skip
     found = with_curvature([learned_levels[k] for k in kept])
     currents = np.array([level.reference[1] for level in found])
