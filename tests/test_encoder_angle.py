@@ -63,17 +63,20 @@ def test_an_exact_angle_has_no_count() -> None:
 @settings(max_examples=60, deadline=None)
 @given(rate=rates, offset=st.floats(0.0, 1.0), p=poles)
 def test_an_encoders_rounding_is_averaged_out(rate: float, offset: float, p: int) -> None:
-    """Away from the ends (where the window is cut short), the angle read is within a
-    tenth of a count of the truth in its deviation, where the rounding's is 0.29."""
+    """The angle read is within a tenth of a count of the truth in its deviation, where
+    the rounding's is 0.29, and nowhere a quarter of a count off (the first and last rows
+    read the line through the window at their end: the first row's own window would be
+    its count as logged)."""
     count = 2 * np.pi * p / 4096
     if rate * count > 0.5 * np.pi:
         return
     angle, truth = encoder_angle(rate, offset, count)
     read = read_angle(angle)
-    error = np.angle(np.exp(1j * (read - truth)))[500:-500] / count
-    raw = np.angle(np.exp(1j * (angle - truth)))[500:-500] / count
-    assert float(np.std(raw)) == pytest.approx(np.sqrt(1 / 12), rel=0.1)
+    error = np.angle(np.exp(1j * (read - truth))) / count
+    raw = np.angle(np.exp(1j * (angle - truth))) / count
+    assert float(np.std(raw)) > 0.2  # the counts' rounding is there (0.29 at most rates)
     assert float(np.sqrt(np.mean(error**2))) < 0.1
+    assert float(np.max(np.abs(error))) < 0.25
 
 
 def test_a_held_speeds_error_covers_an_encoders_rounding() -> None:

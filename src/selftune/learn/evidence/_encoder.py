@@ -123,15 +123,15 @@ def rounding_cycles(angle: Array, count: float) -> float:
 
 def read_angle(angle: Array) -> Array:
     """An encoder's angle read to better than its count: each row's the mean of the
-    unwrapped angle over the rows about it (as many on each side, fewer near the ends)
-    over which its rounding errors run through :data:`AVERAGED_COUNTS` counts; any other
-    angle as it is.
+    unwrapped angle over the rows about it (as many on each side) over which its rounding
+    errors run through :data:`AVERAGED_COUNTS` counts; any other angle as it is.
 
     The rounding errors run through a count every ``1 / d`` rows, ``d`` what
     :func:`rounding_cycles` finds a row (at 4.04 counts a row, every 25 rows: a window of
     a few rows, 16 counts of the angle, left 0.24 of a count of the 0.29 the rounding
-    has). A centred mean leaves an angle turning at a constant speed as
-    it is.
+    has). The rows nearer an end than half the window read the least-squares line through
+    the window at that end. A centred mean, and a line, leave an angle turning at a
+    constant speed as it is.
 
     Parameters
     ----------
@@ -155,5 +155,20 @@ def read_angle(angle: Array) -> Array:
     rows = np.arange(line.size)
     reach = np.minimum(half, np.minimum(rows, line.size - 1 - rows))
     sums = np.concatenate([[0.0], np.cumsum(line - line[0])])
-    mean = (sums[rows + reach + 1] - sums[rows - reach]) / (2 * reach + 1)
-    return line[0] + mean
+    read = line[0] + (sums[rows + reach + 1] - sums[rows - reach]) / (2 * reach + 1)
+    ends = slice(0, half), slice(line.size - half, line.size)
+    fits = slice(0, 2 * half + 1), slice(line.size - 2 * half - 1, line.size)
+    at = rows.astype(float)
+    for fitted, end in zip(fits, ends, strict=True):
+        read[end] = _line_at(at[fitted], line[fitted], at[end])
+    return read
+
+
+def _line_at(rows: Array, values: Array, at: Array) -> Array:
+    """The least-squares line through ``values`` at ``rows``, at the rows ``at``: the
+    rows nearer an end than the window's half read with the whole window, not a shorter
+    one (the first row's would be the count as logged)."""
+    middle = float(np.mean(rows))
+    centred = rows - middle
+    slope = float(centred @ (values - np.mean(values))) / float(centred @ centred)
+    return float(np.mean(values)) + slope * (at - middle)
