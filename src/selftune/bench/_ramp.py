@@ -224,7 +224,9 @@ def measure_ramp(
     return RampStudy(tuple(results), time.perf_counter() - started, encoder_counts)
 
 
-def measure_ramp_draws(count: int = 60, seed: int = 11, progress: bool = True) -> RampStudy:
+def measure_ramp_draws(
+    count: int = 60, seed: int = 11, progress: bool = True, encoder_counts: int | None = None
+) -> RampStudy:
     """The study on ``count`` motors drawn at random (:func:`~._interior.drawn_cases` with
     ``seed``): what no motor of the table was chosen for (about 3-8 s a run).
 
@@ -236,17 +238,20 @@ def measure_ramp_draws(count: int = 60, seed: int = 11, progress: bool = True) -
         Seed of the draws and of each run's own seed.
     progress : bool
         Show a progress bar of the runs.
+    encoder_counts : int, optional
+        The logs' angle as an encoder of that many counts a mechanical turn reads it
+        (:class:`~selftune.sim.DriveSettings`); None: the exact angle.
     """
 
     def run(number: int) -> RampCase:
         motor, speed, torque, bus, case_seed, adc_range = cases[number]
         label = f"drawn {number + 1}: {_label(motor)}, {motor.p * speed:.0f} rad/s"
-        return _run(motor, speed, torque, bus, case_seed, label, adc_range)
+        return _run(motor, speed, torque, bus, case_seed, label, adc_range, encoder_counts)
 
     cases = drawn_cases(count, seed)
     started = time.perf_counter()
     results = with_progress(list(range(count)), run, "ramp draws", progress)
-    return RampStudy(tuple(results), time.perf_counter() - started)
+    return RampStudy(tuple(results), time.perf_counter() - started, encoder_counts)
 
 
 def markdown_ramp(study: RampStudy) -> list[str]:
