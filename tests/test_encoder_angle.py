@@ -45,6 +45,7 @@ poles = st.integers(1, 20)
 
 @settings(max_examples=60, deadline=None)
 @given(rate=rates, offset=st.floats(0.0, 1.0), counts=encoders, p=poles)
+@example(rate=24.484813945939887, offset=0.5, counts=65536, p=1)  # 7 digits: 0.01 counts
 def test_an_encoders_count_is_found(rate: float, offset: float, counts: int, p: int) -> None:
     count = 2 * np.pi * p / counts
     if rate * count > 0.5 * np.pi:  # more than a quarter turn a row: not an angle sampled

@@ -29,10 +29,12 @@ AVERAGED_COUNTS = 16
 #: to be read as an encoder's.
 WHOLE_SHARE = 0.99
 
-#: How near a whole number of counts a step must be, in counts (a log's angle written
-#: with 7 significant digits, or as a 32-bit float, is within 3e-3 counts of its count on
-#: a 65,536-count encoder on one pole pair).
-COUNT_TOLERANCE = 0.01
+#: How near a whole number of counts a step must be, in counts: a log's angle written
+#: with 7 significant digits is within 5e-7 rad of its count, so a step within 1e-6 rad,
+#: 0.0104 counts of a 65,536-count encoder on one pole pair (at 0.01, 8-15% of such
+#: angles were not read as an encoder's). Steps that are not counts do not come near:
+#: closer than :data:`DIGITS` they are one (a continuous speed's steps are all one).
+COUNT_TOLERANCE = 0.05
 
 #: Steps closer than this (rad) are the same count written with a log's digits (7
 #: significant digits of an angle up to pi: 5e-7 rad; an encoder's count is 1e-4 rad at
