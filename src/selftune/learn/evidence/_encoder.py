@@ -41,6 +41,11 @@ COUNT_TOLERANCE = 0.05
 #: 65,536 counts a turn, 6e-6 at 2**20, where the gap between counts is taken instead).
 DIGITS = 1e-5
 
+#: The smallest count read, rad: an encoder of 2**32 counts a turn on one pole pair
+#: counts 1.5e-9 rad. An exact angle's steps differ in their last bits (4e-16 rad near
+#: pi), which would read as whole counts of one bit.
+SMALLEST_COUNT = 1e-9
+
 #: The longest repeating pattern of rows (``Q`` of :func:`rounding_cycles`) whose drift
 #: is taken as the rounding's own.
 LONGEST_PATTERN = 16
@@ -64,7 +69,8 @@ def angle_count(angle: Array) -> float | None:
 
     ``q`` is the smallest gap between the means of the angle's distinct steps (an encoder
     at 8.3 counts a sample steps by 8 and 9 counts; steps closer than :data:`DIGITS`, or
-    than a quarter of the largest gap, are one count written with a log's digits),
+    than a quarter of the largest gap, are one count written with a log's digits, and
+    never apart by less than :data:`SMALLEST_COUNT`),
     refined by least squares over the whole steps; at least :data:`WHOLE_SHARE` of the
     steps that do not wrap must be whole numbers of it.
 
@@ -81,7 +87,8 @@ def angle_count(angle: Array) -> float | None:
     gaps = np.diff(ordered)
     if float(np.max(gaps)) == 0.0:
         return None
-    apart = min(DIGITS, 0.25 * float(np.max(gaps)))  # gaps between different counts
+    # gaps between different counts: not a float's last bits (an exact angle's steps)
+    apart = max(min(DIGITS, 0.25 * float(np.max(gaps))), SMALLEST_COUNT)
     cluster = np.concatenate([[0], np.cumsum(gaps > apart)])
     centres = np.bincount(cluster, weights=ordered) / np.bincount(cluster)  # one a count
     if centres.size < 2:
