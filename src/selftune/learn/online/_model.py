@@ -24,7 +24,6 @@ from ...core import Array, positive_finite
 from ...errors import InputError
 from ..evidence._dead_time import phase_signs
 from ..evidence._discrete_model import DiscreteModel
-from ..evidence._encoder import read_angle
 from ..evidence._pulses import lost_signs
 from ._moments import ForgettingMoments, add_rows, transposed_covariance
 
@@ -133,9 +132,7 @@ class OnlineModel:
         w : ndarray, shape (T, q)
             Exogenous signal held during it.
         angle : ndarray, shape (T,), optional
-            Electrical angle at each row, rad (needed with ``dead_time``); an encoder's
-            is read to better than its count over the chunk
-            (:func:`~..evidence._encoder.read_angle`).
+            Electrical angle at each row, rad (needed with ``dead_time``).
         """
         if self.dead_time and angle is None:
             raise InputError("angle: the dead-time model needs the electrical angle of each row")
@@ -143,8 +140,7 @@ class OnlineModel:
         held = 0 if self._tail is None else self._tail[0].shape[0]
         data = np.empty((held + T, n + m + w.shape[1]))  # rows [x_k, a_k, w_k]
         data[held:, :n], data[held:, n : n + m], data[held:, n + m :] = x, a, w
-        # an encoder's angle read to better than its count (the chunk's own rows)
-        angles = np.zeros(T) if angle is None else read_angle(angle)
+        angles = np.zeros(T) if angle is None else angle
         if self._tail is not None:
             data[:held] = self._tail[0]
             angles = np.concatenate([self._tail[1], angles])
