@@ -41,7 +41,7 @@ from ._problem import LearningOptions, LearningProblem
 from ._result import LearnedController
 from .data._trajectory import Trajectory
 from .evidence._dead_time import check_angle
-from .evidence._encoder import angle_count, rounding_cycles, unwrapped
+from .evidence._encoder import angle_count, fitted_line, rounding_cycles, unwrapped
 from .verdict._quality import MotorEstimate
 from .verdict._verdict import motor_estimate
 
@@ -129,9 +129,7 @@ def _trend(times: Array, speeds: Array) -> float:
     over their span, rad/s (zero for one point)."""
     if times.size < 2:
         return 0.0
-    centred = times - np.mean(times)
-    slope = float(centred @ (speeds - np.mean(speeds))) / float(centred @ centred)
-    return abs(slope) * float(times[-1] - times[0])
+    return abs(fitted_line(times, speeds)[2]) * float(times[-1] - times[0])
 
 
 def _blocks(log: Trajectory) -> tuple[Array, Array, Array]:
@@ -185,11 +183,10 @@ def _held_line(
     which left the flux at 6 of its standard errors.
     """
     rows = slice(first, last + 1)
-    times = t[rows] - float(np.mean(t[rows]))
-    angles = angle[rows] - float(np.mean(angle[rows]))
+    middle, mean, slope = fitted_line(t[rows], angle[rows])
+    times = t[rows] - middle
     spread = float(times @ times)
-    slope = float(times @ angles) / spread
-    residual = angles - slope * times
+    residual = angle[rows] - mean - slope * times
     white = float(np.sqrt(residual @ residual / max(times.size - 2, 1) / spread))
     if count is None:  # not an encoder's: no rounding
         return slope, white

@@ -171,11 +171,11 @@ def too_few_levels(
     (arguments as :func:`left_out_text`'s; ``small``: where the highest level is left
     out too, what says that its current is the user's to raise, appended)."""
     top_too = bool(small) and len(names) - 1 in left
-    raise_it = f"; the highest level's R_s is far from the nameplate's too: {small}"
+    top_text = f"; the highest level's R_s is far from the nameplate's too: {small}"
     return ModelMissesEffect(
         "too few levels agree on R_s for a schedule (at least two, the highest among "
         f"them): {left_out_text(names, thetas, errors, left, nameplate)}"
-        + (raise_it if top_too else ""),
+        + (top_text if top_too else ""),
         statistic=float(len(names) - len(left)), threshold=2.0,
         causes=("the inverter's dead time near zero current", "a coarse ADC"),
     )  # fmt: skip

@@ -19,7 +19,14 @@ import numpy as np
 
 from ...core import Array
 
-__all__ = ["AVERAGED_COUNTS", "angle_count", "read_angle", "rounding_cycles", "unwrapped"]
+__all__ = [
+    "AVERAGED_COUNTS",
+    "angle_count",
+    "fitted_line",
+    "read_angle",
+    "rounding_cycles",
+    "unwrapped",
+]
 
 #: The counts the angle moves over the window it is averaged on (:func:`read_angle`):
 #: what is left of the rounding is about ``q / (8 n)`` for ``n`` counts.
@@ -158,7 +165,7 @@ def read_angle(angle: Array) -> Array:
     line = unwrapped(angle)
     distance = rounding_cycles(line, count) / max(line.size - 1, 1)
     longest = (line.size - 1) // 2
-    if distance == 0.0 or longest == 0:  # the same rounding at every row: nothing cancels
+    if longest == 0:  # a row or two: nothing to average
         return angle
     half = min(math.ceil(0.5 * AVERAGED_COUNTS / distance), longest)
     rows = np.arange(line.size)
@@ -173,11 +180,23 @@ def read_angle(angle: Array) -> Array:
     return read
 
 
+def fitted_line(x: Array, y: Array) -> tuple[float, float, float]:
+    """The least-squares line through the points ``(x, y)``: the mean of ``x``, the mean
+    of ``y`` (the line's value there) and its slope.
+
+    Parameters
+    ----------
+    x, y : ndarray, shape (T,)
+        At least two points, ``x`` not all equal.
+    """
+    middle, mean = float(np.mean(x)), float(np.mean(y))
+    centred = x - middle
+    return middle, mean, float(centred @ (y - mean)) / float(centred @ centred)
+
+
 def _line_at(rows: Array, values: Array, at: Array) -> Array:
     """The least-squares line through ``values`` at ``rows``, at the rows ``at``: the
     rows nearer an end than the window's half read with the whole window, not a shorter
     one (the first row's would be the count as logged)."""
-    middle = float(np.mean(rows))
-    centred = rows - middle
-    slope = float(centred @ (values - np.mean(values))) / float(centred @ centred)
-    return float(np.mean(values)) + slope * (at - middle)
+    middle, mean, slope = fitted_line(rows, values)
+    return mean + slope * (at - middle)
