@@ -137,3 +137,35 @@ def test_a_resistance_step_is_detected_within_50_ms(seed: int) -> None:
     step = (20_000 - 2_100) // 100
     assert not any(alarms[:step])
     assert any(alarms[step : step + 5])
+
+
+def test_a_renewed_reference_scores_from_an_empty_window() -> None:
+    """Every chunk of a window is scored against one reference: after a look renews it,
+    the test is a fresh watch's on the chunks since (before, the window kept chunks
+    scored against the last reference; where their loads cancelled, the variance missed
+    the two references' difference and a warming motor alarmed)."""
+    x, a, w = _dq_motor(4_000, 5, np.full(4_000, MOTOR.R_s), 0.01)
+    structure = SpmsmStructure(MOTOR.p * SPEED, H, hold="rotor")
+    model, watch = OnlineModel(H, (1.0,), 2, 2, 2), ChangeWatch(500, 1e-4)
+
+    def renewed(target: ChangeWatch) -> None:
+        estimate = physical_estimate(model.model(), structure, np.array([0.5, 7e-3, 1.0]))
+        Theta, _, covariance = model.moments[0].estimate()
+        target.reference(Theta, model.moments[0].noise(Theta), estimate.sensitivities,
+                         covariance)  # fmt: skip
+
+    def chunk(k: int) -> tuple[np.ndarray, ...]:
+        return model.add(x[k : k + 100], a[k : k + 100], w[k : k + 100])
+
+    for k in range(0, 2_000, 100):
+        chunk(k)
+    renewed(watch)
+    for k in range(2_000, 2_400, 100):
+        assert watch.add(*chunk(k)) is not None
+    renewed(watch)
+    fresh = ChangeWatch(500, 1e-4)
+    renewed(fresh)
+    rows = chunk(2_400)
+    kept, alone = watch.add(*rows), fresh.add(*rows)
+    assert kept is not None and alone is not None
+    np.testing.assert_array_equal(kept.scores, alone.scores)
