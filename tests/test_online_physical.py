@@ -139,11 +139,11 @@ def test_a_resistance_step_is_detected_within_50_ms(seed: int) -> None:
     assert any(alarms[step : step + 5])
 
 
-def test_a_renewed_reference_scores_from_an_empty_window() -> None:
+def test_a_renewed_reference_scores_the_whole_window_again() -> None:
     """Every chunk of a window is scored against one reference: after a look renews it,
-    the test is a fresh watch's on the chunks since (before, the window kept chunks
-    scored against the last reference; where their loads cancelled, the variance missed
-    the two references' difference and a warming motor alarmed)."""
+    the test is a fresh watch's on the same chunks with the new reference (before, the
+    window kept chunks scored against the last reference; where their loads cancelled,
+    the variance missed the two references' difference and a warming motor alarmed)."""
     x, a, w = _dq_motor(4_000, 5, np.full(4_000, MOTOR.R_s), 0.01)
     structure = SpmsmStructure(MOTOR.p * SPEED, H, hold="rotor")
     model, watch = OnlineModel(H, (1.0,), 2, 2, 2), ChangeWatch(500, 1e-4)
@@ -160,12 +160,14 @@ def test_a_renewed_reference_scores_from_an_empty_window() -> None:
     for k in range(0, 2_000, 100):
         chunk(k)
     renewed(watch)
-    for k in range(2_000, 2_400, 100):
-        assert watch.add(*chunk(k)) is not None
+    held = [chunk(k) for k in range(2_000, 2_400, 100)]
+    first = [watch.add(*rows) for rows in held]
     renewed(watch)
     fresh = ChangeWatch(500, 1e-4)
     renewed(fresh)
-    rows = chunk(2_400)
-    kept, alone = watch.add(*rows), fresh.add(*rows)
-    assert kept is not None and alone is not None
-    np.testing.assert_array_equal(kept.scores, alone.scores)
+    held.append(chunk(2_400))
+    kept = watch.add(*held[-1])
+    alone = [fresh.add(*rows) for rows in held][-1]
+    assert kept is not None and alone is not None and first[-1] is not None
+    np.testing.assert_allclose(kept.scores, alone.scores, rtol=1e-12, atol=0)
+    assert not np.allclose(kept.scores, first[-1].scores, rtol=1e-6, atol=0)
