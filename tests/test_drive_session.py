@@ -145,6 +145,7 @@ def assert_chunks_equal_one_run(
         (DriveSettings(dc_voltage=30.0), 0.0),  # the limit reached: the stepper
         (DriveSettings(input_delay=2, logged_input="commanded"), ROUNDING),
         (DriveSettings.ideal(), ROUNDING),
+        (dataclasses.replace(HARDWARE, current_noise=0.0, encoder_counts=1001), 0.0),
     ],
 )
 def test_one_chunk_from_rest_is_the_drives_record(
@@ -192,6 +193,25 @@ def test_chunks_of_any_sizes_equal_one_run(
     assert_chunks_equal_one_run(
         drive, sizes, servo_law(), tolerance, profile=profile, max_hold=1e-3
     )
+
+
+def test_an_encoders_counts_continue_across_chunks() -> None:
+    """The angle column as an encoder logs it, chunk after chunk, is the one run's (to
+    the bit) and stays on one grid of counts of the turns since the start: 1001 counts on
+    the motor's pole pairs, so an electrical turn is not a whole number of counts and a
+    chunk that read its own angle from its first sample would move the grid."""
+    drive = RealisticDrive(MOTOR, SPEED, H, dataclasses.replace(HARDWARE, encoder_counts=1001))
+    sizes = [1, 2, 97, 400, 3, 497]
+    one = run_in_chunks(drive, [sum(sizes)], servo_law())[0]
+    angle = joined(run_in_chunks(drive, sizes, servo_law()), "angle")
+    np.testing.assert_array_equal(angle, one.angle)
+    count = 2 * np.pi * MOTOR.p / 1001
+    turned = np.unwrap(angle) / count
+    np.testing.assert_allclose(turned, np.round(turned), rtol=0, atol=1e-9)
+    exact = RealisticDrive(MOTOR, SPEED, H, HARDWARE)
+    truth = joined(run_in_chunks(exact, sizes, servo_law()), "angle")
+    error = np.abs(np.angle(np.exp(1j * (angle - truth))))
+    assert 0.1 * count < np.max(error) <= 0.5 * count + 1e-12
 
 
 def test_the_matrices_are_the_stepper_through_a_ramp_and_a_step(

@@ -4,12 +4,16 @@ read off the least-squares line through it with an error that covers the roundin
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from selftune import SPMSM
 from selftune.bench import markdown_ramp, measure_ramp_draws
+from selftune.core import ControlLaw
 from selftune.learn import Trajectory
 from selftune.learn._speeds import speed_errors, speed_segments
 from selftune.learn.evidence._encoder import (
@@ -19,6 +23,8 @@ from selftune.learn.evidence._encoder import (
     rounding_cycles,
     unwrapped,
 )
+from selftune.learn.online import OnlineModel
+from selftune.sim import DriveSettings, RealisticDrive, held, uniform
 
 H = 1e-4
 ROWS = 5000
@@ -128,3 +134,43 @@ def test_the_drawn_motors_study_runs_with_an_encoder() -> None:
     assert case.learned, case.refusal_text
     assert case.largest_z < 3.0
     assert "4096-count encoder" in markdown_ramp(study)[0]
+
+
+def _online_rows(counts: int | None) -> np.ndarray:
+    """The online model's regressors (the dead-time channels last) on 0.3 s of the online
+    bench's large motor (0.05 ohm, 0.8 mH, 8 pole pairs: the dead time is most of its
+    voltage at low current) on the hardware-like drive, the angle logged by an encoder
+    of ``counts`` counts a turn (None: the exact angle), fed in chunks of 100 rows."""
+    motor, speed, torque = SPMSM(R_s=0.05, L_s=8e-4, phi_pm=0.25, p=8), 20.0, 20.0
+    settings = replace(DriveSettings.hardware_like(h=H), logged_input="commanded",
+                       encoder_counts=counts)  # fmt: skip
+    w = motor.exogenous(speed, torque)
+    levels = np.array([1.0, 1 / 3, -1 / 3, -1.0])
+
+    def reference(t: np.ndarray) -> np.ndarray:
+        level = levels[np.floor(t / 0.01).astype(int) % levels.size]
+        return np.column_stack([np.full_like(t, w[0]), level * torque])
+
+    F = motor.regulation_problem(speed).F
+    law = ControlLaw.regulator(np.eye(2), -F, np.array([[0.0, 0.0], [1.0, 0.0]]))
+    log = RealisticDrive(motor, speed, H, settings).run(
+        law, held(reference), num_samples=3000, exploration=uniform(10.8), seed=1
+    )
+    assert log.angle is not None
+    model = OnlineModel(H, (1.0,), 2, 2, 2, dead_time=True)
+    applied = np.vstack([np.zeros((1, 2)), log.u[:-1]])
+    return np.concatenate([
+        model.add(log.x[k : k + 100], applied[k : k + 100], log.w[k : k + 100],
+                  log.angle[k : k + 100])[1]
+        for k in range(0, log.x.shape[0] - 1, 100)
+    ])  # fmt: skip
+
+
+def test_the_online_model_reads_an_encoders_angle() -> None:
+    """Chunk by chunk, a 1,024-count encoder's angle gives the online model dead-time
+    channels as close to the exact angle's as a 16,384-count one (mean difference 0.0037
+    and 0.0031; as logged, 0.0215: on the online bench's large motor the tuner's R_s was
+    then within one standard error at 2-6% of the looks of a warm-up)."""
+    exact = _online_rows(None)[:, -2:]
+    coarse, fine = (np.mean(np.abs(_online_rows(n)[:, -2:] - exact)) for n in (1024, 16384))
+    assert coarse <= 1.5 * fine, (coarse, fine)

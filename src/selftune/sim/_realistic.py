@@ -450,6 +450,30 @@ def _as_pairs(values: ComplexArray) -> Array:
     return np.stack([values.real, values.imag], axis=-1)
 
 
+def encoder_angle(turned: Array, pole_pairs: ArrayLike, counts: int) -> Array:
+    """The electrical angle as an encoder of ``counts`` counts a mechanical turn logs it.
+
+    Parameters
+    ----------
+    turned : ndarray, shape (P, N)
+        Each rotor's electrical angle at each sample, rad, unwrapped (continuous over
+        the turns: the count grid turns ``p`` times a mechanical turn, and where ``p``
+        does not divide ``counts`` an electrical turn is not a whole number of counts).
+    pole_pairs : array_like, shape (P,)
+        Each rotor's pole pairs.
+    counts : int
+        Counts a mechanical turn.
+
+    Returns
+    -------
+    ndarray, shape (P, N)
+        ``p`` times the mechanical angle in whole counts of ``2 pi / counts``, wrapped
+        to ``(-pi, pi]``, rad.
+    """
+    count = 2.0 * np.pi * np.asarray(pole_pairs, dtype=float)[:, np.newaxis] / counts
+    return np.angle(np.exp(1j * np.round(turned / count) * count))
+
+
 def _records(
     inputs: LoopInputs, outputs: LoopOutputs, settings: DriveSettings, t: Array
 ) -> list[DriveRecord]:
@@ -466,10 +490,8 @@ def _records(
     w = np.broadcast_to(inputs.w, (true_dq.shape[0], *inputs.w.shape[1:]))
     angles = np.angle(inputs.rotor)  # the rotor angle at each sample, in (-pi, pi]
     if settings.encoder_counts is not None:  # the log's angle in whole counts of the turn
-        count = 2.0 * np.pi * np.asarray(inputs.motor.p, dtype=float) / settings.encoder_counts
-        turned = np.unwrap(angles, axis=-1)  # p turns of the count grid a mechanical turn
-        angles = np.angle(
-            np.exp(1j * np.round(turned / count[:, np.newaxis]) * count[:, np.newaxis])
+        angles = encoder_angle(
+            np.unwrap(angles, axis=-1), np.asarray(inputs.motor.p), settings.encoder_counts
         )
     records = []
     for index in range(true_dq.shape[0]):

@@ -68,6 +68,7 @@ from ._realistic import (
     _laws,
     _loop_inputs,
     _read_only,
+    encoder_angle,
 )
 from ._stepper import Feedback, feedback_of
 
@@ -98,7 +99,9 @@ class DriveChunk:
     reference : ndarray, shape (q,)
         The law's ``w``, held over the chunk.
     angle : ndarray, shape (N + 1,)
-        Electrical rotor angle at each sample, rad, in ``(-pi, pi]``.
+        Electrical rotor angle at each sample as the drive logs it, rad, in ``(-pi,
+        pi]``: an encoder's counts with :attr:`DriveSettings.encoder_counts`, on the
+        grid of the turns since the start (the run's own, chunk after chunk).
     true_currents : ndarray, shape (N + 1, 2)
         Noise-free ``[i_d, i_q]``, A.
     applied_voltages : ndarray, shape (N, 2)
@@ -454,6 +457,16 @@ class DriveSession:
             None if noise is None else noise[:, a : b + 1],
         )  # fmt: skip
 
+    def _logged_angle(self, first: int, count: int, rotor: ComplexArray) -> Array:
+        """The angle column of samples ``first .. first + count``: the rotor's, or an
+        encoder's reading of the angle turned since the start (``w_e t``, as the rotor)."""
+        counts = self.drive.settings.encoder_counts
+        if counts is None:
+            return np.angle(rotor)
+        speed = float(self._nameplate.electrical_speed[0])
+        turned = speed * self.drive.h * np.arange(first, first + count + 1, dtype=float)
+        return encoder_angle(turned[np.newaxis], [self._true.p], counts)[0]
+
     def _advanced(self, outputs: LoopOutputs) -> None:
         """The session's state moved to where ``outputs`` stop."""
         state = outputs.state
@@ -538,7 +551,7 @@ class DriveSession:
             measured=_read_only(_as_pairs(measured)),
             logged_input=_read_only(logged.copy()),
             reference=_read_only(w[0, 0].copy()),
-            angle=_read_only(np.angle(rotor)),
+            angle=_read_only(self._logged_angle(first, count, rotor)),
             true_currents=_read_only(_as_pairs(true_dq)),
             applied_voltages=_read_only(_as_pairs(applied)),
             commanded_voltages=_read_only(computed.copy()),

@@ -137,7 +137,7 @@ def rounding_cycles(angle: Array, count: float) -> float:
     return float(np.min(patterns * np.maximum(drift, 0.5)))
 
 
-def read_angle(angle: Array) -> Array:
+def read_angle(angle: Array, count: float | None = None) -> Array:
     """An encoder's angle read to better than its count: each row's the mean of the
     unwrapped angle over the rows about it (as many on each side) over which its rounding
     errors run through :data:`AVERAGED_COUNTS` counts; any other angle as it is.
@@ -153,13 +153,17 @@ def read_angle(angle: Array) -> Array:
     ----------
     angle : ndarray, shape (T,)
         An electrical angle, rad.
+    count : float, optional
+        Its encoder's count, rad, where already known (a drive's log read chunk by
+        chunk); None: :func:`angle_count` of its steps.
 
     Returns
     -------
     ndarray, shape (T,)
         The angle read, rad (unwrapped, where it is an encoder's).
     """
-    count = angle_count(angle)
+    if count is None:
+        count = angle_count(angle)
     if count is None:
         return angle
     line = unwrapped(angle)

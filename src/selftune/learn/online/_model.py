@@ -24,6 +24,7 @@ from ...core import Array, positive_finite
 from ...errors import InputError
 from ..evidence._dead_time import phase_signs
 from ..evidence._discrete_model import DiscreteModel
+from ..evidence._encoder import angle_count, read_angle
 from ..evidence._pulses import lost_signs
 from ._moments import ForgettingMoments, add_rows, transposed_covariance
 
@@ -73,6 +74,10 @@ class OnlineModel:
     dead_time_voltage: float = 0.0
     _memories: list[ForgettingMoments] = field(init=False, repr=False)
     _tail: tuple[Array, Array] | None = field(init=False, default=None, repr=False)
+    # the angle's encoder count, rad, once a chunk has shown it (None: an exact angle;
+    # not decided while the angle has not moved)
+    _count: float | None = field(init=False, default=None, repr=False)
+    _counted: bool = field(init=False, default=False, repr=False)
     # the waiting transitions, rows 1 to _waiting, laid out [zeta_(k-1), zeta_k, z_k, y_k,
     # z_(k-1), y_(k-1)]; row 0 the transition added last (zeros before the first). A
     # full buffer is replaced, not overwritten: the rows :meth:`add` returned stay valid.
@@ -112,6 +117,15 @@ class OnlineModel:
         buffer[0] = 0.0 if last is None else last
         return buffer
 
+    def _read(self, angle: Array) -> Array:
+        """A chunk's angle: an encoder's read to better than its count over the chunk's
+        own rows (the count found once: its search is a third of the reading's cost, and
+        on every chunk of an exact angle the only one)."""
+        if not self._counted:
+            self._count = angle_count(angle)
+            self._counted = self._count is not None or bool(np.ptp(angle) > 0.0)
+        return angle if self._count is None else read_angle(angle, self._count)
+
     @property
     def channels(self) -> int:
         """Exogenous channels of the model: the reference's and, with dead time, two."""
@@ -132,7 +146,10 @@ class OnlineModel:
         w : ndarray, shape (T, q)
             Exogenous signal held during it.
         angle : ndarray, shape (T,), optional
-            Electrical angle at each row, rad (needed with ``dead_time``).
+            Electrical angle at each row, rad (needed with ``dead_time``); an encoder's
+            is read to better than its count over the chunk
+            (:func:`~..evidence._encoder.read_angle`; whether it is an encoder's, and
+            its count, is decided on the first chunk in which the angle moves).
         """
         if self.dead_time and angle is None:
             raise InputError("angle: the dead-time model needs the electrical angle of each row")
@@ -140,7 +157,7 @@ class OnlineModel:
         held = 0 if self._tail is None else self._tail[0].shape[0]
         data = np.empty((held + T, n + m + w.shape[1]))  # rows [x_k, a_k, w_k]
         data[held:, :n], data[held:, n : n + m], data[held:, n + m :] = x, a, w
-        angles = np.zeros(T) if angle is None else angle
+        angles = np.zeros(T) if angle is None else self._read(np.asarray(angle, dtype=float))
         if self._tail is not None:
             data[:held] = self._tail[0]
             angles = np.concatenate([self._tail[1], angles])
