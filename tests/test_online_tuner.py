@@ -19,7 +19,7 @@ import pytest
 import selftune
 from selftune.learn import LearningProblem
 from selftune.learn.online import OnlineSettings, OnlineTuner, _tuner
-from selftune.learn.online._physical import physical_estimate
+from selftune.learn.online._physical import PhysicalEstimate, physical_estimate
 from selftune.learn.online._tuner import GUARD_DOUBT, YOUNG_SHARE
 from selftune.model import solve_digital_regulation
 from selftune.sim import DriveSettings, ParameterProfile, RealisticDrive
@@ -203,3 +203,22 @@ def test_the_docs_example_runs_and_follows_the_step() -> None:
         float(v) for v in re.findall(r"R_s estimated ([0-9.]+) \+- ([0-9.]+)", printed)[0]
     )
     assert abs(estimate - 0.72) <= 3.0 * spread, printed
+
+
+def test_an_estimate_whose_covariance_is_not_positive_definite_is_not_acted_on() -> None:
+    """A look whose instruments leave a direction of the model unexcited gives the
+    parameters round-off of huge variances: some negative, standard errors of 0. It is
+    doubted (probing, no reference for the change watch), naming the cause; the same
+    estimate with a positive definite covariance is not."""
+    law = _optimum(MOTOR).law
+    tuner = OnlineTuner(
+        OnlineSettings(H, 1, _problem(), MOTOR.p * SPEED, dead_time=False), law,
+        np.array([MOTOR.R_s, MOTOR.L_s, 1.0]),
+    )  # fmt: skip
+    theta = np.array([MOTOR.R_s, MOTOR.L_s, 1.0])
+    sensitivities = np.zeros((16, 3))
+    broken = PhysicalEstimate(theta, np.diag([-2.5e5, 9e-11, -93.0]), sensitivities)
+    assert broken.standard_errors[0] == 0.0
+    assert "not positive definite" in tuner._doubt(broken, None)
+    sound = PhysicalEstimate(theta, np.diag([1e-6, 9e-11, 1e-8]), sensitivities)
+    assert tuner._doubt(sound, None) == ""

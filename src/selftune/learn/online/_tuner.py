@@ -99,8 +99,11 @@ GUARD_DOUBT = (0.3, 0.3, 0.3, 0.3)
 #: of the looks, rms 0.83-1.48 (the lower after the resistance step, when the estimates
 #: stayed 0.15-0.19% low: the looks then fall later in the reference's cycle of torque
 #: steps, and the split of the voltage between R_s and the dead-time voltage follows the
-#: current levels the last second holds). L_s: the guard's. Its bars were too narrow on
-#: carrier PWM with dead time (rms 2.7-3.9 on the medium and large motors) for a reason
+#: current levels the last second holds; the servo's warm-up with its looks 0.11 s into
+#: the cycle, rms 1.56: 30% of the correction as R_s's doubt made that 1.25 and the
+#: unshifted run's 0.93 0.68; all of it, 0.59 and 0.30). L_s: the guard's. Its bars
+#: were too narrow on carrier PWM with dead time (rms 2.7-3.9 on the medium and large
+#: motors) for a reason
 #: the share cannot carry: a large torque step's first samples are at the voltage limit,
 #: where a leg's pulse is shorter than the dead time and loses only its own length, which
 #: the model's full dead-time voltage leaves out (:func:`~..evidence._pulses.lost_signs`;
@@ -478,7 +481,12 @@ class OnlineTuner:
         estimate is far off and its standard errors do not say so (on an ideal drive,
         weighing the entries by their variances alone, R_s went from 0.66 to -0.52 ohm in
         0.1 s with a standard error of 0.1 ohm, then to 669 ohm, and laws designed on
-        them were certified)."""
+        them were certified); or its covariance not positive definite (the model's
+        instrument moment singular in a direction, whose entries' huge variances leave
+        round-off of their size in the parameters': on the online bench's medium motor with
+        an encoder's angle and the flux rescaled only beyond two standard errors, R_s and
+        the flux had negative variances, read as standard errors of 0, and the change
+        watch's scores against that reference reached 1e149)."""
         names = self.settings.structure.names(self.settings.dead_time)
         theta = estimate.theta[:3]
         if not np.all(theta > 0.0):
@@ -486,6 +494,13 @@ class OnlineTuner:
                 f"{name} {value:.4g}" for name, value in zip(names, theta, strict=False)
             )
             return f"the estimate is not a motor ({values}): the data do not excite it; probing"
+        covariance = estimate.covariance
+        if not np.all(np.isfinite(covariance)) or np.linalg.eigvalsh(covariance)[0] <= 0.0:
+            return (
+                "the estimate's covariance is not positive definite: the instruments leave "
+                "a direction of the model unexcited, and its error bars would be zero or "
+                "negative; probing"
+            )
         if previous is None:
             return ""
         moved = np.abs(theta / previous.theta[:3] - 1.0)
