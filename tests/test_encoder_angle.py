@@ -12,7 +12,8 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from selftune import SPMSM
-from selftune.bench import markdown_ramp, measure_ramp_draws
+from selftune.bench import ONLINE_MOTORS, markdown_ramp, measure_ramp_draws
+from selftune.bench._online import _config as online_config
 from selftune.core import ControlLaw
 from selftune.learn import Trajectory
 from selftune.learn._speeds import speed_errors, speed_segments
@@ -174,3 +175,13 @@ def test_the_online_model_reads_an_encoders_angle() -> None:
     exact = _online_rows(None)[:, -2:]
     coarse, fine = (np.mean(np.abs(_online_rows(n)[:, -2:] - exact)) for n in (1024, 16384))
     assert coarse <= 1.5 * fine, (coarse, fine)
+
+
+def test_the_online_study_can_log_an_encoders_angle() -> None:
+    """``measure_online(..., encoder_counts=N)`` runs every motor's drive, quick or full,
+    with the encoder; by default the angle is exact."""
+    for index in range(len(ONLINE_MOTORS)):
+        for quick in (True, False):
+            exact, counted = (online_config(index, quick, n).drive for n in (None, 4096))
+            assert exact is not None and exact.encoder_counts is None
+            assert counted is not None and counted.encoder_counts == 4096

@@ -201,16 +201,19 @@ class OnlineStudy:
         The recorded log replayed.
     wall_seconds : float
         The study's time, s.
+    encoder_counts : int or None
+        The drive's angle in an encoder's counts a turn (None: exact).
     """
 
     cases: tuple[OnlineCase, ...]
     replay: OnlineReplay
     wall_seconds: float
+    encoder_counts: int | None = None
 
 
-def _config(index: int, quick: bool) -> MotorConfig:
+def _config(index: int, quick: bool, encoder_counts: int | None = None) -> MotorConfig:
     name, motor, speed, torque, bus, adc = ONLINE_MOTORS[index]
-    drive = _drive(bus, adc)
+    drive = replace(_drive(bus, adc), encoder_counts=encoder_counts)
     if quick:
         drive = replace(drive, pwm="average")
     return MotorConfig(
@@ -219,8 +222,11 @@ def _config(index: int, quick: bool) -> MotorConfig:
     )  # fmt: skip
 
 
-def _case(index: int, profile: tuple[str, ParameterProfile], seed: int, quick: bool) -> OnlineCase:
-    config = _config(index, quick)
+def _case(
+    index: int, profile: tuple[str, ParameterProfile], seed: int, quick: bool,
+    encoder_counts: int | None = None,
+) -> OnlineCase:  # fmt: skip
+    config = _config(index, quick, encoder_counts)
     assert config.drive is not None
     name, shape = profile
     duration = float(shape.time[-1])
@@ -249,11 +255,11 @@ def _case(index: int, profile: tuple[str, ParameterProfile], seed: int, quick: b
     )  # fmt: skip
 
 
-def _replay(quick: bool) -> OnlineReplay:
+def _replay(quick: bool, encoder_counts: int | None = None) -> OnlineReplay:
     """A run's log through CSV and a fresh tuner: the same events, and how fast (the
     full run: the servo's hardware-like drive, 20 s with a step, replayed
     :data:`SPEED_REPEATS` times)."""
-    config = _config(1, True) if quick else _config(0, False)
+    config = _config(1, True, encoder_counts) if quick else _config(0, False, encoder_counts)
     assert config.drive is not None
     settings = tuning_settings(config, 0, "digital")
     profile = QUICK_PROFILE[1] if quick else SPEED_PROFILE[1]
@@ -290,7 +296,9 @@ def _replay(quick: bool) -> OnlineReplay:
     )  # fmt: skip
 
 
-def measure_online(quick: bool, progress: bool = True, seeds: int = 2) -> OnlineStudy:
+def measure_online(
+    quick: bool, progress: bool = True, seeds: int = 2, encoder_counts: int | None = None
+) -> OnlineStudy:
     """Study 11 (see the module).
 
     Parameters
@@ -302,6 +310,10 @@ def measure_online(quick: bool, progress: bool = True, seeds: int = 2) -> Online
         Show a progress bar.
     seeds : int
         Seeds per motor and profile in the full run.
+    encoder_counts : int, optional
+        The drive's angle as an encoder of that many counts a mechanical turn logs it, in
+        the commissioning's logs and the tuner's chunks
+        (:class:`~selftune.sim.DriveSettings`); None: the exact angle.
     """
     if quick:
         cases = [(1, QUICK_PROFILE, 0)]
@@ -313,8 +325,13 @@ def measure_online(quick: bool, progress: bool = True, seeds: int = 2) -> Online
             for seed in range(seeds)
         ]
     started = time.perf_counter()
-    results = with_progress(cases, lambda case: _case(*case, quick), "online", progress)
-    return OnlineStudy(tuple(results), _replay(quick), time.perf_counter() - started)
+    results = with_progress(
+        cases, lambda case: _case(*case, quick, encoder_counts), "online", progress
+    )
+    return OnlineStudy(
+        tuple(results), _replay(quick, encoder_counts), time.perf_counter() - started,
+        encoder_counts,
+    )  # fmt: skip
 
 
 #: The parameters whose error bars are judged (:func:`~selftune.report.error_bars`).
@@ -403,7 +420,12 @@ def markdown_online(study: OnlineStudy) -> list[str]:
         The results.
     """
     lines = [
-        "## 11. The online tuner on drives that heat",
+        "## 11. The online tuner on drives that heat"
+        + (
+            ""
+            if study.encoder_counts is None
+            else f" (the angle a {study.encoder_counts}-count encoder's)"
+        ),
         "",
         "Each motor commissioned by the off-policy learner, then run with the online tuner "
         "in the loop; scored against the truth (`selftune tune --online`). Excess cost: "
