@@ -274,7 +274,7 @@ DRIVE_DEFAULTS = {
 #: under the default K0 (:func:`explored_current`), in current measurement resolutions
 #: (:attr:`~selftune.sim.DriveSettings.current_resolution`): see
 #: :func:`default_exploration`.
-EXPLORED_RESOLUTIONS = 30.0
+EXPLORED_RESOLUTIONS = 60.0
 
 
 def explored_current(motor: IPMSM, h: float, exploration: float) -> Array:
@@ -327,7 +327,14 @@ def default_exploration(config: MotorConfig, h: float | None = None) -> float:
     to 0.06%), at 30% from 0.64% to 0.24%, at rated speed from 0.29% to 0.18%; no motor
     was refused, and the 48 V motors (whose 1.44 V drives amperes) were not raised. At
     20 resolutions instead of 30 drawn 28 (12/30 mH, raised to 24 V rather than 36 V)
-    had L_d's standard error 0.29% at 30% of rated speed, at 30 0.16%.
+    had L_d's standard error 0.29% at 30% of rated speed, at 30 0.16%. At 60 instead of
+    30 the 30 of seed 14 at 5%, 30% and 100% of rated speed had their largest error of
+    L_d, L_q or the flux at 0.30%, 0.12% and 0.15% (1.09%, 0.57% and 0.70%: drawn 5,
+    16.4/24.6 mH rated 0.25 A, raised from 26 V to 52 V), seed 13's at 0.07%, 0.15% and
+    0.07% (0.08%, 0.24%, 0.18%), no motor refused that 30 learned; seed 14's drawn 1
+    (4.5/11.3 mH rated 0.28 A) at 5% has its flux 0.13% off at 3.9 standard errors (0.02%
+    at 0.4). The exploration's current is then up to 6 times such a small motor's rated
+    current for the experiment's 0.5 s; ``[learning] exploration`` sets a smaller one.
 
     Parameters
     ----------
