@@ -33,6 +33,7 @@ from selftune.learn import (
     LearningOptions,
     LearningProblem,
     Trajectory,
+    learn_controller,
     learn_over_speeds,
     save_trajectory,
 )
@@ -571,6 +572,37 @@ def test_a_ramp_from_standstill_covers_it_without_learning_it(tmp_path: Path) ->
     with pytest.raises(InputError, match="standstill only"):
         options = LearningOptions(method="identify", structure="ipmsm", electrical_speed=1.0)
         learn_over_speeds(standing, LearningProblem(tuning.Q, tuning.R), tuning.K0, options)
+
+
+def test_a_rotor_turning_backwards_is_learned_and_an_angle_of_the_other_sense_refused() -> None:
+    """A staircase at -5 and -100 rad/s (``w_1`` negative with the speed) is learned, the
+    motor within 4 standard errors of the truth; the same log with its angle negated turns
+    against its back-EMF reference and is refused, naming the angle column and w1 (before
+    2026-11-28 it was refused as a model that cannot explain the data, whose likely causes
+    named the dead time and the log's alignment, not the angle); so is one speed's part
+    learned with its speed stated at the other sign, naming ``electrical_speed``."""
+    config = MotorConfig(
+        motor=MOTOR, speed=100.0, torque=5.0, drive=DRIVE, drive_h=H,
+        learning={"integral_action": True}, source="motor",
+    )  # fmt: skip
+    tuning = tuning_settings(config, 3)
+    result = commission_ramp(MOTOR, tuning, DRIVE, (-5.0, -100.0), seed=3, levels=2)
+    assert result.covered == pytest.approx((-400.0, -20.0), rel=1e-9)
+    for name, se in result.standard_errors.items():
+        assert abs(getattr(result.motor, name) - getattr(MOTOR, name)) <= 4.0 * se, name
+    assert result.log.angle is not None
+    other = dataclasses.replace(result.log, angle=-result.log.angle)
+    options = LearningOptions(method="identify", structure="ipmsm", electrical_speed=1.0)
+    with pytest.raises(InputError, match=r"^angle: turns at 20 rad/s .* w1 .* -2: .* opposite"):
+        learn_over_speeds(other, LearningProblem(tuning.Q, tuning.R), tuning.K0, options)
+    # one speed's part, stated at the other sign
+    half = result.log.num_samples // 2  # the second half: -100 rad/s, -400 electrical
+    log = result.log
+    assert log.w is not None
+    part = Trajectory(t=log.t[half:], x=log.x[half:], u=log.u[half:], w=log.w[half:])
+    stated = dataclasses.replace(options, electrical_speed=400.0)
+    with pytest.raises(InputError, match=r"^electrical_speed: says 400 rad/s, .* w1 .* -40: "):
+        learn_controller(part, LearningProblem(tuning.Q, tuning.R), tuning.K0, stated)
 
 
 def test_an_encoders_angle_is_read_as_the_speeds_it_holds(

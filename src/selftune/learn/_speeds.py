@@ -40,7 +40,7 @@ from ._pipeline import learn_controller
 from ._problem import LearningOptions, LearningProblem
 from ._result import LearnedController
 from .data._trajectory import Trajectory
-from .evidence._dead_time import check_angle
+from .evidence._dead_time import against_back_emf, check_angle
 from .evidence._encoder import angle_count, fitted_line, rounding_cycles, unwrapped
 from .verdict._quality import MotorEstimate
 from .verdict._verdict import motor_estimate
@@ -420,8 +420,9 @@ def learn_over_speeds(
     Raises
     ------
     InputError
-        If identify-then-design has no motor structure, or :func:`speed_segments` refuses
-        the log.
+        If identify-then-design has no motor structure, :func:`speed_segments` refuses
+        the log, or a part's angle turns against its back-EMF reference ``w_1``
+        (:func:`_check_sense`).
     SelftuneError
         The learner's refusal of a part, naming its speed (of a part below the top speed,
         not for its own law's precision alone), and the speeds the other parts were
@@ -445,6 +446,8 @@ def learn_over_speeds(
             "angle: the log holds the rotor at standstill only; the flux is learned from "
             "the back-EMF of a turning rotor: log held speeds above zero"
         )
+    if not adp:  # the motor's form: w_1 = p speed phi_assumed
+        _check_sense(log, segments, top)
     standstill = False
     for first, last, speed in segments:
         if abs(speed) <= STANDSTILL * top:  # no back-EMF: nothing of the flux to learn
@@ -474,6 +477,24 @@ def learn_over_speeds(
         (min(speeds), max(speeds)),
         standstill,
     )
+
+
+def _check_sense(log: Trajectory, segments: Sequence[tuple[int, int, float]], top: float) -> None:
+    """Refuse a part whose angle turns against its back-EMF reference: in the motor's form
+    ``w_1 = p speed phi_assumed`` has the speed's sign (rad/s, electrical; ``top`` the
+    log's largest speed, standstill parts not judged). A drive that counts its angle in the
+    other sense would be learned at the opposite speed, its cross-coupling reversed."""
+    for first, last, speed in segments:
+        if abs(speed) <= STANDSTILL * top:
+            continue
+        reference = against_back_emf(None if log.w is None else log.w[first:last], speed)
+        if reference is not None:
+            raise InputError(
+                f"angle: turns at {speed:.4g} rad/s (electrical) over rows {first} to "
+                f"{last - 1}, where the back-EMF reference w1 (p speed phi) averages "
+                f"{reference:.4g}: they count the rotation in opposite senses; negate the "
+                "angle column (or w1, whichever has the other sense)"
+            )
 
 
 def _with_speed_error(estimate: MotorEstimate, relative: float) -> MotorEstimate:

@@ -153,6 +153,25 @@ def check_angle(
         )
 
 
+def against_back_emf(w: Array | None, electrical_speed: float) -> float | None:
+    """The mean of the back-EMF reference ``w_1 = p speed phi_assumed`` (a motor
+    structure's first exogenous channel) where its sign is not that of
+    ``electrical_speed`` (rad/s): the log counts the rotation in the other sense, and the
+    structure's cross-coupling would be reversed; else None (no reference, standstill).
+
+    Parameters
+    ----------
+    w : ndarray, shape (N, q), or None
+        The log's exogenous channels.
+    electrical_speed : float
+        ``p speed``, rad/s.
+    """
+    if w is None or w.shape[1] == 0:
+        return None
+    mean = float(np.mean(w[:, 0]))
+    return mean if mean * electrical_speed < 0.0 else None
+
+
 def _check_angle_explains(episodes: Sequence[Trajectory], signs: list[Array], shift: int) -> None:
     """Raise unless the phase signs of the log's angle explain the data at least about as
     well as the current's direction alone, which needs no angle: a wrong angle (its sign,

@@ -67,7 +67,13 @@ from ...errors import (
 from .._problem import LearningOptions, LearningProblem
 from ..data._trajectory import Trajectory
 from ._alignment import Alignment, applied_inputs, check_alignment, stated_shift
-from ._dead_time import DeadTimeChannels, DeadTimeModel, Switching, with_dead_time
+from ._dead_time import (
+    DeadTimeChannels,
+    DeadTimeModel,
+    Switching,
+    against_back_emf,
+    with_dead_time,
+)
 from ._discrete_model import DiscreteModel, lack_of_rank, regressor_names
 from ._incremental_structure import IncrementalStructure
 from ._model_signs import changed_signs, on_other_signs, reported_next_signs
@@ -336,6 +342,9 @@ def gather_evidence(
     ConfigurationMismatch
         If the structure the options state explains the data worse than none, or the
         DC bus they state cannot have applied the logged voltages (a ConsistencyError).
+    InputError
+        If the options' electrical speed has the other sign than the logs' back-EMF
+        reference ``w_1``.
     """
     if options.dc_voltage is not None:
         check_bus([episode.u for episode in episodes], options.dc_voltage)
@@ -348,6 +357,7 @@ def gather_evidence(
     structure = None
     if options.structure != "none":
         assert options.electrical_speed is not None
+        _check_sense(episodes, options.electrical_speed)
         kinds: dict[str, type[MotorStructure]] = {
             "spmsm": SpmsmStructure, "ipmsm": IpmsmStructure, "incremental": IncrementalStructure,
         }  # fmt: skip
@@ -490,6 +500,19 @@ _DEAD_TIME_CAUSE = {
         "current or depends on the voltage)"
     ),
 }
+
+
+def _check_sense(episodes: Sequence[Trajectory], electrical_speed: float) -> None:
+    """Refuse a stated speed (rad/s) of the other sign than the logs' back-EMF reference
+    ``w_1 = p speed phi_assumed`` (:func:`~._dead_time.against_back_emf`)."""
+    given = [episode.w for episode in episodes if episode.w is not None]
+    reference = against_back_emf(np.concatenate(given) if given else None, electrical_speed)
+    if reference is not None:
+        raise InputError(
+            f"electrical_speed: says {electrical_speed:.6g} rad/s, where the logs' back-EMF "
+            f"reference w1 (p speed phi) averages {reference:.4g}: they count the rotation in "
+            "opposite senses; give electrical_speed the sign of w1 (or negate w1)"
+        )
 
 
 def _untied_dead_time(
