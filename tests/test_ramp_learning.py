@@ -28,7 +28,7 @@ from selftune.bench._interior import drawn_motor
 from selftune.cli import main
 from selftune.config import MotorConfig, load_learn_config, load_motor_config
 from selftune.core import ControlLaw
-from selftune.errors import DataFileError, InputError
+from selftune.errors import DataFileError, InputError, SelftuneError
 from selftune.learn import (
     LearningOptions,
     LearningProblem,
@@ -580,7 +580,9 @@ def test_a_rotor_turning_backwards_is_learned_and_an_angle_of_the_other_sense_re
     against its back-EMF reference and is refused, naming the angle column and w1 (before
     2026-11-28 it was refused as a model that cannot explain the data, whose likely causes
     named the dead time and the log's alignment, not the angle); so is one speed's part
-    learned with its speed stated at the other sign, naming ``electrical_speed``."""
+    learned with its speed stated at the other sign, naming ``electrical_speed``. A
+    mechanical angle is refused by the model's test at every part, saying that the parts'
+    speeds are the angle column's, which must be the electrical angle."""
     config = MotorConfig(
         motor=MOTOR, speed=100.0, torque=5.0, drive=DRIVE, drive_h=H,
         learning={"integral_action": True}, source="motor",
@@ -595,6 +597,17 @@ def test_a_rotor_turning_backwards_is_learned_and_an_angle_of_the_other_sense_re
     options = LearningOptions(method="identify", structure="ipmsm", electrical_speed=1.0)
     with pytest.raises(InputError, match=r"^angle: turns at 20 rad/s .* w1 .* -2: .* opposite"):
         learn_over_speeds(other, LearningProblem(tuning.Q, tuning.R), tuning.K0, options)
+    # a mechanical angle: every part's cross-coupling 4 times too slow; the refusal says
+    # where the speed came from
+    mechanical = dataclasses.replace(
+        result.log, angle=np.angle(np.exp(1j * np.unwrap(result.log.angle) / MOTOR.p))
+    )
+    problem = LearningProblem(
+        tuning.Q, tuning.R, C=np.eye(2), F=MOTOR.regulation_problem(1.0).F,
+        integral_action=True, integral_weight=tuning.Q_i,
+    )  # fmt: skip
+    with pytest.raises(SelftuneError, match=r"^at -5 rad/s .* the electrical angle \(p times"):
+        learn_over_speeds(mechanical, problem, tuning.K0, options)
     # one speed's part, stated at the other sign
     half = result.log.num_samples // 2  # the second half: -100 rad/s, -400 electrical
     log = result.log

@@ -35,7 +35,13 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from ..core import Array
-from ..errors import InputError, SelftuneError, TooLittleData
+from ..errors import (
+    ConfigurationMismatch,
+    InputError,
+    ModelMissesEffect,
+    SelftuneError,
+    TooLittleData,
+)
 from ._pipeline import learn_controller
 from ._problem import LearningOptions, LearningProblem
 from ._result import LearnedController
@@ -469,13 +475,28 @@ def learn_over_speeds(
     if refused:
         speed, refusal = refused[0]
         others = _others([learned_speed for learned_speed, _ in parts], refused)
-        raise refusal.retold(f"at {speed:g} rad/s (electrical): {refusal}{others}") from None
+        told = f"at {speed:g} rad/s (electrical): {refusal}{others}{_angle_hint(refusal)}"
+        raise refusal.retold(told) from None
     speeds = [speed for speed, _ in parts] + ([0.0] if standstill else [])
     return SpeedsLearned(
         tuple(parts),
         None if adp else _combined([learned for _, learned in parts], relative),
         (min(speeds), max(speeds)),
         standstill,
+    )
+
+
+def _angle_hint(refusal: SelftuneError) -> str:
+    """What a refusal by the model's or the structure's test adds (the parts' speeds are
+    the angle column's, and a log whose angle is not the electrical one, p times the
+    mechanical, was refused so at every part: its cross-coupling is wrong by that factor),
+    or nothing."""
+    structure = isinstance(refusal, ConfigurationMismatch) and refusal.key == "structure"
+    if not (structure or isinstance(refusal, ModelMissesEffect)):
+        return ""
+    return (
+        "; each part's speed is read off the angle column theta, which must be the "
+        "electrical angle (p times the mechanical one)"
     )
 
 
