@@ -582,7 +582,8 @@ def test_a_rotor_turning_backwards_is_learned_and_an_angle_of_the_other_sense_re
     named the dead time and the log's alignment, not the angle); so is one speed's part
     learned with its speed stated at the other sign, naming ``electrical_speed``. A
     mechanical angle is refused by the model's test at every part, saying that the parts'
-    speeds are the angle column's, which must be the electrical angle."""
+    speeds are the angle column's, which must be the electrical angle, and not suggesting
+    ``structure = 'none'``, which a log over several speeds cannot take."""
     config = MotorConfig(
         motor=MOTOR, speed=100.0, torque=5.0, drive=DRIVE, drive_h=H,
         learning={"integral_action": True}, source="motor",
@@ -606,8 +607,11 @@ def test_a_rotor_turning_backwards_is_learned_and_an_angle_of_the_other_sense_re
         tuning.Q, tuning.R, C=np.eye(2), F=MOTOR.regulation_problem(1.0).F,
         integral_action=True, integral_weight=tuning.Q_i,
     )  # fmt: skip
-    with pytest.raises(SelftuneError, match=r"^at -5 rad/s .* the electrical angle \(p times"):
+    with pytest.raises(
+        SelftuneError, match=r"^at -5 rad/s .* the electrical angle \(p times"
+    ) as caught:
         learn_over_speeds(mechanical, problem, tuning.K0, options)
+    assert "structure = 'none'" not in str(caught.value)  # which a log over speeds refuses
     # one speed's part, stated at the other sign
     half = result.log.num_samples // 2  # the second half: -100 rad/s, -400 electrical
     log = result.log

@@ -211,7 +211,11 @@ def _learned(
     try:
         evidence, known, errors = _precise(data, problem, options)
     except (ConsistencyError, UnsolvableError, ExcitationError) as error:
-        if options.structure == "none" or isinstance(error, TooLittleData):
+        if (
+            options.structure == "none"
+            or not options.compare_without_structure
+            or isinstance(error, TooLittleData)
+        ):
             raise
         raise _without_structure(error, data, problem, options) from error
     if options.method == "identify":

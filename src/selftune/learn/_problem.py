@@ -345,6 +345,12 @@ class LearningOptions:
         (:func:`~selftune.learn.verdict._nameplate.check_fit_against_nameplate`): the fit
         took something else for resistance, most likely the dead time near zero current,
         and its inductances with it (the commissionings of ``selftune tune`` check so).
+    compare_without_structure : bool
+        With a structure: where the structured fit is refused, fit the same data without
+        it and say in the refusal what they give (True; one unstructured fit more).
+        False where the caller cannot learn without the structure (a log over several
+        speeds, :func:`~selftune.learn.learn_over_speeds`), so that the refusal does not
+        suggest it.
     """
 
     target: Target = "continuous"
@@ -362,6 +368,7 @@ class LearningOptions:
     max_relative_error: float = 0.05
     dc_voltage: float | None = None
     nameplate_resistance: float | None = None
+    compare_without_structure: bool = True
 
     def __post_init__(self) -> None:
         if self.target not in ("continuous", "digital"):
@@ -387,8 +394,9 @@ class LearningOptions:
             raise InputError(
                 f"noise: must be 'smoothed', 'instruments' or 'none', got {self.noise!r}"
             )
-        if not isinstance(self.dead_time, bool):
-            raise InputError(f"dead_time: must be true or false, got {self.dead_time!r}")
+        for name in ("dead_time", "compare_without_structure"):
+            if not isinstance(getattr(self, name), bool):
+                raise InputError(f"{name}: must be true or false, got {getattr(self, name)!r}")
         positive_finite(self.max_relative_error, "max_relative_error")
         if self.dc_voltage is not None:
             positive_finite(self.dc_voltage, "dc_voltage")

@@ -459,7 +459,8 @@ def learn_over_speeds(
         if abs(speed) <= STANDSTILL * top:  # no back-EMF: nothing of the flux to learn
             standstill = True
             continue
-        part, own = _part(log, first, last), replace(options, electrical_speed=speed)
+        part = _part(log, first, last)  # learned with the structure or not at all
+        own = replace(options, electrical_speed=speed, compare_without_structure=False)
         try:
             try:
                 learned = learn_controller(part, problem, K0, own)
