@@ -357,7 +357,7 @@ def gather_evidence(
     structure = None
     if options.structure != "none":
         assert options.electrical_speed is not None
-        _check_sense(episodes, options.electrical_speed)
+        _check_stated_sense(episodes, options.electrical_speed)
         kinds: dict[str, type[MotorStructure]] = {
             "spmsm": SpmsmStructure, "ipmsm": IpmsmStructure, "incremental": IncrementalStructure,
         }  # fmt: skip
@@ -513,7 +513,7 @@ _DEAD_TIME_CAUSE = {
 }
 
 
-def _check_sense(episodes: Sequence[Trajectory], electrical_speed: float) -> None:
+def _check_stated_sense(episodes: Sequence[Trajectory], electrical_speed: float) -> None:
     """Refuse a stated speed (rad/s) of the other sign than the logs' back-EMF reference
     ``w_1 = p speed phi_assumed`` (:func:`~._dead_time.against_back_emf`)."""
     given = [episode.w for episode in episodes if episode.w is not None]

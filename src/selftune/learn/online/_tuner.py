@@ -101,7 +101,7 @@ GUARD_DOUBT = (0.3, 0.3, 0.3, 0.3)
 #: steps, and the split of the voltage between R_s and the dead-time voltage follows the
 #: current levels the last second holds; the servo's warm-up with its looks 0.11 s into
 #: the cycle, rms 1.56: 30% of the correction as R_s's doubt made that 1.25 and the
-#: unshifted run's 0.93 0.68; all of it, 0.59 and 0.30). L_s: the guard's. Its bars
+#: unshifted run's 0.93 into 0.68; all of it, 0.59 and 0.30). L_s: the guard's. Its bars
 #: were too narrow on carrier PWM with dead time (rms 2.7-3.9 on the medium and large
 #: motors) for a reason
 #: the share cannot carry: a large torque step's first samples are at the voltage limit,
