@@ -56,6 +56,26 @@ def test_surface_motor_asks_for_no_d_current() -> None:
     np.testing.assert_allclose(motor.current_reference(2.0), surface.current_reference(2.0))
 
 
+def test_a_surface_motors_interior_form_is_the_same_plant() -> None:
+    """IPMSM.of: the surface motor's references, torque-mode matrices and sampled plant
+    (Ad, Bd and the back-EMF channel; the interior form's references are the currents,
+    not the torque) are its interior form's; an interior motor is returned as it is."""
+    surface = SPMSM(R_s=0.5, L_s=1e-3, phi_pm=0.05, p=3, J=2e-4)
+    interior = IPMSM.of(surface)
+    assert (interior.L_d, interior.L_q, interior.J) == (1e-3, 1e-3, 2e-4)
+    np.testing.assert_allclose(interior.current_reference(2.0), surface.current_reference(2.0))
+    for mine, theirs in zip(interior.torque_mode(80.0), surface.torque_mode(80.0), strict=True):
+        np.testing.assert_allclose(mine, theirs, rtol=1e-14)
+    (Ad, Bd, Ed), (Ad_s, Bd_s, Ed_s) = (
+        motor.sampled_plant(80.0, 1e-4, "stationary") for motor in (interior, surface)
+    )
+    np.testing.assert_allclose(Ad, Ad_s, rtol=1e-12)
+    np.testing.assert_allclose(Bd, Bd_s, rtol=1e-12)
+    np.testing.assert_allclose(Ed[:, 0], Ed_s[:, 0], rtol=1e-12)
+    motor = IPMSM(R_s=0.2, L_d=2e-3, L_q=5e-3, phi_pm=0.1, p=4)
+    assert IPMSM.of(motor) is motor
+
+
 @settings(max_examples=40, deadline=None)
 @given(motor=motors, speed=st.floats(-500.0, 500.0))
 def test_torque_mode_is_the_jacobian_of_the_full_model(motor: IPMSM, speed: float) -> None:

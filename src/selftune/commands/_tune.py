@@ -182,9 +182,7 @@ def _tune_saturating(
         config, algorithm, target, "a saturating motor is", "a surface motor's unsaturated law"
     )
     assert config.drive is not None and config.saturation is not None
-    motor = config.motor
-    if isinstance(motor, SPMSM):  # the interior form of a surface motor: L_d = L_q
-        motor = IPMSM(R_s=motor.R_s, L_d=motor.L_s, L_q=motor.L_s, phi_pm=motor.phi_pm, p=motor.p)
+    motor = IPMSM.of(config.motor)
     settings = tuning_settings(config, seed, "digital")
     with (
         tqdm(

@@ -94,6 +94,21 @@ class IPMSM(PmsmForms):
         if self.J is not None:
             object.__setattr__(self, "J", check_range(positive_finite(self.J, "J"), "J"))
 
+    @classmethod
+    def of(cls, motor: SPMSM | IPMSM) -> IPMSM:
+        """The interior form of a motor: an IPMSM as it is, a surface motor with ``L_d =
+        L_q = L_s`` (what the saturation model and the current schedule take).
+
+        Parameters
+        ----------
+        motor : SPMSM or IPMSM
+            The motor.
+        """
+        if isinstance(motor, IPMSM):
+            return motor
+        return cls(R_s=motor.R_s, L_d=motor.L_s, L_q=motor.L_s, phi_pm=motor.phi_pm, p=motor.p,
+                   J=motor.J)  # fmt: skip
+
     @property
     def saliency(self) -> float:
         """``L_q / L_d``."""
