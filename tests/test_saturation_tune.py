@@ -469,10 +469,12 @@ def test_a_lowest_level_whose_logs_are_all_refused_is_left_out_saying_so(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Every log of the 10% level refused (as on motors rated under 1 A with a 50 A ADC,
-    docs/saturation.md): the schedule starts at the lowest level learned, the printout and
+    docs/saturation.md): levels halfway towards the lowest learned (40%) are tried, 25%
+    and then 17.5%, the schedule starts at the lowest level learned, the printout and
     the JSON say which level was not learned and why, each of its logs is among the
     refusals, and the first law held below is within the issue's 2% there. A refused
-    level above one learned, or fewer than two learned, still refuses the commissioning."""
+    halfway level is itself halved towards 40%. A refused level above one learned, or
+    fewer than two learned, still refuses the commissioning."""
     path = tmp_path / "motor.toml"
     path.write_text(MOTOR + DRIVE + SATURATION)
     config = load_motor_config(str(path))
@@ -481,7 +483,8 @@ def test_a_lowest_level_whose_logs_are_all_refused_is_left_out_saying_so(
     settings = tuning_settings(config, 0)
     _refusing(monkeypatch, (0.1,))
     result = commission_over_current(config.motor, config.saturation, settings, config.drive)
-    assert result.unlearned == (0.1,) and result.levels[0].share == 0.4
+    assert result.unlearned == (0.1,)
+    assert [level.share for level in result.levels[:3]] == pytest.approx([0.175, 0.25, 0.4])
     assert [share for share, _ in result.refusals] == [0.1] * LEVEL_ATTEMPTS
     assert "10% not learned, all 3 logs of each refused (the last: the model cannot" in (
         result.left_out_text
@@ -494,9 +497,17 @@ def test_a_lowest_level_whose_logs_are_all_refused_is_left_out_saying_so(
         config.motor, config.saturation, settings, result, evaluation, config.drive
     )
     assert document["current_schedule_design"]["unlearned"] == [0.1]
-    for refused in ((0.4,), (0.1, 0.4, 0.7)):
+    _refusing(monkeypatch, (0.1, 0.25))
+    result = commission_over_current(config.motor, config.saturation, settings, config.drive)
+    assert result.unlearned == (0.1, 0.25) and result.levels[0].share == pytest.approx(0.325)
+    assert "10%, 25% not learned" in result.left_out_text
+    for refused, level in (((0.4,), "40%"), ((0.1, 0.4, 0.7), "70%")):
         _refusing(monkeypatch, refused)
-        with pytest.raises(ModelMissesEffect, match="a test's refusal"):
+        with pytest.raises(
+            ModelMissesEffect,
+            match=rf"^the level at {level} of rated torque \(i_q\* = [0-9.]+ A\), all 3 of its "
+            "logs refused; the last: the model cannot explain the data: a test's refusal",
+        ):
             commission_over_current(config.motor, config.saturation, settings, config.drive)
 
 

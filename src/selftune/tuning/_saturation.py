@@ -26,8 +26,9 @@ against the pointwise optimum of the identified models interpolated linearly in 
 (refining the grid by bisection there). Levels whose R_s disagrees with the highest
 level's or the nameplate's are left out of it (:func:`~._resistance.kept_levels`), and so
 are the lowest levels whose every log the learner refused
-(:attr:`CurrentCommissioning.unlearned`): the schedule then starts at the lowest level
-kept. Each level's inductances' standard errors include their curvature over its log's
+(:attr:`CurrentCommissioning.unlearned`): levels halfway towards the lowest learned are
+tried then (:data:`LOW_BISECTIONS`), and the schedule starts at the lowest level kept.
+Each level's inductances' standard errors include their curvature over its log's
 currents (:func:`~._curvature.with_curvature`).
 """
 
@@ -70,6 +71,7 @@ from ._settings import TuningSettings
 __all__ = [
     "INDUCTANCE_MOVE",
     "LEVEL_ATTEMPTS",
+    "LOW_BISECTIONS",
     "MAX_LEVELS",
     "SETTLE",
     "STEP_SHARE",
@@ -110,6 +112,14 @@ INDUCTANCE_MOVE = 0.05
 
 #: The most levels learned (the initial ones and those added).
 MAX_LEVELS = 9
+
+#: Where the lowest initial levels are refused (every log of each), the levels tried
+#: halfway between the highest refused and the lowest learned, one after the other, so
+#: that the schedule starts nearer the currents below it, where the firmware holds its
+#: first law. On a 0.18/0.44 mH motor on 48 V whose 10 % level was refused (its currents
+#: cross zero under the dead time), the law of 40 % held at 10 % cost 2.2 % over the
+#: optimum there; the levels at 25 % and 17.5 % were learned.
+LOW_BISECTIONS = 2
 
 #: The logs a level may take: a level whose log the learner refuses is logged again
 #: with the next seed (as an engineer reruns a refused experiment), the refusals kept
@@ -184,7 +194,9 @@ class CurrentCommissioning:
         Why, and which lowest levels were not learned ("" when none were).
     unlearned : tuple of float
         The lowest levels (shares of rated torque) whose every log was refused, below
-        every level learned: the schedule starts above them (:data:`LEVEL_ATTEMPTS`).
+        every level learned (:data:`LEVEL_ATTEMPTS`; the initial ones, then those tried
+        halfway towards the lowest learned, :data:`LOW_BISECTIONS`): the schedule
+        starts above them.
     speed_design : SpeedCurrentDesign or None
         With the speeds of a ``[schedule]``: the law scheduled over speed and ``i_q*``
         together on the same levels (:func:`schedule_over_speed_and_levels`).
@@ -538,6 +550,14 @@ def commission_over_current(
             progress(count[0])
         return level
 
+    def refused(error: SelftuneError, share: float) -> SelftuneError:
+        """A level's refusal that refuses the commissioning, told as that level's."""
+        current = float(motor.current_reference(share * settings.torque)[1])
+        return error.retold(
+            f"the level at {share:.0%} of rated torque (i_q* = {current:.4g} A), all "
+            f"{LEVEL_ATTEMPTS} of its logs refused; the last: {error}"
+        )
+
     count = [0]
     levels: dict[float, CurrentLevel] = {}
     unlearned: list[tuple[float, SelftuneError]] = []
@@ -546,11 +566,18 @@ def commission_over_current(
             levels[share] = learned(share)
         except SelftuneError as error:
             if levels or share == shares[-1]:  # only levels below every one learned
-                raise
+                raise refused(error, share) from error
             refusals.append((share, str(error)))
             unlearned.append((share, error))
     if len(levels) < 2:
-        raise unlearned[-1][1]
+        raise refused(unlearned[-1][1], unlearned[-1][0])
+    for _ in range(LOW_BISECTIONS if unlearned else 0):  # nearer the currents held below
+        middle = 0.5 * (max(share for share, _ in unlearned) + min(levels))
+        try:
+            levels[middle] = learned(middle)
+        except SelftuneError as error:
+            refusals.append((middle, str(error)))
+            unlearned.append((middle, error))
     while len(levels) < MAX_LEVELS:
         moving = [
             (a, b)
@@ -559,8 +586,11 @@ def commission_over_current(
         ]
         if not moving:
             break
-        a, b = moving[0]
-        levels[0.5 * (a + b)] = learned(0.5 * (a + b))
+        middle = 0.5 * sum(moving[0])
+        try:
+            levels[middle] = learned(middle)
+        except SelftuneError as error:
+            raise refused(error, middle) from error
     learned_levels = tuple(levels[share] for share in sorted(levels))
     names = [f"{level.share:.0%}" for level in learned_levels]
     kept, why = kept_levels(
@@ -587,9 +617,9 @@ def commission_over_current(
     left_out = tuple(level for k, level in enumerate(learned_levels) if k not in kept)
     if unlearned:
         cause = str(unlearned[-1][1]).split(":")[0]
-        refused = ", ".join(f"{share:.0%}" for share, _ in unlearned)
+        named = ", ".join(f"{share:.0%}" for share, _ in unlearned)
         note = (
-            f"{refused} not learned, all {LEVEL_ATTEMPTS} logs of each refused (the last: "
+            f"{named} not learned, all {LEVEL_ATTEMPTS} logs of each refused (the last: "
             f"{cause}): the schedule starts at the lowest level learned, "
             f"{found[0].share:.0%}, whose law the firmware holds below it"
         )
