@@ -62,7 +62,8 @@ Outside ``selftune bench`` (run alone, as docs/schedule.md says): :func:`measure
 :func:`measure_interior_draws` study 13 on interior ones); and (as
 docs/saturation.md says) :func:`measure_saturation` (:mod:`._saturation`), saturating
 motors learned at several currents, the current schedule against the true pointwise
-optimum from 10% to 100% of rated current (about 1.5 min of CPU a motor).
+optimum from 10% to 100% of rated current (about 1.5 min of CPU a motor), and
+:func:`measure_saturation_draws` the same on motors drawn at random.
 
 Studies 6-8 run their seeded trials through the fleet's engine
 (:func:`selftune.fleet.map_ordered`): here by default, on a cluster when
@@ -125,7 +126,13 @@ from ._refusals import (
     measure_refusals,
 )
 from ._report import BenchReport, DriveStudiesConfig, Environment, bench_command, run_bench
-from ._saturation import SaturationCase, SaturationStudy, markdown_saturation, measure_saturation
+from ._saturation import (
+    SaturationCase,
+    SaturationStudy,
+    markdown_saturation,
+    measure_saturation,
+    measure_saturation_draws,
+)
 from ._simulation import BatchMeasurement, Simulation, measure_simulation
 from ._targets import TargetOutcome
 from ._value import ControllerOutcome, MismatchCase, SelfTuningValue, measure_self_tuning_value
@@ -213,6 +220,7 @@ __all__ = [
     "measure_realistic_drive",
     "measure_refusals",
     "measure_saturation",
+    "measure_saturation_draws",
     "measure_self_tuning_value",
     "measure_simulation",
     "run_bench",

@@ -23,6 +23,10 @@ standard errors. The law is also scheduled over speed and current together, from
 100 % of the motor's speed (:data:`SPEED_SHARES`), and judged likewise at
 :data:`~selftune.report._saturation_report.SPEEDS` speeds over that range times those
 currents, beside the schedule over ``i_q*`` alone there.
+
+:func:`measure_saturation_draws` runs the same on motors drawn at random across the
+issue's range (:func:`drawn_saturating`), each at its rated speed with its own knee,
+saturating share and cross-saturation (:data:`SATURATION_DRAWS`).
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ from typing import Literal
 import numpy as np
 
 from ..config import MotorConfig
-from ..errors import SelftuneError
+from ..errors import InputError, SelftuneError
 from ..model import IPMSM
 from ..report._saturation_report import (
     CURRENTS,
@@ -42,10 +46,10 @@ from ..report._saturation_report import (
     evaluate_current_schedule,
     judged_references,
 )
-from ..sim import DriveSettings, SaturationModel
+from ..sim import DriveSettings, Saturation, SaturationModel
 from ..tuning import commission_over_current, tuning_settings
 from ._common import table, with_progress
-from ._interior import LOW_VOLTAGE_DEAD_TIME
+from ._interior import LOW_VOLTAGE_DEAD_TIME, drawn_motor
 
 #: The drive's PWM.
 Pwm = Literal["average", "carrier"]
@@ -53,10 +57,14 @@ Pwm = Literal["average", "carrier"]
 __all__ = [
     "CURRENTS",
     "SATURATING_MOTORS",
+    "SATURATION_DRAWS",
     "SaturationCase",
     "SaturationStudy",
+    "drawn_saturating",
+    "inductance_fall",
     "markdown_saturation",
     "measure_saturation",
+    "measure_saturation_draws",
 ]
 
 #: The motors: (motor, mechanical speed rad/s, rated torque N m, DC bus V, i_sat as a
@@ -71,6 +79,10 @@ SATURATING_MOTORS: tuple[tuple[IPMSM, float, float, float, float, float], ...] =
 
 #: Cross-saturation of every motor.
 CROSS = 0.1
+
+#: The drawn motors' saturation (:func:`measure_saturation_draws`), each uniform on its
+#: span: the knee ``i_sat`` as a share of the rated q current, ``drop`` and ``cross``.
+SATURATION_DRAWS = {"i_sat_share": (0.4, 1.0), "drop": (0.25, 0.5), "cross": (0.0, 0.2)}
 
 #: The schedule over speed and current spans these shares of the motor's speed.
 SPEED_SHARES = (0.05, 1.0)
@@ -140,30 +152,62 @@ class SaturationStudy:
     wall_seconds : float
     pwm : str
         The drive's PWM, ``"average"`` or ``"carrier"``.
+    redrawn : int
+        Motors drawn again (:func:`drawn_saturating`).
     """
 
     cases: tuple[SaturationCase, ...]
     wall_seconds: float
     pwm: Pwm = "average"
+    redrawn: int = 0
 
 
 def _case(index: int, seed: int, pwm: Pwm = "average") -> SaturationCase:
+    """The table's motor ``index`` (from 0) on the run's ``seed``."""
     motor, speed, torque, bus, share, drop = SATURATING_MOTORS[index]
+    rated = float(motor.current_reference(torque)[1])
+    saturation = SaturationModel.of(motor, i_sat=share * rated, drop=drop, cross=CROSS)
+    label = f"{index + 1}: {type(motor).__name__} {motor.L_d * 1e3:g}/{motor.L_q * 1e3:g} mH"
+    return _run((motor, speed, torque, bus, None), saturation, seed, label, pwm)
+
+
+def inductance_fall(motor: IPMSM, torque: float, saturation: Saturation) -> float:
+    """The true incremental ``L_qq``'s fall from the first to the last judged current
+    (10 % and 100 % of rated torque's, :func:`judged_references`), a share of the first.
+
+    Parameters
+    ----------
+    motor : IPMSM
+        The nameplate motor (its MTPA path).
+    torque : float
+        Rated torque, N m.
+    saturation : SaturationModel or FluxMap
+        The true flux linkages.
+    """
+    references = judged_references(motor, torque)
+    low, high = (saturation.incremental(*references[k])[1, 1] for k in (0, -1))
+    return float(1.0 - high / low)
+
+
+def _run(
+    nameplate: tuple[IPMSM, float, float, float, float | None], saturation: Saturation,
+    seed: int, label: str, pwm: Pwm,
+) -> SaturationCase:  # fmt: skip
+    """One commissioning over the load judged against the truth: ``nameplate`` is the
+    motor, its mechanical speed (rad/s), rated torque (N m), DC bus (V) and the ADC's
+    range (A; None: the hardware-like drive's)."""
+    motor, speed, torque, bus, adc_range = nameplate
     drive = replace(DriveSettings.hardware_like(dc_voltage=bus), pwm=pwm)
     if bus < 100.0:  # a low-voltage drive's MOSFETs, as the interior study's
         drive = replace(drive, dead_time=LOW_VOLTAGE_DEAD_TIME)
-    rated = float(motor.current_reference(torque)[1])
-    saturation = SaturationModel.of(motor, i_sat=share * rated, drop=drop, cross=CROSS)
+    if adc_range is not None:
+        drive = replace(drive, adc_range=adc_range)
     config = MotorConfig(
         motor=motor, speed=speed, torque=torque, drive=drive, drive_h=1e-4,
-        learning={"integral_action": True}, source=f"saturating motor {index + 1}",
-        saturation=saturation,
+        learning={"integral_action": True}, source=label, saturation=saturation,
     )  # fmt: skip
     settings = tuning_settings(config, seed)
-    references = judged_references(motor, torque)
-    low, high = (saturation.incremental(*references[k])[1, 1] for k in (0, -1))
-    fall = 100.0 * (1.0 - high / low)
-    label = f"{index + 1}: {type(motor).__name__} {motor.L_d * 1e3:g}/{motor.L_q * 1e3:g} mH"
+    fall = 100.0 * inductance_fall(motor, torque, saturation)
     started = time.perf_counter()
     try:
         result = commission_over_current(
@@ -217,6 +261,76 @@ def measure_saturation(
     return SaturationStudy(tuple(results), time.perf_counter() - started, pwm)
 
 
+#: One drawn saturating motor: its nameplate (the interior form; its mechanical speed,
+#: rad/s, rated torque, N m, DC bus, V, and ADC range, A), its saturation and its run's seed.
+DrawnSaturating = tuple[tuple[IPMSM, float, float, float, float], SaturationModel, int]
+
+
+def drawn_saturating(count: int, seed: int) -> tuple[list[DrawnSaturating], int]:
+    """``count`` motors drawn across the issue's range (the ramp's and the interior
+    study's :func:`~._interior.drawn_motor`, a surface motor in its interior form), each
+    saturating by :data:`SATURATION_DRAWS` drawn after it, and its run's seed; and how
+    many were drawn again: a motor whose drawn knee is under the saturation model's floor
+    (1 % of its characteristic current ``phi_pm / L_d``, a motor rated far below it).
+
+    Parameters
+    ----------
+    count : int
+        Motors.
+    seed : int
+        Seed of the draws.
+    """
+    rng = np.random.default_rng(seed)
+    cases: list[DrawnSaturating] = []
+    redrawn = 0
+    while len(cases) < count:
+        nameplate, speed, torque, bus, adc_range = drawn_motor(rng)
+        motor = IPMSM.of(nameplate)
+        share, drop, cross = (rng.uniform(*span) for span in SATURATION_DRAWS.values())
+        rated = float(motor.current_reference(torque)[1])
+        try:
+            saturation = SaturationModel.of(motor, i_sat=share * rated, drop=drop, cross=cross)
+        except InputError:  # the knee under the model's floor
+            redrawn += 1
+            continue
+        cases.append(((motor, speed, torque, bus, adc_range), saturation, int(rng.integers(1000))))
+    return cases, redrawn
+
+
+def measure_saturation_draws(
+    count: int = 20, seed: int = 21, progress: bool = True, pwm: Pwm = "average"
+) -> SaturationStudy:
+    """The study on ``count`` saturating motors drawn at random
+    (:func:`drawn_saturating`), each at its rated speed with the ADC's range it was drawn
+    with (about 30-150 s a run).
+
+    Parameters
+    ----------
+    count : int
+        Motors learned.
+    seed : int
+        Seed of the draws and of each run's own seed.
+    progress : bool
+        Show a progress bar.
+    pwm : str
+        The drive's PWM, as :func:`measure_saturation`'s.
+    """
+    cases, redrawn = drawn_saturating(count, seed)
+
+    def run(number: int) -> SaturationCase:
+        nameplate, saturation, case_seed = cases[number]
+        motor, bus = nameplate[0], nameplate[3]
+        label = (
+            f"drawn {number + 1}: {motor.L_d * 1e3:.4g}/{motor.L_q * 1e3:.4g} mH, p {motor.p}, "
+            f"{bus:.0f} V"
+        )
+        return _run(nameplate, saturation, case_seed, label, pwm)
+
+    started = time.perf_counter()
+    results = with_progress(list(range(count)), run, "saturation draws", progress)
+    return SaturationStudy(tuple(results), time.perf_counter() - started, pwm, redrawn)
+
+
 def _within_one(cases: list[SaturationCase]) -> str:
     values = [abs(z) <= 1.0 for case in cases for z in case.z]
     return f"{np.mean(values):.0%} of {len(values)}" if values else "-"
@@ -253,7 +367,12 @@ def markdown_saturation(study: SaturationStudy) -> list[str]:
         "(68% expected). Over speed and current: the schedule over both from "
         f"{SPEED_SHARES[0]:.0%} to {SPEED_SHARES[1]:.0%} of the motor's speed, judged at "
         f"{SPEEDS} speeds over that range times those currents, and the schedule over i_q* "
-        f"alone (designed at the motor's speed) there. {study.wall_seconds:.0f} s.",
+        f"alone (designed at the motor's speed) there. {study.wall_seconds:.0f} s"
+        + (
+            f"; {study.redrawn} motors drawn again (their knee under the model's floor)."
+            if study.redrawn
+            else "."
+        ),
         "",
         *table(
             [
