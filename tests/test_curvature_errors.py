@@ -15,10 +15,16 @@ import numpy as np
 import pytest
 
 from selftune.core import Array
+from selftune.errors import ExcitationError
 from selftune.model import IPMSM
 from selftune.report._saturation_report import level_table
 from selftune.sim import DriveSettings
-from selftune.tuning._curvature import curvature_errors, with_curvature
+from selftune.tuning._curvature import (
+    IMPRECISE_INDUCTANCE,
+    curvature_errors,
+    precise_levels,
+    with_curvature,
+)
 from selftune.tuning._saturation import CurrentLevel, incremental_theta, learn_level
 from test_saturation_tune import saturating_case
 
@@ -103,6 +109,32 @@ def test_with_curvature_adds_the_term_to_the_inductances_alone() -> None:
         added = np.hypot(1e-7, curvature * 0.25)
         np.testing.assert_allclose(level.standard_errors[1:4], added, rtol=1e-6)
         assert np.all(level.standard_errors[[0, 4, 5]] == 1e-7)
+
+
+def test_levels_whose_inductances_are_imprecise_are_left_out_or_refuse_the_schedule() -> None:
+    """A level whose L_dd or L_qq standard error is over IMPRECISE_INDUCTANCE of itself is
+    left out, named with both relative errors; just under it, kept. Fewer than two kept,
+    or the highest left out, refuse the schedule."""
+    currents = np.array([0.5, 1.0, 1.5, 2.0])
+    levels = _levels(currents, 0.5, 1e-7)
+    names = ["10%", "40%", "70%", "100%"]
+    wide = np.full(6, 1e-7)
+    wide[2] = 1.01 * IMPRECISE_INDUCTANCE * levels[1].theta[2]  # L_qq just over
+    levels[1] = replace(levels[1], standard_errors=wide)
+    barely = np.full(6, 1e-7)
+    barely[1] = 0.99 * IMPRECISE_INDUCTANCE * levels[0].theta[1]  # L_dd just under
+    levels[0] = replace(levels[0], standard_errors=barely)
+    kept, left, text = precise_levels(levels, names)
+    assert kept == (levels[0], levels[2], levels[3]) and left == (levels[1],)
+    assert "(40%: L_dd +-0.1%, L_qq +-10.1%)" in text
+    assert precise_levels(levels[2:], names[2:]) == (tuple(levels[2:]), (), "")
+    for chosen in (
+        [levels[0], levels[3], levels[1]],
+        [levels[1], levels[3]],
+        [levels[2], levels[1]],
+    ):
+        with pytest.raises(ExcitationError, match="too few levels know their inductances"):
+            precise_levels(chosen, names[: len(chosen)])
 
 
 @pytest.mark.slow

@@ -49,7 +49,7 @@ from ..report._saturation_report import (
     level_table,
     schedule_check_lines,
 )
-from ..tuning._curvature import with_curvature
+from ..tuning._curvature import precise_levels, with_curvature
 from ..tuning._interior import CURRENT_REFERENCE_F
 from ..tuning._resistance import kept_levels
 from ..tuning._saturation import (
@@ -133,7 +133,8 @@ class LearnedLevels:
         :data:`SAME_FLUX`; each level's ``kappa`` is over its own).
     left_out : tuple of LearnedLevel
         Logs learned but left out of the schedule: their R_s disagrees with the highest
-        level's (:func:`~selftune.tuning._resistance.misled_levels`).
+        level's (:func:`~selftune.tuning._resistance.misled_levels`), or their inductances
+        are too imprecise (:func:`~selftune.tuning._curvature.precise_levels`).
     left_out_text : str
         Why ("" when none were).
     """
@@ -423,7 +424,10 @@ def learn_levels(
     assert h is not None  # identify-then-design reads h off the log
     stated = float(nameplate) if isinstance(nameplate, int | float) else None
     kept, left_out = kept_levels(names, thetas, errors, stated, h)
-    found = with_curvature([learned_levels[k] for k in kept])
+    found, imprecise, loose = precise_levels(
+        with_curvature([learned_levels[k] for k in kept]), [names[k] for k in kept]
+    )
+    left_out = "; ".join(text for text in (left_out, loose) if text)
     problem = learning_problem(config)
     integral_weight = problem.integral_weight if config.integral_action else None
     top = found[-1].learned
@@ -440,5 +444,6 @@ def learn_levels(
     top_data = next(data for path, data in loaded if path == found[-1].source)
     return LearnedLevels(
         config, found, top_data, design, integral_weight, flux,
-        tuple(level for k, level in enumerate(learned_levels) if k not in kept), left_out,
+        tuple(level for k, level in enumerate(learned_levels) if k not in kept) + imprecise,
+        left_out,
     )  # fmt: skip

@@ -54,17 +54,18 @@ from ..learn._speeds import _part
 from ..model import (
     IPMSM,
     CurrentScheduleDesign,
-    RegulationProblem,
     SpeedCurrentDesign,
-    design_current_schedule,
-    design_speed_current_schedule,
     solve_digital_regulation,
 )
-from ..model._speed_current import PlantAt
 from ..sim import DriveSettings, RealisticDrive, Saturation, held, uniform
-from ._curvature import with_curvature
+from ._curvature import precise_levels, with_curvature
 from ._interior import CURRENT_REFERENCE_F, D_SHARE, check_current_range, current_steps
 from ._learning import learning_options, longer_batch
+from ._level_schedule import (
+    level_plants,
+    schedule_over_levels,
+    schedule_over_speed_and_levels,
+)
 from ._resistance import kept_levels, small_levels
 from ._settings import TuningSettings
 
@@ -189,7 +190,8 @@ class CurrentCommissioning:
         learner's message.
     left_out : tuple of CurrentLevel
         Levels learned but left out of the schedule: their R_s disagrees with the highest
-        level's or the nameplate's (:func:`~._resistance.misled_levels`).
+        level's or the nameplate's (:func:`~._resistance.misled_levels`), or their
+        inductances are too imprecise (:func:`~._curvature.precise_levels`).
     left_out_text : str
         Why, and which lowest levels were not learned ("" when none were).
     unlearned : tuple of float
@@ -363,109 +365,6 @@ def inductances_move(low: Array, high: Array) -> bool:
     return bool(np.max(np.abs(high[1:4] - low[1:4])) > INDUCTANCE_MOVE * scale)
 
 
-def by_current(currents: Array, thetas: Array) -> tuple[Array, Array]:
-    """The levels' ``i_q*`` (A) and parameters in rising ``i_q*``, as a schedule's grid
-    and an interpolation need (a negative torque's levels, by rising share, fall).
-
-    Parameters
-    ----------
-    currents : ndarray, shape (g,)
-        The levels' ``i_q*``, A, distinct.
-    thetas : ndarray, shape (g, 6)
-        Their identified parameters, row by row.
-    """
-    current, theta = np.asarray(currents, dtype=float), np.asarray(thetas, dtype=float)
-    order = np.argsort(current)
-    return current[order], theta[order]
-
-
-def level_plants(currents: Array, thetas: Array, structure: IncrementalStructure) -> PlantAt:
-    """The plant at a current and an electrical speed from the levels' identified models,
-    interpolated linearly in ``i_q*`` between them (the structure's model at that speed).
-
-    Parameters
-    ----------
-    currents : ndarray, shape (g,)
-        The levels' ``i_q*``, A, distinct, in any order (:func:`by_current`).
-    thetas : ndarray, shape (g, 6)
-        Their identified parameters (:func:`incremental_parameters`).
-    structure : IncrementalStructure
-        The structure (sampling period, hold), without the dead-time channels.
-    """
-    currents, thetas = by_current(currents, thetas)
-
-    def plant(current: float, speed: float) -> tuple[RegulationProblem, tuple[Array, Array, Array]]:
-        theta = np.array([np.interp(current, currents, column) for column in thetas.T])
-        at = replace(structure, electrical_speed=speed)
-        A, B, D = at.continuous(theta)
-        problem = RegulationProblem(
-            A=A, B=B, C=np.eye(2), D=D, E=np.zeros((3, 3)), F=CURRENT_REFERENCE_F
-        )
-        return problem, at(theta)
-
-    return plant
-
-
-def schedule_over_levels(
-    currents: Array, thetas: Array, structure: IncrementalStructure, Q: Array, R: Array,
-    *, input_delay: int, integral_weight: Array | None,
-) -> CurrentScheduleDesign:  # fmt: skip
-    """The digital optimum scheduled over ``i_q*`` on the levels' identified models,
-    interpolated linearly in ``i_q*`` between them (:func:`level_plants`,
-    :func:`~selftune.model.design_current_schedule`).
-
-    Parameters
-    ----------
-    currents : ndarray, shape (g,)
-        The levels' ``i_q*``, A, distinct, in any order (the grid is them rising,
-        :func:`by_current`).
-    thetas : ndarray, shape (g, 6)
-        Their identified parameters (:func:`incremental_parameters`).
-    structure : IncrementalStructure
-        The structure at the levels' electrical speed, sampling period and hold, without
-        the dead-time channels (the law's plant).
-    Q, R : ndarray
-        The continuous weights of the digital cost.
-    input_delay : int
-        The loop's delay, samples.
-    integral_weight : ndarray or None
-        ``Q_i`` (None: no integral action).
-    """
-    currents, thetas = by_current(currents, thetas)
-    plants = level_plants(currents, thetas, structure)
-
-    def plant(current: float) -> tuple[RegulationProblem, tuple[Array, Array, Array]]:
-        return plants(current, structure.electrical_speed)
-
-    return design_current_schedule(
-        plant, currents, Q, R, structure.h, input_delay=input_delay,
-        integral_weight=integral_weight,
-    )  # fmt: skip
-
-
-def schedule_over_speed_and_levels(
-    currents: Array, thetas: Array, structure: IncrementalStructure, Q: Array, R: Array,
-    electrical_speeds: Sequence[float], *, input_delay: int, integral_weight: Array | None,
-) -> SpeedCurrentDesign:  # fmt: skip
-    """The digital optimum scheduled over speed and ``i_q*`` together on the levels'
-    identified models (:func:`level_plants`; the incremental structure's model at each
-    speed), :func:`~selftune.model.design_speed_current_schedule` from the levels'
-    currents times ``electrical_speeds``.
-
-    Parameters
-    ----------
-    currents, thetas, structure, Q, R, input_delay, integral_weight
-        As :func:`schedule_over_levels`.
-    electrical_speeds : sequence of float
-        The initial speed grid, rad/s (electrical), strictly increasing.
-    """
-    currents, thetas = by_current(currents, thetas)
-    return design_speed_current_schedule(
-        level_plants(currents, thetas, structure), currents, electrical_speeds, Q, R,
-        structure.h, input_delay=input_delay, integral_weight=integral_weight,
-    )  # fmt: skip
-
-
 def _learning_problem(settings: TuningSettings) -> LearningProblem:
     """The current-reference form's learning problem of the settings' cost."""
     return LearningProblem(
@@ -598,7 +497,9 @@ def commission_over_current(
         np.array([level.standard_errors for level in learned_levels]), motor.R_s, settings.h,
         small_levels(float(np.hypot(*learned_levels[-1].reference)), settings.torque),
     )  # fmt: skip
-    found = with_curvature([learned_levels[k] for k in kept])
+    found, imprecise, loose = precise_levels(
+        with_curvature([learned_levels[k] for k in kept]), [names[k] for k in kept]
+    )
     currents = np.array([level.reference[1] for level in found])
     thetas = np.array([level.theta for level in found])
     structure = IncrementalStructure(w_e, settings.h, False, drive.voltage_hold)
@@ -615,6 +516,8 @@ def commission_over_current(
             input_delay=found[-1].learned.law.history, integral_weight=integral_weight,
         )  # fmt: skip
     left_out = tuple(level for k, level in enumerate(learned_levels) if k not in kept)
+    left_out += imprecise
+    why = "; ".join(text for text in (why, loose) if text)
     if unlearned:
         cause = str(unlearned[-1][1]).split(":")[0]
         named = ", ".join(f"{share:.0%}" for share, _ in unlearned)
