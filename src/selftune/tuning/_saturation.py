@@ -460,14 +460,19 @@ def commission_over_current(
     count = [0]
     levels: dict[float, CurrentLevel] = {}
     unlearned: list[tuple[float, SelftuneError]] = []
+
+    def left_below(share: float, error: SelftuneError) -> None:
+        """A level below every one learned, refused on its every log: left out."""
+        refusals.append((share, str(error)))
+        unlearned.append((share, error))
+
     for share in shares:
         try:
             levels[share] = learned(share)
         except SelftuneError as error:
             if levels or share == shares[-1]:  # only levels below every one learned
                 raise refused(error, share) from error
-            refusals.append((share, str(error)))
-            unlearned.append((share, error))
+            left_below(share, error)
     if len(levels) < 2:
         raise refused(unlearned[-1][1], unlearned[-1][0])
     for _ in range(LOW_BISECTIONS if unlearned else 0):  # nearer the currents held below
@@ -475,8 +480,7 @@ def commission_over_current(
         try:
             levels[middle] = learned(middle)
         except SelftuneError as error:
-            refusals.append((middle, str(error)))
-            unlearned.append((middle, error))
+            left_below(middle, error)
     while len(levels) < MAX_LEVELS:
         moving = [
             (a, b)
